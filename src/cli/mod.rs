@@ -1,0 +1,67 @@
+//! Subcommands of the binary and the helpers they share (scenario lookup, progress bars).
+
+pub mod bench;
+pub mod scan;
+pub mod scene;
+
+use anyhow::{bail, Context, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use stairbench::scenario::Scenario;
+use std::path::{Path, PathBuf};
+
+/// Folder searched for a scenario given by name (`exp2` → `scenarios/exp2.toml`).
+const SCENARIO_DIR: &str = "scenarios";
+
+/// The scenario named on the command line: a path, a name in `scenarios/`, or (none) the
+/// built-in default, the paper's Exp. 1.
+pub fn load_scenario(arg: Option<&Path>) -> Result<Scenario> {
+    let Some(arg) = arg else { return Ok(Scenario::default()) };
+    let path = resolve_scenario(arg)?;
+    Scenario::load(&path).map_err(anyhow::Error::from)
+}
+
+fn resolve_scenario(arg: &Path) -> Result<PathBuf> {
+    if arg.exists() {
+        return Ok(arg.to_path_buf());
+    }
+    let by_name = Path::new(SCENARIO_DIR).join(arg).with_extension("toml");
+    if arg.components().count() == 1 && by_name.exists() {
+        return Ok(by_name);
+    }
+    let known: Vec<String> = std::fs::read_dir(SCENARIO_DIR)
+        .map(|d| {
+            d.filter_map(|e| e.ok())
+                .filter_map(|e| e.path().file_stem().map(|s| s.to_string_lossy().into_owned()))
+                .collect()
+        })
+        .unwrap_or_default();
+    if known.is_empty() {
+        bail!("no scenario file {}", arg.display());
+    }
+    let mut known = known;
+    known.sort();
+    bail!("no scenario file {} (scenarios by name: {})", arg.display(), known.join(", "))
+}
+
+/// A progress bar on stderr (hidden when stderr is not a terminal or `quiet`).
+pub fn progress_bar(total: u64, what: &str, quiet: bool) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(total);
+    bar.set_style(
+        ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar.set_message(what.to_string());
+    bar
+}
+
+/// Creates the parent folder of an output file.
+pub fn ensure_parent(path: &Path) -> Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,107 @@
+//! Point clouds: the assembled sweep in a gravity-aligned frame, with the scan's row x beam
+//! organization kept when the cloud comes from a lidar (neighbours in the grid are neighbours
+//! on the surface, which perception may use).
+
+pub mod io;
+
+use nalgebra::{Point3, Unit, Vector3};
+
+/// Row x beam organization of a cloud that came from a scan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScanGrid {
+    rows: usize,
+    beams: usize,
+    cell_to_point: Vec<u32>,
+}
+
+impl ScanGrid {
+    /// Marker of a cell with no point.
+    pub const EMPTY: u32 = u32::MAX;
+
+    /// A grid of `rows` x `beams` cells; `cell_to_point[row * beams + beam]` is the index of
+    /// the cell's point or [`ScanGrid::EMPTY`]. `None` when the table's size is not
+    /// `rows * beams`.
+    pub fn new(rows: usize, beams: usize, cell_to_point: Vec<u32>) -> Option<Self> {
+        (cell_to_point.len() == rows.checked_mul(beams)?).then_some(Self { rows, beams, cell_to_point })
+    }
+
+    /// Rows in the grid.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Beams per row.
+    pub fn beams(&self) -> usize {
+        self.beams
+    }
+
+    /// The index of the point at (`row`, `beam`), if the beam returned.
+    pub fn point_at(&self, row: usize, beam: usize) -> Option<usize> {
+        if row >= self.rows || beam >= self.beams {
+            return None;
+        }
+        let v = self.cell_to_point[row * self.beams + beam];
+        (v != Self::EMPTY).then_some(v as usize)
+    }
+
+    /// The flat cell table (row-major).
+    pub fn cells(&self) -> &[u32] {
+        &self.cell_to_point
+    }
+}
+
+/// A point cloud in a gravity-aligned frame (the world frame in simulation).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointCloud {
+    points: Vec<Point3<f32>>,
+    viewpoint: Point3<f64>,
+    gravity: Unit<Vector3<f64>>,
+    grid: Option<ScanGrid>,
+}
+
+impl PointCloud {
+    /// A cloud of `points` seen from `viewpoint`, with `gravity` the unit direction of gravity.
+    pub fn new(
+        points: Vec<Point3<f32>>,
+        viewpoint: Point3<f64>,
+        gravity: Unit<Vector3<f64>>,
+        grid: Option<ScanGrid>,
+    ) -> Self {
+        Self { points, viewpoint, gravity, grid }
+    }
+
+    /// A cloud without organization, gravity along -z.
+    pub fn unorganized(points: Vec<Point3<f32>>, viewpoint: Point3<f64>) -> Self {
+        Self::new(points, viewpoint, -Vector3::z_axis(), None)
+    }
+
+    /// The points, metres.
+    pub fn points(&self) -> &[Point3<f32>] {
+        &self.points
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// Whether the cloud has no point.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// The sensor's (mean) optical centre, for orienting normals.
+    pub fn viewpoint(&self) -> Point3<f64> {
+        self.viewpoint
+    }
+
+    /// Unit direction of gravity in the cloud's frame.
+    pub fn gravity(&self) -> Unit<Vector3<f64>> {
+        self.gravity
+    }
+
+    /// The scan organization, when the cloud came from a lidar sweep.
+    pub fn grid(&self) -> Option<&ScanGrid> {
+        self.grid.as_ref()
+    }
+}

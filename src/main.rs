@@ -1,0 +1,42 @@
+//! The `stairbench` command line: argument parsing and dispatch only; the work is in the
+//! library and in `cli/`.
+
+mod cli;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Simulation-in-the-loop test bench for humanoid stair climbing: a MuJoCo staircase world,
+/// a simulated tilting Hokuyo lidar, the paper's perception and planning, an HRP-4-class robot.
+#[derive(Debug, Parser)]
+#[command(name = "stairbench", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Scan a scenario's world with the simulated tilting lidar and write the point cloud.
+    Scan(cli::scan::ScanArgs),
+    /// Build a scenario's world: print its ground truth, optionally write the MJCF.
+    Scene(cli::scene::SceneArgs),
+    /// Measure speed (rays per second of the simulated lidar, ...).
+    Bench(cli::bench::BenchArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Scan(a) => cli::scan::run(a),
+        Command::Scene(a) => cli::scene::run(a),
+        Command::Bench(a) => cli::bench::run(a),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

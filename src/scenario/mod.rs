@@ -1,0 +1,245 @@
+//! Scenario files: the TOML that describes one bench case (staircase, clutter, room, lidar,
+//! robot start, seed), its defaults (the paper's Exp. 1) and its validation.
+//!
+//! Units: metres and seconds; angles are in degrees in the file (the user's edge) and are
+//! converted with the `*_rad()` accessors. Unknown keys are rejected; every error names the
+//! field and, when the file has it, the line.
+
+mod validate;
+
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+pub use validate::ScenarioError;
+
+/// One bench case. Every field has a default; an empty file is the paper's Exp. 1 (§5).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Scenario {
+    /// Short name used in reports and output file names.
+    pub name: String,
+    /// Free text for people.
+    pub description: String,
+    /// Seed of every random draw of the case (range noise, dropouts).
+    pub seed: u64,
+    /// The staircase.
+    pub staircase: StaircaseSpec,
+    /// The room around it (floor, four walls, ceiling).
+    pub room: RoomSpec,
+    /// Extra boxes: clutter, walls, obstacles.
+    pub boxes: Vec<BoxSpec>,
+    /// The robot's start on the floor.
+    pub robot: RobotStart,
+    /// The tilting lidar.
+    pub lidar: LidarSpec,
+}
+
+impl Default for Scenario {
+    fn default() -> Self {
+        Self {
+            name: "exp1".into(),
+            description: "Paper Exp. 1: 3 steps, 50 cm wide, 20 cm rise, 27 cm tread, 11 x 7 x 3 m room"
+                .into(),
+            seed: 0,
+            staircase: StaircaseSpec::default(),
+            room: RoomSpec::default(),
+            boxes: Vec::new(),
+            robot: RobotStart::default(),
+            lidar: LidarSpec::default(),
+        }
+    }
+}
+
+/// A straight staircase of identical solid steps, each a box from the floor to its tread.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StaircaseSpec {
+    /// Number of steps (at least 1).
+    pub steps: u32,
+    /// Height of each step above the previous one, metres.
+    pub rise_m: f64,
+    /// Depth of each tread along the staircase direction, metres.
+    pub tread_m: f64,
+    /// Width of the steps across the staircase direction, metres.
+    pub width_m: f64,
+    /// Direction of ascent in the world, degrees about +z from +x.
+    pub yaw_deg: f64,
+    /// World (x, y) of the middle of the first step's front edge, on the floor, metres.
+    pub start_m: [f64; 2],
+    /// Extra depth of the top step (a landing), metres; 0 for none.
+    pub landing_m: f64,
+    /// Coulomb friction coefficient of the step surfaces.
+    pub friction: f64,
+}
+
+impl Default for StaircaseSpec {
+    fn default() -> Self {
+        Self {
+            steps: 3,
+            rise_m: 0.20,
+            tread_m: 0.27,
+            width_m: 0.50,
+            yaw_deg: 0.0,
+            start_m: [0.60, 0.0],
+            landing_m: 0.0,
+            friction: 0.7,
+        }
+    }
+}
+
+impl StaircaseSpec {
+    /// Direction of ascent, radians.
+    pub fn yaw_rad(&self) -> f64 {
+        self.yaw_deg.to_radians()
+    }
+}
+
+/// The room: a closed box with the floor at z = 0.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RoomSpec {
+    /// Inner size (x, y, z), metres.
+    pub size_m: [f64; 3],
+    /// World (x, y) of the room's centre, metres.
+    pub center_m: [f64; 2],
+    /// Whether the four walls exist.
+    pub walls: bool,
+    /// Whether the ceiling exists.
+    pub ceiling: bool,
+    /// Friction coefficient of the floor.
+    pub floor_friction: f64,
+}
+
+impl Default for RoomSpec {
+    fn default() -> Self {
+        // Exp. 1's room, 11 x 7 x 3 m, with x in [-3, 8] and y in [-3.5, 3.5].
+        Self { size_m: [11.0, 7.0, 3.0], center_m: [2.5, 0.0], walls: true, ceiling: true, floor_friction: 0.8 }
+    }
+}
+
+/// An extra box in the world (clutter, an obstacle, a wall).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BoxSpec {
+    /// Name for reports (optional).
+    pub name: String,
+    /// World position of the box's centre, metres.
+    pub center_m: [f64; 3],
+    /// Full extents (x, y, z) before the yaw, metres.
+    pub size_m: [f64; 3],
+    /// Rotation about +z, degrees.
+    pub yaw_deg: f64,
+}
+
+impl Default for BoxSpec {
+    fn default() -> Self {
+        Self { name: String::new(), center_m: [0.0, 0.0, 0.1], size_m: [0.2, 0.2, 0.2], yaw_deg: 0.0 }
+    }
+}
+
+/// Where the robot stands at the start: the floor point midway between its feet.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RobotStart {
+    /// World (x, y), metres.
+    pub position_m: [f64; 2],
+    /// Heading about +z, degrees.
+    pub yaw_deg: f64,
+}
+
+impl Default for RobotStart {
+    fn default() -> Self {
+        Self { position_m: [0.0, 0.0], yaw_deg: 0.0 }
+    }
+}
+
+/// The paper's sensor (§3): a Hokuyo UTM-30LX-EW tilted by a Dynamixel MX-64 on the robot's head.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LidarSpec {
+    /// Servo tilt axis origin in the robot's head frame, metres.
+    pub mount_xyz_m: [f64; 3],
+    /// Servo base orientation in the head frame (roll, pitch, yaw), degrees.
+    pub mount_rpy_deg: [f64; 3],
+    /// Scanner optical centre from the tilt axis, in the tilted frame, metres (Fig. 2: the
+    /// centre of the scanner is off the servo's axis).
+    pub axis_to_optical_m: [f64; 3],
+    /// Tilt at the start of a sweep, degrees (positive pitches the scan plane down).
+    pub tilt_start_deg: f64,
+    /// Tilt at the end of a sweep, degrees (§3: a 60 degree sweep).
+    pub tilt_end_deg: f64,
+    /// Servo speed during the sweep, degrees per second.
+    pub tilt_speed_dps: f64,
+    /// Servo encoder resolution, ticks per revolution (MX-64: 4096).
+    pub servo_ticks_per_rev: u32,
+    /// Scanner field of view, degrees (UTM-30LX-EW: 270).
+    pub fov_deg: f64,
+    /// Angle between beams, degrees (UTM-30LX-EW: 0.25).
+    pub resolution_deg: f64,
+    /// Time of one mirror revolution, one row, seconds (UTM-30LX-EW: 0.025).
+    pub row_period_s: f64,
+    /// Shortest range reported, metres.
+    pub range_min_m: f64,
+    /// Longest range reported, metres.
+    pub range_max_m: f64,
+    /// Standard deviation of the Gaussian range noise, metres (data sheet: 10 mm repeatability
+    /// below 10 m); 0 for none.
+    pub noise_sigma_m: f64,
+    /// Probability that a beam returns nothing, in [0, 1).
+    pub dropout_probability: f64,
+}
+
+impl Default for LidarSpec {
+    fn default() -> Self {
+        Self {
+            mount_xyz_m: [0.0, 0.0, 0.07],
+            mount_rpy_deg: [0.0, 0.0, 0.0],
+            axis_to_optical_m: [0.0, 0.0, 0.035],
+            tilt_start_deg: 10.0,
+            tilt_end_deg: 70.0,
+            tilt_speed_dps: 10.0,
+            servo_ticks_per_rev: 4096,
+            fov_deg: 270.0,
+            resolution_deg: 0.25,
+            row_period_s: 0.025,
+            range_min_m: 0.1,
+            range_max_m: 30.0,
+            noise_sigma_m: 0.01,
+            dropout_probability: 0.0,
+        }
+    }
+}
+
+impl Scenario {
+    /// Parses and validates a scenario from TOML text; `origin` names the source in errors.
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, ScenarioError> {
+        let scenario: Scenario =
+            toml::from_str(text).map_err(|e| ScenarioError::from_toml(origin, text, &e))?;
+        scenario.validate().map_err(|issue| issue.locate(origin, text))?;
+        Ok(scenario)
+    }
+
+    /// Reads, parses and validates a scenario file. Its name defaults to the file stem.
+    pub fn load(path: &Path) -> Result<Self, ScenarioError> {
+        let origin = path.display().to_string();
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| ScenarioError::Read { path: origin.clone(), source })?;
+        let mut scenario = Self::from_toml_str(&text, &origin)?;
+        if !text_sets_key(&text, "name") {
+            if let Some(stem) = path.file_stem() {
+                scenario.name = stem.to_string_lossy().into_owned();
+            }
+        }
+        Ok(scenario)
+    }
+
+    /// The scenario as TOML (every field, defaults included), for records and `--help` users.
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string_pretty(self).unwrap_or_default()
+    }
+}
+
+/// Whether the top-level table of a TOML text sets `key`.
+fn text_sets_key(text: &str, key: &str) -> bool {
+    toml::from_str::<toml::Table>(text).map(|t| t.contains_key(key)).unwrap_or(false)
+}

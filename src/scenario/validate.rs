@@ -1,0 +1,228 @@
+//! Validation of a parsed scenario, and the errors that name the offending field and line.
+
+use super::Scenario;
+
+/// Why a scenario file was refused.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    /// The file could not be read.
+    #[error("cannot read scenario {path}: {source}")]
+    Read {
+        /// The file's path.
+        path: String,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The file is not valid TOML, has an unknown key, or a value of the wrong type.
+    #[error("{origin}{}: {message}", line_suffix(*line))]
+    Syntax {
+        /// The file's name.
+        origin: String,
+        /// 1-based line, when known.
+        line: Option<usize>,
+        /// What the parser said.
+        message: String,
+    },
+    /// A value is out of its valid range.
+    #[error("{origin}{}: invalid `{field}`: {reason}", line_suffix(*line))]
+    Invalid {
+        /// The file's name.
+        origin: String,
+        /// 1-based line, when the file sets the field.
+        line: Option<usize>,
+        /// Dotted path of the field, e.g. `staircase.rise_m`.
+        field: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+}
+
+fn line_suffix(line: Option<usize>) -> String {
+    line.map(|l| format!(":{l}")).unwrap_or_default()
+}
+
+/// A field that failed validation, before its line is known.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Issue {
+    /// Dotted path, with `[i]` for array entries (`boxes[0].size_m`).
+    pub field: String,
+    /// What is wrong.
+    pub reason: String,
+}
+
+impl Issue {
+    /// Attaches the source name and the line that sets the field.
+    pub fn locate(self, origin: &str, text: &str) -> ScenarioError {
+        ScenarioError::Invalid {
+            origin: origin.to_string(),
+            line: line_of_field(text, &self.field),
+            field: self.field,
+            reason: self.reason,
+        }
+    }
+}
+
+impl ScenarioError {
+    pub(super) fn from_toml(origin: &str, text: &str, e: &toml::de::Error) -> Self {
+        let line = e.span().map(|s| line_of_offset(text, s.start));
+        Self::Syntax { origin: origin.to_string(), line, message: e.message().trim().to_string() }
+    }
+}
+
+fn line_of_offset(text: &str, offset: usize) -> usize {
+    text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
+}
+
+/// The 1-based line where `field` (a dotted path, `[i]` for array entries) is set.
+fn line_of_field(text: &str, field: &str) -> Option<usize> {
+    let doc = toml_edit::ImDocument::parse(text.to_string()).ok()?;
+    let parts: Vec<&str> = field.split('.').collect();
+    let span = span_of(doc.as_item(), &parts, None)?;
+    Some(line_of_offset(text, span.start))
+}
+
+/// The span of the deepest key of `path` found below `item` (the last one found wins).
+fn span_of(item: &toml_edit::Item, path: &[&str], found: Option<Span>) -> Option<Span> {
+    let Some((part, rest)) = path.split_first() else { return found };
+    let (key, index) = match part.split_once('[') {
+        Some((k, i)) => (k, i.trim_end_matches(']').parse::<usize>().ok()),
+        None => (*part, None),
+    };
+    let Some((k, v)) = item.as_table_like().and_then(|t| t.get_key_value(key)) else { return found };
+    let found = k.span().or(found);
+    match (index, v.as_array_of_tables()) {
+        (Some(i), Some(tables)) => match tables.get(i) {
+            Some(t) => {
+                let found = t.span().or(found);
+                let entry = toml_edit::Item::Table(t.clone());
+                span_of(&entry, rest, found)
+            }
+            None => found,
+        },
+        _ => span_of(v, rest, found),
+    }
+}
+
+type Span = std::ops::Range<usize>;
+
+fn check(issues: &mut Vec<Issue>, ok: bool, field: &str, reason: impl Into<String>) {
+    if !ok {
+        issues.push(Issue { field: field.to_string(), reason: reason.into() });
+    }
+}
+
+fn finite(issues: &mut Vec<Issue>, field: &str, values: &[f64]) -> bool {
+    let ok = values.iter().all(|v| v.is_finite());
+    check(issues, ok, field, "must be a finite number (not NaN or infinite)");
+    ok
+}
+
+fn positive(issues: &mut Vec<Issue>, field: &str, v: f64) {
+    if finite(issues, field, &[v]) {
+        check(issues, v > 0.0, field, format!("must be > 0, got {v}"));
+    }
+}
+
+fn non_negative(issues: &mut Vec<Issue>, field: &str, v: f64) {
+    if finite(issues, field, &[v]) {
+        check(issues, v >= 0.0, field, format!("must be >= 0, got {v}"));
+    }
+}
+
+impl Scenario {
+    /// Checks every field; returns the first problem found (in file order).
+    pub fn validate(&self) -> Result<(), Issue> {
+        match self.issues().into_iter().next() {
+            Some(issue) => Err(issue),
+            None => Ok(()),
+        }
+    }
+
+    /// Every problem with the scenario, in file order.
+    pub fn issues(&self) -> Vec<Issue> {
+        let mut v = Vec::new();
+        let s = &self.staircase;
+        check(&mut v, s.steps >= 1, "staircase.steps", "must be at least 1");
+        check(&mut v, s.steps <= 200, "staircase.steps", format!("{} steps is more than 200", s.steps));
+        positive(&mut v, "staircase.rise_m", s.rise_m);
+        positive(&mut v, "staircase.tread_m", s.tread_m);
+        positive(&mut v, "staircase.width_m", s.width_m);
+        finite(&mut v, "staircase.yaw_deg", &[s.yaw_deg]);
+        finite(&mut v, "staircase.start_m", &s.start_m);
+        non_negative(&mut v, "staircase.landing_m", s.landing_m);
+        positive(&mut v, "staircase.friction", s.friction);
+
+        let r = &self.room;
+        if finite(&mut v, "room.size_m", &r.size_m) {
+            check(&mut v, r.size_m.iter().all(|&x| x > 0.0), "room.size_m", "every size must be > 0");
+        }
+        finite(&mut v, "room.center_m", &r.center_m);
+        positive(&mut v, "room.floor_friction", r.floor_friction);
+
+        for (i, b) in self.boxes.iter().enumerate() {
+            finite(&mut v, &format!("boxes[{i}].center_m"), &b.center_m);
+            let f = format!("boxes[{i}].size_m");
+            if finite(&mut v, &f, &b.size_m) {
+                check(&mut v, b.size_m.iter().all(|&x| x > 0.0), &f, "every size must be > 0");
+            }
+            finite(&mut v, &format!("boxes[{i}].yaw_deg"), &[b.yaw_deg]);
+        }
+
+        finite(&mut v, "robot.position_m", &self.robot.position_m);
+        finite(&mut v, "robot.yaw_deg", &[self.robot.yaw_deg]);
+
+        let l = &self.lidar;
+        finite(&mut v, "lidar.mount_xyz_m", &l.mount_xyz_m);
+        finite(&mut v, "lidar.mount_rpy_deg", &l.mount_rpy_deg);
+        finite(&mut v, "lidar.axis_to_optical_m", &l.axis_to_optical_m);
+        if finite(&mut v, "lidar.tilt_start_deg", &[l.tilt_start_deg]) {
+            check(&mut v, l.tilt_start_deg.abs() <= 90.0, "lidar.tilt_start_deg", "must be within +/-90");
+        }
+        if finite(&mut v, "lidar.tilt_end_deg", &[l.tilt_end_deg]) {
+            check(&mut v, l.tilt_end_deg.abs() <= 90.0, "lidar.tilt_end_deg", "must be within +/-90");
+            check(
+                &mut v,
+                l.tilt_end_deg != l.tilt_start_deg,
+                "lidar.tilt_end_deg",
+                "must differ from tilt_start_deg (a sweep needs a range)",
+            );
+        }
+        positive(&mut v, "lidar.tilt_speed_dps", l.tilt_speed_dps);
+        check(&mut v, l.servo_ticks_per_rev >= 4, "lidar.servo_ticks_per_rev", "must be at least 4");
+        if finite(&mut v, "lidar.fov_deg", &[l.fov_deg]) {
+            check(&mut v, l.fov_deg > 0.0 && l.fov_deg <= 360.0, "lidar.fov_deg", "must be in (0, 360]");
+        }
+        if finite(&mut v, "lidar.resolution_deg", &[l.resolution_deg]) {
+            check(
+                &mut v,
+                l.resolution_deg > 0.0 && l.resolution_deg <= l.fov_deg.abs(),
+                "lidar.resolution_deg",
+                "must be > 0 and at most the field of view",
+            );
+            if l.resolution_deg > 0.0 && l.fov_deg.is_finite() {
+                let beams = l.fov_deg / l.resolution_deg;
+                check(&mut v, beams <= 100_000.0, "lidar.resolution_deg", "gives more than 100000 beams a row");
+            }
+        }
+        positive(&mut v, "lidar.row_period_s", l.row_period_s);
+        positive(&mut v, "lidar.range_min_m", l.range_min_m);
+        if finite(&mut v, "lidar.range_max_m", &[l.range_max_m]) {
+            check(&mut v, l.range_max_m > l.range_min_m, "lidar.range_max_m", "must exceed range_min_m");
+        }
+        non_negative(&mut v, "lidar.noise_sigma_m", l.noise_sigma_m);
+        if finite(&mut v, "lidar.dropout_probability", &[l.dropout_probability]) {
+            let p = l.dropout_probability;
+            check(&mut v, (0.0..1.0).contains(&p), "lidar.dropout_probability", "must be in [0, 1)");
+        }
+        if l.tilt_speed_dps > 0.0 && l.row_period_s > 0.0 && l.tilt_speed_dps.is_finite() {
+            let rows = (l.tilt_end_deg - l.tilt_start_deg).abs() / l.tilt_speed_dps / l.row_period_s;
+            check(
+                &mut v,
+                rows <= 100_000.0,
+                "lidar.tilt_speed_dps",
+                format!("a sweep of {rows:.0} rows is too long (at most 100000)"),
+            );
+        }
+        v
+    }
+}

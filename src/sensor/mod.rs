@@ -1,0 +1,89 @@
+//! The paper's sensor (§3): a Hokuyo UTM-30LX-EW 2-D lidar tilted by a Dynamixel MX-64 servo.
+//!
+//! Every source (the MuJoCo simulation, the real serial drivers, an MCAP replay) produces the
+//! same [`ScanRow`]s; [`assemble`] turns a sweep of rows into a gravity-aligned point cloud.
+
+pub mod assemble;
+pub mod lidar;
+pub mod servo;
+pub mod sim;
+
+pub use assemble::{assemble, AssembleParams};
+pub use lidar::LidarModel;
+pub use servo::TiltSweep;
+pub use sim::SimLidar;
+
+use nalgebra::Vector3;
+
+/// One row of the lidar: one mirror revolution, `beams` ranges in a plane.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScanRow {
+    /// Time of the row's first beam on the source's clock, seconds.
+    pub stamp_s: f64,
+    /// Tilt reported by the servo at `stamp_s`, radians (quantized to its encoder ticks).
+    pub tilt_rad: f64,
+    /// Range of each beam, metres, first beam first; 0 means no return (out of range,
+    /// dropout, nothing hit), as the Hokuyo reports errors below its minimum range.
+    pub ranges_m: Vec<f32>,
+    /// Gravity direction measured by the IMU, unit vector in the servo base (mount) frame.
+    pub gravity_mount: Vector3<f64>,
+}
+
+impl ScanRow {
+    /// Whether beam `i` returned a range.
+    pub fn has_return(&self, i: usize) -> bool {
+        self.ranges_m.get(i).is_some_and(|r| r.is_finite() && *r > 0.0)
+    }
+}
+
+/// Why a sensor could not produce or assemble rows.
+#[derive(Debug, thiserror::Error)]
+pub enum SensorError {
+    /// A row's length differs from the lidar's beam count.
+    #[error("row {row} has {got} ranges, the lidar has {expected} beams")]
+    RowLength {
+        /// Index of the row in the sweep.
+        row: usize,
+        /// Ranges in the row.
+        got: usize,
+        /// Beams of the lidar.
+        expected: usize,
+    },
+    /// Stamps or tilts that are not finite numbers.
+    #[error("row {row} has a non-finite stamp or tilt")]
+    NonFinite {
+        /// Index of the row in the sweep.
+        row: usize,
+    },
+    /// The simulated world is missing a frame the lidar needs.
+    #[error(transparent)]
+    Sim(#[from] crate::sim::SimError),
+}
+
+/// A whole tilt sweep: the rows and what is needed to assemble them.
+#[derive(Debug, Clone)]
+pub struct Sweep {
+    /// The rows, in time order.
+    pub rows: Vec<ScanRow>,
+    /// The lidar that produced them.
+    pub lidar: LidarModel,
+    /// Pose of the servo base (tilt axis frame) in the cloud's frame during the sweep.
+    pub mount_to_world: nalgebra::Isometry3<f64>,
+}
+
+impl Sweep {
+    /// The sweep's point cloud.
+    pub fn assemble(&self, params: &AssembleParams) -> Result<crate::cloud::PointCloud, SensorError> {
+        assemble(&self.rows, &self.lidar, &self.mount_to_world, params)
+    }
+
+    /// Beams cast in the sweep.
+    pub fn beam_count(&self) -> usize {
+        self.rows.len() * self.lidar.beams()
+    }
+
+    /// Beams that returned a range.
+    pub fn return_count(&self) -> usize {
+        self.rows.iter().map(|r| (0..r.ranges_m.len()).filter(|&i| r.has_return(i)).count()).sum()
+    }
+}

@@ -1,0 +1,5 @@
+//! MuJoCo side of the bench: the compiled world and what is asked of it (ray casts, frames).
+
+pub mod world;
+
+pub use world::{RayHit, SimError, World};

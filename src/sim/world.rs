@@ -1,0 +1,124 @@
+//! A compiled MuJoCo world (model + data) built from a [`Scene`] and a robot fragment, with
+//! thread-safe ray casting for the simulated lidar.
+
+use crate::scene::mjcf::{world_xml, RobotFragment, ROBOT_GEOM_GROUP};
+use crate::scene::Scene;
+use mujoco_rs::mujoco_c::{mjNGROUP, mj_ray};
+use mujoco_rs::prelude::{MjData, MjModel, MjtObjBase};
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use std::sync::Arc;
+
+/// Why a world could not be built or queried.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    /// MuJoCo refused the generated MJCF (a bug of the generator, or a bad robot fragment).
+    #[error("MuJoCo could not compile the world: {0}")]
+    Compile(String),
+    /// A frame the bench needs is missing from the model.
+    #[error("the world has no site named `{0}`")]
+    MissingSite(String),
+}
+
+/// One ray's hit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RayHit {
+    /// Distance along the (unit) ray direction, metres.
+    pub distance_m: f64,
+    /// Id of the geom hit.
+    pub geom: usize,
+}
+
+/// The MuJoCo model and data of one world. `data` holds the current state; ray casts read it.
+pub struct World {
+    model: Arc<MjModel>,
+    data: MjData<Arc<MjModel>>,
+    xml: String,
+    lidar_groups: [u8; mjNGROUP as usize],
+}
+
+impl World {
+    /// Compiles the world of `scene` with `robot` in it and runs forward kinematics once.
+    pub fn new(scene: &Scene, robot: &RobotFragment) -> Result<Self, SimError> {
+        let xml = world_xml(scene, robot);
+        Self::from_xml(xml)
+    }
+
+    /// Compiles an MJCF text (geoms of group 2 are treated as the robot's).
+    pub fn from_xml(xml: String) -> Result<Self, SimError> {
+        let model = MjModel::from_xml_string(&xml).map_err(|e| SimError::Compile(e.to_string()))?;
+        let model = Arc::new(model);
+        let mut data = MjData::new(model.clone());
+        data.forward();
+        let mut lidar_groups = [1u8; mjNGROUP as usize];
+        lidar_groups[ROBOT_GEOM_GROUP] = 0;
+        Ok(Self { model, data, xml, lidar_groups })
+    }
+
+    /// The compiled model.
+    pub fn model(&self) -> &MjModel {
+        &self.model
+    }
+
+    /// The simulation state.
+    pub fn data(&self) -> &MjData<Arc<MjModel>> {
+        &self.data
+    }
+
+    /// The simulation state, mutable (step it, set joints; call `forward` before ray casts).
+    pub fn data_mut(&mut self) -> &mut MjData<Arc<MjModel>> {
+        &mut self.data
+    }
+
+    /// The MJCF text the world was compiled from.
+    pub fn xml(&self) -> &str {
+        &self.xml
+    }
+
+    /// Id of a site by name.
+    pub fn site_id(&self, name: &str) -> Result<usize, SimError> {
+        self.model.name_to_id(MjtObjBase::mjOBJ_SITE, name).ok_or_else(|| SimError::MissingSite(name.to_string()))
+    }
+
+    /// World pose of a site, from the last forward kinematics.
+    pub fn site_pose(&self, site: usize) -> Isometry3<f64> {
+        let p = self.data.site_xpos()[site];
+        let m = self.data.site_xmat()[site];
+        let r = Rotation3::from_matrix_unchecked(Matrix3::from_row_slice(&m));
+        Isometry3::from_parts(Translation3::new(p[0], p[1], p[2]), UnitQuaternion::from_rotation_matrix(&r))
+    }
+
+    /// Geom group of geom `id`.
+    pub fn geom_group(&self, id: usize) -> usize {
+        self.model.geom_group()[id] as usize
+    }
+
+    /// Name of geom `id` (empty when unnamed).
+    pub fn geom_name(&self, id: usize) -> &str {
+        self.model.id_to_name(MjtObjBase::mjOBJ_GEOM, id).unwrap_or("")
+    }
+
+    /// Casts one ray from `origin` along the unit vector `dir` against every geom except the
+    /// robot's, as of the last forward kinematics. Thread-safe: reads the state only.
+    pub fn ray(&self, origin: &Point3<f64>, dir: &Vector3<f64>) -> Option<RayHit> {
+        let pnt = [origin.x, origin.y, origin.z];
+        let vec = [dir.x, dir.y, dir.z];
+        let mut geom = -1i32;
+        // SAFETY: mj_ray reads the model and the data only (both const in its C signature);
+        // the pointers are valid for the call, the group array has mjNGROUP entries and the
+        // normal output may be null.
+        let dist = unsafe {
+            mj_ray(
+                self.model.ffi(),
+                self.data.ffi(),
+                &pnt,
+                &vec,
+                self.lidar_groups.as_ptr(),
+                true,
+                -1,
+                &mut geom,
+                std::ptr::null_mut(),
+            )
+        };
+        (geom >= 0 && dist >= 0.0).then_some(RayHit { distance_m: dist, geom: geom as usize })
+    }
+}
