@@ -55,8 +55,20 @@ pub fn run(a: ScanArgs) -> Result<ExitCode> {
     write_cloud(&cloud, &a.output, format)?;
 
     let beams = sweep.beam_count();
-    println!("scenario {}: {} rows x {} beams = {} beams over {:.2} s of sweep", scene.name(), sweep.rows.len(), sweep.lidar.beams(), beams, sweep.rows.len() as f64 * sweep.lidar.row_period_s());
-    println!("  {} points ({:.1} % returned), noise sigma {:.1} mm", cloud.len(), 100.0 * cloud.len() as f64 / beams.max(1) as f64, scenario.lidar.noise_sigma_m * 1000.0);
+    println!(
+        "scenario {}: {} rows x {} beams = {} beams over {:.2} s of sweep",
+        scene.name(),
+        sweep.rows.len(),
+        sweep.lidar.beams(),
+        beams,
+        sweep.rows.len() as f64 * sweep.lidar.row_period_s()
+    );
+    println!(
+        "  {} points ({:.1} % returned), noise sigma {:.1} mm",
+        cloud.len(),
+        100.0 * cloud.len() as f64 / beams.max(1) as f64,
+        scenario.lidar.noise_sigma_m * 1000.0
+    );
     for step in scene.steps() {
         let on_top = cloud
             .points()

@@ -54,7 +54,8 @@ pub fn run(a: SceneArgs) -> Result<ExitCode> {
     }
     if let Some(out) = a.output {
         super::ensure_parent(&out)?;
-        std::fs::write(&out, world_xml(&scene, &robot)).with_context(|| format!("cannot write {}", out.display()))?;
+        std::fs::write(&out, world_xml(&scene, &robot))
+            .with_context(|| format!("cannot write {}", out.display()))?;
         println!("MJCF written to {}", out.display());
     }
     Ok(ExitCode::SUCCESS)

@@ -206,7 +206,8 @@ fn ply_scalar(name: &str) -> Option<Scalar> {
 }
 
 fn find_xyz(names: &[String], path: &Path) -> Result<[usize; 3], CloudIoError> {
-    let find = |n: &str| names.iter().position(|x| x == n).ok_or_else(|| fmt_err(path, format!("no `{n}` field")));
+    let find =
+        |n: &str| names.iter().position(|x| x == n).ok_or_else(|| fmt_err(path, format!("no `{n}` field")));
     Ok([find("x")?, find("y")?, find("z")?])
 }
 
@@ -235,7 +236,8 @@ fn parse_ply_header(lines: &[String], path: &Path) -> Result<Header, CloudIoErro
                 if count.is_some() || !fields.is_empty() {
                     return Err(fmt_err(path, "the vertex element must come first"));
                 }
-                count = Some(n.parse::<usize>().map_err(|_| fmt_err(path, format!("bad vertex count `{n}`")))?);
+                count =
+                    Some(n.parse::<usize>().map_err(|_| fmt_err(path, format!("bad vertex count `{n}`")))?);
                 in_vertex = true;
             }
             ["element", ..] => {
@@ -292,7 +294,12 @@ fn parse_pcd_header(lines: &[String], path: &Path) -> Result<Header, CloudIoErro
                 encoding = match rest.first().copied() {
                     Some("ascii") => Some(Encoding::Ascii),
                     Some("binary") => Some(Encoding::BinaryLe),
-                    Some(other) => return Err(fmt_err(path, format!("PCD DATA `{other}` is not supported (use ascii or binary)"))),
+                    Some(other) => {
+                        return Err(fmt_err(
+                            path,
+                            format!("PCD DATA `{other}` is not supported (use ascii or binary)"),
+                        ))
+                    }
                     None => None,
                 }
             }
@@ -302,7 +309,11 @@ fn parse_pcd_header(lines: &[String], path: &Path) -> Result<Header, CloudIoErro
     if counts.is_empty() {
         counts = vec![1; names.len()];
     }
-    if names.is_empty() || sizes.len() != names.len() || types.len() != names.len() || counts.len() != names.len() {
+    if names.is_empty()
+        || sizes.len() != names.len()
+        || types.len() != names.len()
+        || counts.len() != names.len()
+    {
         return Err(fmt_err(path, "FIELDS, SIZE, TYPE and COUNT disagree"));
     }
     let mut fields = Vec::new();
@@ -316,7 +327,9 @@ fn parse_pcd_header(lines: &[String], path: &Path) -> Result<Header, CloudIoErro
             ("U", 2) => Scalar::U16,
             ("I", 4) => Scalar::I32,
             ("U", 4) => Scalar::U32,
-            (t, s) => return Err(fmt_err(path, format!("field `{}` has unsupported TYPE {t} SIZE {s}", names[i]))),
+            (t, s) => {
+                return Err(fmt_err(path, format!("field `{}` has unsupported TYPE {t} SIZE {s}", names[i])))
+            }
         };
         if counts[i] == 0 {
             return Err(fmt_err(path, format!("field `{}` has COUNT 0", names[i])));
@@ -351,7 +364,10 @@ fn read_binary(r: &mut impl Read, h: &Header, path: &Path) -> Result<Vec<Point3<
     let mut data = Vec::new();
     r.take((size * h.count) as u64).read_to_end(&mut data).map_err(io_err(path))?;
     if data.len() < size * h.count {
-        return Err(fmt_err(path, format!("truncated: {} of {} points present", data.len() / size.max(1), h.count)));
+        return Err(fmt_err(
+            path,
+            format!("truncated: {} of {} points present", data.len() / size.max(1), h.count),
+        ));
     }
     Ok(data
         .chunks_exact(size)
@@ -376,7 +392,9 @@ fn read_ascii(r: &mut impl BufRead, h: &Header, path: &Path) -> Result<Vec<Point
             continue;
         }
         let get = |k: usize| -> Result<f32, CloudIoError> {
-            let s = vals.get(offs[h.xyz[k]]).ok_or_else(|| fmt_err(path, format!("point {} has too few values", out.len())))?;
+            let s = vals
+                .get(offs[h.xyz[k]])
+                .ok_or_else(|| fmt_err(path, format!("point {} has too few values", out.len())))?;
             s.parse::<f32>().map_err(|_| fmt_err(path, format!("point {}: `{s}` is not a number", out.len())))
         };
         out.push(Point3::new(get(0)?, get(1)?, get(2)?));
@@ -389,7 +407,8 @@ mod tests {
     use super::*;
 
     fn sample() -> PointCloud {
-        let pts = vec![Point3::new(1.0, 2.0, 3.0), Point3::new(-0.5, 0.25, 0.0), Point3::new(f32::NAN, 0.0, 1.0)];
+        let pts =
+            vec![Point3::new(1.0, 2.0, 3.0), Point3::new(-0.5, 0.25, 0.0), Point3::new(f32::NAN, 0.0, 1.0)];
         PointCloud::unorganized(pts, Point3::new(0.0, 0.0, 1.4))
     }
 
@@ -416,13 +435,21 @@ mod tests {
         std::fs::write(&p, "VERSION 0.7\nFIELDS rgb x y z\nSIZE 4 4 4 4\nTYPE U F F F\nCOUNT 1 1 1 1\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA ascii\n7 1 2 3\n8 4 5 6\n").unwrap();
         let c = read_cloud(&p).unwrap();
         assert_eq!(c.points()[1], Point3::new(4.0, 5.0, 6.0));
-        std::fs::write(&p, "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 5\nDATA binary\n\x01\x02").unwrap();
+        std::fs::write(
+            &p,
+            "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 5\nDATA binary\n\x01\x02",
+        )
+        .unwrap();
         let e = read_cloud(&p).unwrap_err().to_string();
         assert!(e.contains("truncated"), "{e}");
         std::fs::write(&p, "garbage").unwrap();
         assert!(read_cloud(&p).is_err());
         let q = dir.join("c.ply");
-        std::fs::write(&q, "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n1 2\n").unwrap();
+        std::fs::write(
+            &q,
+            "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n1 2\n",
+        )
+        .unwrap();
         assert!(read_cloud(&q).unwrap_err().to_string().contains("no `z` field"));
     }
 }

@@ -113,7 +113,13 @@ pub struct RoomSpec {
 impl Default for RoomSpec {
     fn default() -> Self {
         // Exp. 1's room, 11 x 7 x 3 m, with x in [-3, 8] and y in [-3.5, 3.5].
-        Self { size_m: [11.0, 7.0, 3.0], center_m: [2.5, 0.0], walls: true, ceiling: true, floor_friction: 0.8 }
+        Self {
+            size_m: [11.0, 7.0, 3.0],
+            center_m: [2.5, 0.0],
+            walls: true,
+            ceiling: true,
+            floor_friction: 0.8,
+        }
     }
 }
 

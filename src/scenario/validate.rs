@@ -201,7 +201,12 @@ impl Scenario {
             );
             if l.resolution_deg > 0.0 && l.fov_deg.is_finite() {
                 let beams = l.fov_deg / l.resolution_deg;
-                check(&mut v, beams <= 100_000.0, "lidar.resolution_deg", "gives more than 100000 beams a row");
+                check(
+                    &mut v,
+                    beams <= 100_000.0,
+                    "lidar.resolution_deg",
+                    "gives more than 100000 beams a row",
+                );
             }
         }
         positive(&mut v, "lidar.row_period_s", l.row_period_s);

@@ -136,7 +136,14 @@ mod tests {
 
     #[test]
     fn signed_distance_of_a_turned_box() {
-        let b = SceneBox::new("b", SurfaceRole::Clutter, Point3::new(1.0, 0.0, 0.5), Vector3::new(0.5, 0.25, 0.5), std::f64::consts::FRAC_PI_2, 0.7);
+        let b = SceneBox::new(
+            "b",
+            SurfaceRole::Clutter,
+            Point3::new(1.0, 0.0, 0.5),
+            Vector3::new(0.5, 0.25, 0.5),
+            std::f64::consts::FRAC_PI_2,
+            0.7,
+        );
         // turned by 90 degrees: extends 0.25 along x and 0.5 along y
         assert!((b.signed_distance(&Point3::new(1.0, 0.0, 0.5)) + 0.25).abs() < 1e-12);
         assert!((b.signed_distance(&Point3::new(1.5, 0.0, 0.5)) - 0.25).abs() < 1e-12);

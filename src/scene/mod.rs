@@ -36,7 +36,14 @@ impl Scene {
         let c = Vector2::new(r.center_m[0], r.center_m[1]);
         let at = |x: f64, y: f64, z: f64| Point3::new(c.x + x, c.y + y, z);
         let floor_half = Vector3::new(sx / 2.0 + SLAB_M, sy / 2.0 + SLAB_M, SLAB_M / 2.0);
-        boxes.push(SceneBox::new("floor", SurfaceRole::Floor, at(0.0, 0.0, -SLAB_M / 2.0), floor_half, 0.0, r.floor_friction));
+        boxes.push(SceneBox::new(
+            "floor",
+            SurfaceRole::Floor,
+            at(0.0, 0.0, -SLAB_M / 2.0),
+            floor_half,
+            0.0,
+            r.floor_friction,
+        ));
         if r.walls {
             let h = sz / 2.0;
             let wx = Vector3::new(SLAB_M / 2.0, sy / 2.0 + SLAB_M, h);
@@ -49,7 +56,14 @@ impl Scene {
             boxes.push(SceneBox::new("wall_right", SurfaceRole::Wall, at(0.0, -off_y, h), wy, 0.0, 0.5));
         }
         if r.ceiling {
-            boxes.push(SceneBox::new("ceiling", SurfaceRole::Ceiling, at(0.0, 0.0, sz + SLAB_M / 2.0), floor_half, 0.0, 0.5));
+            boxes.push(SceneBox::new(
+                "ceiling",
+                SurfaceRole::Ceiling,
+                at(0.0, 0.0, sz + SLAB_M / 2.0),
+                floor_half,
+                0.0,
+                0.5,
+            ));
         }
 
         let st = &s.staircase;
@@ -63,14 +77,28 @@ impl Scene {
             let mid = start + along * (st.tread_m * i as f64 + depth / 2.0);
             let half = Vector3::new(depth / 2.0, st.width_m / 2.0, top / 2.0);
             let centre = Point3::new(mid.x, mid.y, top / 2.0);
-            let b = SceneBox::new(&format!("step_{}", i + 1), SurfaceRole::Step(i), centre, half, yaw, st.friction);
+            let b = SceneBox::new(
+                &format!("step_{}", i + 1),
+                SurfaceRole::Step(i),
+                centre,
+                half,
+                yaw,
+                st.friction,
+            );
             steps.push(StepTop::of_box(i, &b));
             boxes.push(b);
         }
         for (i, b) in s.boxes.iter().enumerate() {
             let name = if b.name.is_empty() { format!("box_{}", i + 1) } else { b.name.clone() };
             let half = Vector3::from(b.size_m) / 2.0;
-            boxes.push(SceneBox::new(&name, SurfaceRole::Clutter, Point3::from(b.center_m), half, b.yaw_deg.to_radians(), 0.7));
+            boxes.push(SceneBox::new(
+                &name,
+                SurfaceRole::Clutter,
+                Point3::from(b.center_m),
+                half,
+                b.yaw_deg.to_radians(),
+                0.7,
+            ));
         }
         let robot_start = Isometry3::from_parts(
             Translation3::new(s.robot.position_m[0], s.robot.position_m[1], 0.0),
@@ -111,8 +139,6 @@ impl Scene {
 
     /// The box nearest to `p` (by distance to its surface).
     pub fn nearest_box(&self, p: &Point3<f64>) -> Option<&SceneBox> {
-        self.boxes
-            .iter()
-            .min_by(|a, b| a.signed_distance(p).abs().total_cmp(&b.signed_distance(p).abs()))
+        self.boxes.iter().min_by(|a, b| a.signed_distance(p).abs().total_cmp(&b.signed_distance(p).abs()))
     }
 }

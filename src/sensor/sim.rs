@@ -61,7 +61,8 @@ impl<'w> SimLidar<'w> {
     pub fn row_with_hits(&self, k: usize) -> (ScanRow, Vec<Option<RayHit>>) {
         let stamp_s = self.sweep.row_stamp_s(k);
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed ^ (k as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
-        let noise = Normal::new(0.0, self.lidar.noise_sigma_m).ok().filter(|_| self.lidar.noise_sigma_m > 0.0);
+        let noise =
+            Normal::new(0.0, self.lidar.noise_sigma_m).ok().filter(|_| self.lidar.noise_sigma_m > 0.0);
         let beams = self.lidar.beams();
         let mut ranges_m = Vec::with_capacity(beams);
         let mut hits = Vec::with_capacity(beams);
@@ -75,7 +76,8 @@ impl<'w> SimLidar<'w> {
             if let Some(n) = &noise {
                 range += n.sample(&mut rng);
             }
-            let dropped = self.lidar.dropout_probability > 0.0 && rng.random::<f64>() < self.lidar.dropout_probability;
+            let dropped =
+                self.lidar.dropout_probability > 0.0 && rng.random::<f64>() < self.lidar.dropout_probability;
             let valid = hit.is_some() && !dropped && self.lidar.in_range(range);
             ranges_m.push(if valid { range as f32 } else { 0.0 });
             hits.push(hit);

@@ -76,7 +76,9 @@ impl World {
 
     /// Id of a site by name.
     pub fn site_id(&self, name: &str) -> Result<usize, SimError> {
-        self.model.name_to_id(MjtObjBase::mjOBJ_SITE, name).ok_or_else(|| SimError::MissingSite(name.to_string()))
+        self.model
+            .name_to_id(MjtObjBase::mjOBJ_SITE, name)
+            .ok_or_else(|| SimError::MissingSite(name.to_string()))
     }
 
     /// World pose of a site, from the last forward kinematics.
