@@ -5,12 +5,15 @@ CARGO ?= cargo
 BIN := target/release/stairbench
 SCENARIO ?= scenarios/exp1.toml
 
+SHELL := /bin/bash
+
 .PHONY: all setup build run test lint bench clean
 
 all: build
 
 setup:
 	@./scripts/setup-mujoco.sh
+	@mkdir -p out
 
 build: setup
 	$(CARGO) build --release
@@ -19,8 +22,10 @@ build: setup
 run: build
 	$(BIN) scan $(SCENARIO) -o out/exp1.ply
 
+# Runs every test in release mode, then prints one total line ("N passed, N failed").
 test: setup
-	$(CARGO) test --release
+	@set -o pipefail; $(CARGO) test --release 2>&1 | tee out/test.log
+	@awk '/^test result:/ { p += $$4; f += $$6; i += $$8 } END { printf "stairbench: %d passed, %d failed, %d skipped\n", p, f, i }' out/test.log
 
 lint: setup
 	$(CARGO) fmt --check
