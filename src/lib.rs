@@ -8,6 +8,8 @@
 #![warn(missing_docs)]
 
 pub mod cloud;
+pub mod geom2d;
+pub mod perception;
 pub mod scenario;
 pub mod scene;
 pub mod sensor;

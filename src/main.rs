@@ -19,6 +19,8 @@ struct Cli {
 enum Command {
     /// Scan a scenario's world with the simulated tilting lidar and write the point cloud.
     Scan(cli::scan::ScanArgs),
+    /// Find the staircase's steps in a scan (the paper's §4 perception).
+    Perceive(cli::perceive::PerceiveArgs),
     /// Build a scenario's world: print its ground truth, optionally write the MJCF.
     Scene(cli::scene::SceneArgs),
     /// Measure speed (rays per second of the simulated lidar, ...).
@@ -30,6 +32,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Scan(a) => cli::scan::run(a),
         Command::Scene(a) => cli::scene::run(a),
+        Command::Perceive(a) => cli::perceive::run(a),
         Command::Bench(a) => cli::bench::run(a),
     };
     match result {

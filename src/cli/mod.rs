@@ -1,6 +1,7 @@
 //! Subcommands of the binary and the helpers they share (scenario lookup, progress bars).
 
 pub mod bench;
+pub mod perceive;
 pub mod scan;
 pub mod scene;
 

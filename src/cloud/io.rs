@@ -402,6 +402,31 @@ fn read_ascii(r: &mut impl BufRead, h: &Header, path: &Path) -> Result<Vec<Point
     Ok(out)
 }
 
+/// Reads `x,y,z` rows (commas or white space; `#` comments), such as the paper's
+/// `voxels.txt`. The viewpoint is the frame's origin (the paper's data: the lidar's frame).
+pub fn read_xyz_text(path: &Path) -> Result<PointCloud, CloudIoError> {
+    let text = std::fs::read_to_string(path).map_err(io_err(path))?;
+    let mut points = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        let vals: Vec<&str> =
+            line.split(|c: char| c == ',' || c.is_whitespace()).filter(|s| !s.is_empty()).collect();
+        if vals.len() < 3 {
+            return Err(fmt_err(path, format!("line {}: expected x, y, z", n + 1)));
+        }
+        let mut xyz = [0f32; 3];
+        for (k, v) in vals.iter().take(3).enumerate() {
+            xyz[k] =
+                v.parse().map_err(|_| fmt_err(path, format!("line {}: `{v}` is not a number", n + 1)))?;
+        }
+        points.push(Point3::from(xyz));
+    }
+    Ok(PointCloud::unorganized(points, Point3::origin()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -19,10 +19,23 @@ impl ScanGrid {
     pub const EMPTY: u32 = u32::MAX;
 
     /// A grid of `rows` x `beams` cells; `cell_to_point[row * beams + beam]` is the index of
-    /// the cell's point or [`ScanGrid::EMPTY`]. `None` when the table's size is not
-    /// `rows * beams`.
+    /// the cell's point or [`ScanGrid::EMPTY`]. Points are numbered in scan order, so the
+    /// indices of non-empty cells increase in row-major order. `None` when the table's size is
+    /// not `rows * beams` or the indices do not increase.
     pub fn new(rows: usize, beams: usize, cell_to_point: Vec<u32>) -> Option<Self> {
-        (cell_to_point.len() == rows.checked_mul(beams)?).then_some(Self { rows, beams, cell_to_point })
+        let increasing = cell_to_point
+            .iter()
+            .filter(|&&c| c != Self::EMPTY)
+            .try_fold(None, |prev: Option<u32>, &c| match prev {
+                Some(p) if c <= p => Err(()),
+                _ => Ok(Some(c)),
+            })
+            .is_ok();
+        (increasing && cell_to_point.len() == rows.checked_mul(beams)?).then_some(Self {
+            rows,
+            beams,
+            cell_to_point,
+        })
     }
 
     /// Rows in the grid.

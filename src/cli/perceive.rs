@@ -1,0 +1,162 @@
+//! `stairbench perceive`: the paper's plane-segment estimation on a scenario's simulated scan,
+//! a PLY / PCD cloud, or a voxel file such as the paper's `voxels.txt`.
+
+use anyhow::Result;
+use clap::Args;
+use serde_json::json;
+use stairbench::cloud::io::{read_cloud, read_xyz_text};
+use stairbench::cloud::PointCloud;
+use stairbench::perception::{metrics, perceive, perceive_voxels, Perception, PerceptionParams};
+use stairbench::scene::mjcf::RobotFragment;
+use stairbench::scene::Scene;
+use stairbench::sensor::{AssembleParams, SimLidar};
+use stairbench::sim::World;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// Arguments of `stairbench perceive`.
+#[derive(Debug, Args)]
+pub struct PerceiveArgs {
+    /// A scenario (file or name: its world is scanned first), a cloud (.ply, .pcd), or voxel
+    /// representatives as x,y,z rows (.txt, e.g. the paper's voxels.txt: Filters 1-2 skipped).
+    input: Option<PathBuf>,
+    /// k, the neighbours of the normal estimation (paper §5: 10).
+    #[arg(short, long)]
+    k: Option<usize>,
+    /// Override the scan's range noise, millimetres (scenario input only).
+    #[arg(long)]
+    noise_mm: Option<f64>,
+    /// Print one JSON object (segments, timings_ms, counts, and the score against ground
+    /// truth for a scenario) instead of tables.
+    #[arg(long)]
+    json: bool,
+}
+
+enum Input {
+    Scenario(Box<Scene>, PointCloud),
+    Cloud(PointCloud),
+    Voxels(PointCloud),
+}
+
+fn load(a: &PerceiveArgs) -> Result<Input> {
+    let ext =
+        a.input.as_deref().and_then(Path::extension).and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match (a.input.as_deref(), ext.as_deref()) {
+        (Some(p), Some("ply" | "pcd")) => Ok(Input::Cloud(read_cloud(p)?)),
+        (Some(p), Some("txt" | "xyz" | "csv")) => Ok(Input::Voxels(read_xyz_text(p)?)),
+        (arg, _) => {
+            let mut scenario = super::load_scenario(arg)?;
+            if let Some(mm) = a.noise_mm {
+                scenario.lidar.noise_sigma_m = mm / 1000.0;
+            }
+            let scene = Scene::from_scenario(&scenario)?;
+            let world = World::new(&scene, &RobotFragment::stand_in(&scene.robot_start()))?;
+            let lidar = SimLidar::new(&world, &scenario.lidar, scenario.seed)?;
+            let cloud = lidar.sweep_with_progress(&mut |_, _| {}).assemble(&AssembleParams::default())?;
+            Ok(Input::Scenario(Box::new(scene), cloud))
+        }
+    }
+}
+
+/// Runs `stairbench perceive`.
+pub fn run(a: PerceiveArgs) -> Result<ExitCode> {
+    let mut params = PerceptionParams::default();
+    if let Some(k) = a.k {
+        params.normal_neighbours = k;
+    }
+    let input = load(&a)?;
+    let (result, scene) = match &input {
+        Input::Scenario(scene, cloud) => (perceive(cloud, &params), Some(scene.as_ref())),
+        Input::Cloud(cloud) => (perceive(cloud, &params), None),
+        Input::Voxels(cloud) => (perceive_voxels(cloud, &params), None),
+    };
+    let result = match result {
+        Ok(r) => r,
+        Err(e) => {
+            if a.json {
+                println!("{}", json!({ "segments": [], "error": e.to_string() }));
+            } else {
+                println!("{e}");
+            }
+            return Ok(ExitCode::from(1));
+        }
+    };
+    let score = scene.map(|s| metrics::score(&result.segments, s.steps(), params.voxel_resolution_m));
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&to_json(&result, score.as_ref()))?);
+    } else {
+        print_tables(&result, score.as_ref());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn to_json(r: &Perception, score: Option<&metrics::Score>) -> serde_json::Value {
+    let segments: Vec<_> = r
+        .segments
+        .iter()
+        .map(|s| {
+            json!({
+                "corners": s.corners().iter().map(|c| [c.x, c.y, c.z]).collect::<Vec<_>>(),
+                "height": s.height_m(),
+                "area": s.area_m2(),
+                "depth": s.depth_m(),
+                "width": s.width_m(),
+                "normal": [s.normal().x, s.normal().y, s.normal().z],
+                "voxels": s.voxel_count(),
+            })
+        })
+        .collect();
+    let mut v = json!({ "segments": segments, "timings_ms": r.timings, "counts": r.counts });
+    if let Some(s) = score {
+        v["score"] = serde_json::to_value(s).unwrap_or_default();
+    }
+    v
+}
+
+fn print_tables(r: &Perception, score: Option<&metrics::Score>) {
+    let c = &r.counts;
+    println!(
+        "{} points -> {} after Filter 1 -> {} voxels -> {} after Filter 2 -> {} supervoxels -> {} clusters, {} after Filter 3 -> {} planes -> {} segments -> {} steps",
+        c.points, c.after_filter1, c.voxels, c.after_filter2, c.supervoxels, c.clusters, c.after_filter3, c.planes, c.segments, r.segments.len()
+    );
+    println!("step  height   depth   width   area     voxels  centre (x, y)");
+    for (i, s) in r.segments.iter().enumerate() {
+        let ctr = s.center();
+        println!(
+            "{:>4}  {:>6.3}  {:>6.3}  {:>6.3}  {:>6.4}  {:>6}   ({:.3}, {:.3})",
+            i + 1,
+            s.height_m(),
+            s.depth_m(),
+            s.width_m(),
+            s.area_m2(),
+            s.voxel_count(),
+            ctr.x,
+            ctr.y
+        );
+    }
+    if let Some(sc) = score {
+        println!(
+            "against ground truth: {} of {} steps found, {} false segments",
+            sc.found,
+            sc.steps.len(),
+            sc.false_segments
+        );
+        println!("true step  found  IoU    dz (mm)  corners (mm)  area p (Eq. 3)");
+        for s in &sc.steps {
+            println!(
+                "{:>9}  {:>5}  {:.2}  {:>7.1}  {:>12.1}  {:>6.1} %",
+                s.index + 1,
+                if s.found { "yes" } else { "no" },
+                s.iou,
+                s.height_error_m * 1e3,
+                s.corner_error_m * 1e3,
+                s.area_percent
+            );
+        }
+    }
+    let t = &r.timings;
+    println!(
+        "timings (ms): normals {:.2}, filter1 {:.2}, voxels+filter2 {:.2}, supervoxels {:.2}, clusters+filter3 {:.2}, ransac {:.2}, staircase {:.2}, total {:.2}",
+        t.normals, t.filter1, t.voxels, t.supervoxels, t.clusters, t.ransac, t.staircase, t.total
+    );
+}

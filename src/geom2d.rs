@@ -1,0 +1,164 @@
+//! Plane geometry in the transverse (x, y) plane: convex hulls, minimum-area rectangles,
+//! convex polygon clipping and overlap. Used by perception (step rectangles, their scores)
+//! and planning (support areas).
+
+use nalgebra::Vector2;
+
+/// A 2-D point or vector, metres.
+pub type P2 = Vector2<f64>;
+
+fn cross(o: &P2, a: &P2, b: &P2) -> f64 {
+    (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x)
+}
+
+/// Convex hull, counter-clockwise, without collinear points (Andrew's monotone chain).
+/// Non-finite points are ignored.
+pub fn convex_hull(points: &[P2]) -> Vec<P2> {
+    let mut pts: Vec<P2> = points.iter().copied().filter(|p| p.x.is_finite() && p.y.is_finite()).collect();
+    pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    pts.dedup();
+    if pts.len() < 3 {
+        return pts;
+    }
+    let mut hull: Vec<P2> = Vec::with_capacity(2 * pts.len());
+    for pass in 0..2 {
+        let start = hull.len();
+        let iter: Box<dyn Iterator<Item = &P2>> =
+            if pass == 0 { Box::new(pts.iter()) } else { Box::new(pts.iter().rev()) };
+        for p in iter {
+            while hull.len() >= start + 2 && cross(&hull[hull.len() - 2], &hull[hull.len() - 1], p) <= 0.0 {
+                hull.pop();
+            }
+            hull.push(*p);
+        }
+        hull.pop();
+    }
+    hull
+}
+
+/// Signed area (positive when counter-clockwise), square metres.
+pub fn signed_area(poly: &[P2]) -> f64 {
+    let n = poly.len();
+    (0..n).map(|i| poly[i].x * poly[(i + 1) % n].y - poly[(i + 1) % n].x * poly[i].y).sum::<f64>() / 2.0
+}
+
+/// Area of a simple polygon, square metres.
+pub fn area(poly: &[P2]) -> f64 {
+    signed_area(poly).abs()
+}
+
+/// The minimum-area rectangle enclosing `points`: its unit axis `u` (the second axis is `u`
+/// turned by +90 degrees) and the extents [min, max] of the points along both axes.
+pub fn min_area_rect(points: &[P2]) -> Option<(P2, [f64; 2], [f64; 2])> {
+    let hull = convex_hull(points);
+    if hull.len() < 3 {
+        return None;
+    }
+    let mut best: Option<(f64, P2, [f64; 2], [f64; 2])> = None;
+    for i in 0..hull.len() {
+        let e = hull[(i + 1) % hull.len()] - hull[i];
+        let Some(u) = e.try_normalize(1e-15) else { continue };
+        let (ra, rb) = extents(&hull, &u);
+        let a = (ra[1] - ra[0]) * (rb[1] - rb[0]);
+        if best.is_none_or(|b| a < b.0) {
+            best = Some((a, u, ra, rb));
+        }
+    }
+    best.map(|(_, u, ra, rb)| (u, ra, rb))
+}
+
+/// Extents [min, max] of `points` along `u` and along `u` turned by +90 degrees.
+pub fn extents(points: &[P2], u: &P2) -> ([f64; 2], [f64; 2]) {
+    let v = P2::new(-u.y, u.x);
+    let mut a = [f64::INFINITY, f64::NEG_INFINITY];
+    let mut b = a;
+    for p in points {
+        let (s, t) = (p.dot(u), p.dot(&v));
+        a = [a[0].min(s), a[1].max(s)];
+        b = [b[0].min(t), b[1].max(t)];
+    }
+    (a, b)
+}
+
+/// Intersection of two convex counter-clockwise polygons (Sutherland-Hodgman).
+pub fn clip_convex(subject: &[P2], clip: &[P2]) -> Vec<P2> {
+    let mut out: Vec<P2> = subject.to_vec();
+    let n = clip.len();
+    for i in 0..n {
+        if out.is_empty() {
+            break;
+        }
+        let (a, b) = (clip[i], clip[(i + 1) % n]);
+        let input = std::mem::take(&mut out);
+        let inside = |p: &P2| cross(&a, &b, p) >= -1e-12;
+        for j in 0..input.len() {
+            let (p, q) = (input[j], input[(j + 1) % input.len()]);
+            let (ip, iq) = (inside(&p), inside(&q));
+            if ip {
+                out.push(p);
+            }
+            if ip != iq {
+                let (dp, dq) = (cross(&a, &b, &p), cross(&a, &b, &q));
+                let t = dp / (dp - dq);
+                out.push(p + (q - p) * t);
+            }
+        }
+    }
+    out
+}
+
+/// Intersection over union of two convex polygons (either orientation).
+pub fn iou(a: &[P2], b: &[P2]) -> f64 {
+    let ccw = |p: &[P2]| if signed_area(p) < 0.0 { p.iter().rev().copied().collect() } else { p.to_vec() };
+    let (a, b) = (ccw(a), ccw(b));
+    let inter = area(&clip_convex(&a, &b));
+    let union = area(&a) + area(&b) - inter;
+    if union > 0.0 {
+        inter / union
+    } else {
+        0.0
+    }
+}
+
+/// Whether `p` lies inside the convex counter-clockwise polygon `poly` (boundary included).
+pub fn contains(poly: &[P2], p: &P2) -> bool {
+    poly.len() >= 3 && (0..poly.len()).all(|i| cross(&poly[i], &poly[(i + 1) % poly.len()], p) >= -1e-12)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square(x0: f64, y0: f64, s: f64) -> Vec<P2> {
+        vec![P2::new(x0, y0), P2::new(x0 + s, y0), P2::new(x0 + s, y0 + s), P2::new(x0, y0 + s)]
+    }
+
+    #[test]
+    fn hull_of_a_grid_is_its_square() {
+        let pts: Vec<P2> = (0..100).map(|i| P2::new((i % 10) as f64, (i / 10) as f64)).collect();
+        let h = convex_hull(&pts);
+        assert_eq!(h.len(), 4);
+        assert!((signed_area(&h) - 81.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn min_area_rect_of_a_turned_rectangle() {
+        let a = 0.5f64;
+        let (u, v) = (P2::new(a.cos(), a.sin()), P2::new(-a.sin(), a.cos()));
+        let pts: Vec<P2> =
+            (0..200).map(|i| u * ((i % 20) as f64 * 0.1) + v * ((i / 20) as f64 * 0.05)).collect();
+        let (axis, ra, rb) = min_area_rect(&pts).unwrap();
+        let area = (ra[1] - ra[0]) * (rb[1] - rb[0]);
+        assert!((area - 1.9 * 0.45).abs() < 1e-9, "{area}");
+        assert!(axis.dot(&u).abs() > 1.0 - 1e-9 || axis.dot(&v).abs() > 1.0 - 1e-9);
+    }
+
+    #[test]
+    fn iou_of_shifted_squares() {
+        assert!((iou(&square(0.0, 0.0, 1.0), &square(0.5, 0.0, 1.0)) - 1.0 / 3.0).abs() < 1e-12);
+        assert_eq!(iou(&square(0.0, 0.0, 1.0), &square(2.0, 0.0, 1.0)), 0.0);
+        let mut cw = square(0.0, 0.0, 1.0);
+        cw.reverse();
+        assert!((iou(&cw, &square(0.0, 0.0, 1.0)) - 1.0).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,89 @@
+//! Scores of perceived steps against ground truth: the paper's estimated-area percentage
+//! (Eq. 3), height and corner errors, overlap, and found / false step counts.
+
+use super::PlaneSegment;
+use crate::geom2d::{self, P2};
+use crate::scene::StepTop;
+use nalgebra::Point3;
+use serde::Serialize;
+
+/// A true step counts as found when a segment overlaps it with at least this IoU ...
+pub const FOUND_IOU: f64 = 0.6;
+/// ... and its height is within this, metres.
+pub const FOUND_DZ_M: f64 = 0.02;
+
+/// The score of one true step.
+#[derive(Debug, Clone, Serialize)]
+pub struct StepScore {
+    /// Index of the true step (0 = first).
+    pub index: usize,
+    /// Whether a segment matches it (IoU and height).
+    pub found: bool,
+    /// Best overlap (IoU in the transverse plane) of any segment.
+    pub iou: f64,
+    /// Height error of the best-overlapping segment, metres (NaN when none overlaps).
+    pub height_error_m: f64,
+    /// Mean distance from the segment's corners to the true corners, metres (NaN when none).
+    pub corner_error_m: f64,
+    /// Eq. 3: p = a/A sum n_i over the segments on this step, percent.
+    pub area_percent: f64,
+}
+
+/// Scores of a perception result.
+#[derive(Debug, Clone, Serialize)]
+pub struct Score {
+    /// One per true step.
+    pub steps: Vec<StepScore>,
+    /// True steps found.
+    pub found: usize,
+    /// Segments matching no true step.
+    pub false_segments: usize,
+}
+
+/// The xy corners of a rectangle.
+pub fn xy(corners: &[Point3<f64>; 4]) -> Vec<P2> {
+    corners.iter().map(|c| P2::new(c.x, c.y)).collect()
+}
+
+/// Scores `segments` against the true step tops; `voxel_m` is the voxel edge (Eq. 3's a is
+/// its square).
+pub fn score(segments: &[PlaneSegment], truth: &[StepTop], voxel_m: f64) -> Score {
+    let mut matched = vec![false; segments.len()];
+    let steps: Vec<StepScore> = truth
+        .iter()
+        .map(|t| {
+            let txy = xy(&t.corners);
+            let best = segments
+                .iter()
+                .enumerate()
+                .map(|(i, s)| (i, geom2d::iou(&xy(s.corners()), &txy)))
+                .max_by(|a, b| a.1.total_cmp(&b.1));
+            let (iou, dz, corner) = match best {
+                Some((i, iou)) if iou > 0.0 => {
+                    let s = &segments[i];
+                    let corner = s
+                        .corners()
+                        .iter()
+                        .map(|c| t.corners.iter().map(|q| (c - q).norm()).fold(f64::INFINITY, f64::min))
+                        .sum::<f64>()
+                        / 4.0;
+                    (iou, s.height_m() - t.height_m, corner)
+                }
+                _ => (0.0, f64::NAN, f64::NAN),
+            };
+            let found = iou >= FOUND_IOU && dz.abs() <= FOUND_DZ_M;
+            let mut voxels = 0;
+            for (i, s) in segments.iter().enumerate() {
+                let c = s.center();
+                if t.contains_xy(&c, 0.0) && (s.height_m() - t.height_m).abs() <= FOUND_DZ_M {
+                    voxels += s.voxel_count();
+                    matched[i] = true;
+                }
+            }
+            let area_percent = 100.0 * voxels as f64 * voxel_m * voxel_m / t.area_m2();
+            StepScore { index: t.index, found, iou, height_error_m: dz, corner_error_m: corner, area_percent }
+        })
+        .collect();
+    let found = steps.iter().filter(|s| s.found).count();
+    Score { steps, found, false_segments: matched.iter().filter(|m| !**m).count() }
+}

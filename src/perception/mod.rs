@@ -1,0 +1,407 @@
+//! The paper's plane-segment estimation (§4): normals, Filter 1 (slope), voxel grid and
+//! Filter 2 (sparse voxels), supervoxel clustering, clusters and Filter 3 (smaller than a
+//! foot), RANSAC planes, and the staircase's step rectangles.
+//!
+//! Each phase is a public function of its own module, so it can be called and timed alone;
+//! [`perceive`] chains them and times each.
+
+pub mod metrics;
+pub mod normals;
+pub mod ransac;
+pub mod staircase;
+pub mod supervoxel;
+pub mod voxel;
+
+use crate::cloud::PointCloud;
+use nalgebra::{Point3, Unit, Vector3};
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+pub use normals::NeighbourSearch;
+
+/// Parameters of the perception, with the paper's Table 1 values as defaults.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PerceptionParams {
+    /// R_seed (§4.2, Table 1: 0.1 m): spacing of the supervoxel seeds, metres.
+    pub seed_resolution_m: f64,
+    /// v (§4.1, Table 1: 0.02 m): edge of a voxel, metres.
+    pub voxel_resolution_m: f64,
+    /// T (§4.1, Table 1: 1 + cos 15 deg): Filter 1 keeps a point when D_n(n, g) = 1 - n.g
+    /// is at least T, i.e. its normal is within 15 degrees of "up".
+    pub normal_distance_threshold: f64,
+    /// mu (§4.2 Eq. 1, Table 1: 0.2): weight of the spatial term of the distance D.
+    pub distance_impact_factor: f64,
+    /// n_t (§4.1 Algorithm 1, Table 1: 5): Filter 2 keeps a voxel when its adjacency size
+    /// (occupied cells of its 3 x 3 x 3 block, itself included) exceeds n_t.
+    pub min_adjacent_voxels: usize,
+    /// k (§5: 10): neighbours in the normal estimation.
+    pub normal_neighbours: usize,
+    /// How the k neighbours are found.
+    pub neighbour_search: NeighbourSearch,
+    /// epsilon (§4.3: 3 cm): largest height extent of a step's plane segment, metres.
+    pub max_height_extent_m: f64,
+    /// Filter 3 (§4.2): clusters covering less than the robot's sole are dropped; sole
+    /// length, metres (HRP-4: 0.24).
+    pub foot_length_m: f64,
+    /// Sole width, metres (HRP-4: 0.13).
+    pub foot_width_m: f64,
+    /// RANSAC (§4.3): largest distance of an inlier supervoxel centre from the plane, metres.
+    pub ransac_distance_m: f64,
+    /// RANSAC: most draws per plane (fewer when the adaptive count is reached).
+    pub ransac_iterations: usize,
+    /// RANSAC: most planes drawn.
+    pub ransac_max_planes: usize,
+    /// RANSAC: seed of the draws (the result is deterministic).
+    pub ransac_seed: u64,
+    /// §4.3: segments whose (depth, width) differ by less than this are clustered together;
+    /// the biggest cluster is the staircase. Metres.
+    pub shape_tolerance_m: f64,
+}
+
+impl Default for PerceptionParams {
+    fn default() -> Self {
+        Self {
+            seed_resolution_m: 0.1,
+            voxel_resolution_m: 0.02,
+            normal_distance_threshold: 1.0 + 15f64.to_radians().cos(),
+            distance_impact_factor: 0.2,
+            min_adjacent_voxels: 5,
+            normal_neighbours: 10,
+            neighbour_search: NeighbourSearch::Auto,
+            max_height_extent_m: 0.03,
+            foot_length_m: 0.24,
+            foot_width_m: 0.13,
+            ransac_distance_m: 0.015,
+            ransac_iterations: 500,
+            ransac_max_planes: 64,
+            ransac_seed: 0,
+            shape_tolerance_m: 0.10,
+        }
+    }
+}
+
+impl PerceptionParams {
+    /// Checks the parameters; the error names the field.
+    pub fn validate(&self) -> Result<(), PerceptionError> {
+        let bad = |field: &str, reason: &str| {
+            Err(PerceptionError::InvalidParameter { field: field.into(), reason: reason.into() })
+        };
+        let pos = |v: f64| v.is_finite() && v > 0.0;
+        if !pos(self.seed_resolution_m) {
+            return bad("seed_resolution_m", "must be > 0");
+        }
+        if !pos(self.voxel_resolution_m) || self.voxel_resolution_m > self.seed_resolution_m {
+            return bad("voxel_resolution_m", "must be > 0 and at most seed_resolution_m");
+        }
+        if !(self.normal_distance_threshold.is_finite()
+            && (1.0..=2.0).contains(&self.normal_distance_threshold))
+        {
+            return bad("normal_distance_threshold", "must be in [1, 2] (1 + cos of the largest slope)");
+        }
+        if !(self.distance_impact_factor > 0.0 && self.distance_impact_factor < 1.0) {
+            return bad("distance_impact_factor", "must be in (0, 1)");
+        }
+        if !(3..=100).contains(&self.normal_neighbours) {
+            return bad("normal_neighbours", "must be in [3, 100]");
+        }
+        if self.min_adjacent_voxels > 26 {
+            return bad("min_adjacent_voxels", "must be at most 26 (a voxel has 26 neighbours)");
+        }
+        for (f, v) in [
+            ("max_height_extent_m", self.max_height_extent_m),
+            ("foot_length_m", self.foot_length_m),
+            ("foot_width_m", self.foot_width_m),
+            ("ransac_distance_m", self.ransac_distance_m),
+            ("shape_tolerance_m", self.shape_tolerance_m),
+        ] {
+            if !pos(v) {
+                return bad(f, "must be > 0");
+            }
+        }
+        if self.ransac_iterations == 0 || self.ransac_max_planes == 0 {
+            return bad("ransac_iterations", "ransac_iterations and ransac_max_planes must be > 0");
+        }
+        Ok(())
+    }
+}
+
+/// Why perception gave no staircase.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PerceptionError {
+    /// A parameter is out of range.
+    #[error("invalid perception parameter `{field}`: {reason}")]
+    InvalidParameter {
+        /// The parameter.
+        field: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The cloud holds no staircase the pipeline can find; the reason says where it stopped.
+    #[error("no staircase found: {0}")]
+    NoStaircase(String),
+}
+
+/// One step of the staircase: a rectangle in the world frame. Valid once built: four
+/// finite corners forming a rectangle, counter-clockwise seen from above.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlaneSegment {
+    corners: [Point3<f64>; 4],
+    normal: Vector3<f64>,
+    height_m: f64,
+    voxel_count: usize,
+}
+
+impl PlaneSegment {
+    /// A rectangle from its centre, its unit axis `along` (horizontal, direction of ascent),
+    /// its depth along that axis and width across it, and the plane's normal. `None` for
+    /// non-finite or non-positive sizes.
+    pub fn new(
+        center: Point3<f64>,
+        along: Vector3<f64>,
+        depth_m: f64,
+        width_m: f64,
+        normal: Vector3<f64>,
+        voxel_count: usize,
+    ) -> Option<Self> {
+        let along = Vector3::new(along.x, along.y, 0.0).try_normalize(1e-9)?;
+        let normal = normal.try_normalize(1e-9)?;
+        let ok = center.coords.iter().all(|v| v.is_finite()) && depth_m > 0.0 && width_m > 0.0;
+        if !ok || !depth_m.is_finite() || !width_m.is_finite() {
+            return None;
+        }
+        let left = Vector3::new(-along.y, along.x, 0.0);
+        let (a, b) = (along * depth_m / 2.0, left * width_m / 2.0);
+        let corners = [center - a - b, center + a - b, center + a + b, center - a + b];
+        Some(Self { corners, normal, height_m: center.z, voxel_count })
+    }
+
+    /// Corners counter-clockwise seen from above: front-right, back-right, back-left,
+    /// front-left (front = the nose, toward the robot).
+    pub fn corners(&self) -> &[Point3<f64>; 4] {
+        &self.corners
+    }
+
+    /// Centre of the rectangle.
+    pub fn center(&self) -> Point3<f64> {
+        Point3::from(self.corners.iter().map(|c| c.coords).sum::<Vector3<f64>>() / 4.0)
+    }
+
+    /// Unit normal of the fitted plane (up).
+    pub fn normal(&self) -> Unit<Vector3<f64>> {
+        Unit::new_normalize(self.normal)
+    }
+
+    /// Height of the tread, metres.
+    pub fn height_m(&self) -> f64 {
+        self.height_m
+    }
+
+    /// Depth along the direction of ascent, metres.
+    pub fn depth_m(&self) -> f64 {
+        (self.corners[1] - self.corners[0]).norm()
+    }
+
+    /// Width across the direction of ascent, metres.
+    pub fn width_m(&self) -> f64 {
+        (self.corners[3] - self.corners[0]).norm()
+    }
+
+    /// Area of the rectangle, square metres.
+    pub fn area_m2(&self) -> f64 {
+        self.depth_m() * self.width_m()
+    }
+
+    /// Unit direction of ascent (horizontal).
+    pub fn along(&self) -> Vector3<f64> {
+        (self.corners[1] - self.corners[0]).normalize()
+    }
+
+    /// Voxels the segment was estimated from (Eq. 3's n_i).
+    pub fn voxel_count(&self) -> usize {
+        self.voxel_count
+    }
+}
+
+/// Wall time of each phase, milliseconds.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct PhaseTimings {
+    /// Normal estimation.
+    pub normals: f64,
+    /// Filter 1 (slope).
+    pub filter1: f64,
+    /// Voxel grid and Filter 2.
+    pub voxels: f64,
+    /// Supervoxel clustering.
+    pub supervoxels: f64,
+    /// Clustering of supervoxels and Filter 3.
+    pub clusters: f64,
+    /// RANSAC planes.
+    pub ransac: f64,
+    /// Staircase extraction and rectangles.
+    pub staircase: f64,
+    /// Sum of the phases.
+    pub total: f64,
+}
+
+/// Sizes of the intermediate results.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Counts {
+    /// Points in.
+    pub points: usize,
+    /// Points after Filter 1.
+    pub after_filter1: usize,
+    /// Voxels before Filter 2.
+    pub voxels: usize,
+    /// Voxels after Filter 2.
+    pub after_filter2: usize,
+    /// Supervoxels.
+    pub supervoxels: usize,
+    /// Clusters of supervoxels before Filter 3.
+    pub clusters: usize,
+    /// Clusters kept by Filter 3.
+    pub after_filter3: usize,
+    /// Planes drawn by RANSAC.
+    pub planes: usize,
+    /// Plane segments before the staircase is chosen.
+    pub segments: usize,
+}
+
+/// The intermediate results, for views and logs.
+#[derive(Debug, Clone, Default)]
+pub struct Detail {
+    /// Voxels after Filter 2.
+    pub voxels: voxel::VoxelCloud,
+    /// Supervoxels of those voxels.
+    pub supervoxels: supervoxel::Supervoxels,
+    /// Clusters and Filter 3.
+    pub clusters: supervoxel::Clusters,
+}
+
+/// What perception found.
+#[derive(Debug, Clone)]
+pub struct Perception {
+    /// The staircase's steps, nearest (lowest) first.
+    pub segments: Vec<PlaneSegment>,
+    /// Time per phase.
+    pub timings: PhaseTimings,
+    /// Sizes of the intermediate results.
+    pub counts: Counts,
+    /// The intermediate results.
+    pub detail: Detail,
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Filter 1 (Algorithm 1, lines 2-8): indices of the points whose normal n satisfies
+/// D_n(n, g) = 1 - n.g >= T, g being the unit gravity vector.
+pub fn filter_slope(normals: &[[f32; 3]], gravity: &Unit<Vector3<f64>>, threshold: f64) -> Vec<u32> {
+    let g = gravity.into_inner().cast::<f32>();
+    let t = threshold as f32;
+    (0..normals.len() as u32)
+        .filter(|&i| {
+            let n = Vector3::from(normals[i as usize]);
+            1.0 - n.dot(&g) >= t // false for NaN (no normal)
+        })
+        .collect()
+}
+
+/// The whole pipeline on a point cloud.
+pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, PerceptionError> {
+    p.validate()?;
+    let mut timings = PhaseTimings::default();
+    let mut counts = Counts { points: cloud.len(), ..Default::default() };
+    if cloud.is_empty() {
+        return Err(PerceptionError::NoStaircase("the cloud is empty".into()));
+    }
+    let t = Instant::now();
+    let normals = normals::estimate(cloud, p.normal_neighbours, p.neighbour_search);
+    timings.normals = ms(t);
+
+    let t = Instant::now();
+    let kept = filter_slope(&normals, &cloud.gravity(), p.normal_distance_threshold);
+    timings.filter1 = ms(t);
+    counts.after_filter1 = kept.len();
+
+    let t = Instant::now();
+    let all = voxel::voxelize(cloud.points(), &normals, &kept, p.voxel_resolution_m as f32, None);
+    counts.voxels = all.len();
+    let voxels = voxel::filter_sparse(&all, p.min_adjacent_voxels);
+    timings.voxels = ms(t);
+    counts.after_filter2 = voxels.len();
+    from_voxels(voxels, cloud.viewpoint(), cloud.gravity(), p, timings, counts)
+}
+
+/// The pipeline from voxel representatives that already passed Filters 1 and 2 (such as the
+/// paper's `voxels.txt`): normals by kNN on them, voxels at resolution v, no filter repeated.
+/// Where kNN gives no normal (points along one scan line are collinear), the voxel takes
+/// "up", which Filter 1 already established for every point of such a file.
+pub fn perceive_voxels(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, PerceptionError> {
+    p.validate()?;
+    let mut timings = PhaseTimings::default();
+    let mut counts = Counts { points: cloud.len(), after_filter1: cloud.len(), ..Default::default() };
+    if cloud.is_empty() {
+        return Err(PerceptionError::NoStaircase("the cloud is empty".into()));
+    }
+    let t = Instant::now();
+    let normals = normals::by_kdtree(cloud.points(), p.normal_neighbours, cloud.viewpoint().cast());
+    timings.normals = ms(t);
+    let t = Instant::now();
+    let all: Vec<u32> = (0..cloud.len() as u32).collect();
+    let up = -cloud.gravity().into_inner().cast::<f32>();
+    let voxels = voxel::voxelize(cloud.points(), &normals, &all, p.voxel_resolution_m as f32, Some(up));
+    timings.voxels = ms(t);
+    counts.voxels = voxels.len();
+    counts.after_filter2 = voxels.len();
+    from_voxels(voxels, cloud.viewpoint(), cloud.gravity(), p, timings, counts)
+}
+
+fn from_voxels(
+    voxels: voxel::VoxelCloud,
+    viewpoint: Point3<f64>,
+    gravity: Unit<Vector3<f64>>,
+    p: &PerceptionParams,
+    mut timings: PhaseTimings,
+    mut counts: Counts,
+) -> Result<Perception, PerceptionError> {
+    if voxels.is_empty() {
+        return Err(PerceptionError::NoStaircase(format!(
+            "no near-horizontal surface: {} of {} points passed the slope filter, {} voxels the sparse filter",
+            counts.after_filter1, counts.points, counts.after_filter2
+        )));
+    }
+    let t = Instant::now();
+    let sv = supervoxel::supervoxels(&voxels, p);
+    timings.supervoxels = ms(t);
+    counts.supervoxels = sv.centres.len();
+
+    let t = Instant::now();
+    let clusters = supervoxel::cluster(&voxels, &sv, p);
+    timings.clusters = ms(t);
+    counts.clusters = clusters.before_filter;
+    counts.after_filter3 = clusters.voxel_counts.len();
+
+    let t = Instant::now();
+    let candidates: Vec<u32> = (0..sv.centres.len() as u32)
+        .filter(|&l| clusters.of_supervoxel[l as usize] != supervoxel::UNLABELLED)
+        .collect();
+    let planes = ransac::planes(&sv.centres, &candidates, &gravity, p);
+    timings.ransac = ms(t);
+    counts.planes = planes.len();
+
+    let t = Instant::now();
+    let result = staircase::extract(&voxels, &sv, &clusters, &planes, &viewpoint, &gravity, p);
+    timings.staircase = ms(t);
+    timings.total = timings.normals
+        + timings.filter1
+        + timings.voxels
+        + timings.supervoxels
+        + timings.clusters
+        + timings.ransac
+        + timings.staircase;
+    let (segments, n_segments) = result?;
+    counts.segments = n_segments;
+    Ok(Perception { segments, timings, counts, detail: Detail { voxels, supervoxels: sv, clusters } })
+}

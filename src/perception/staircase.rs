@@ -1,0 +1,185 @@
+//! From RANSAC planes to the staircase's step rectangles (§4.3).
+//!
+//! 1. Each plane's inliers are split by cluster of supervoxels: a plane segment is one
+//!    cluster's part of one plane (a plane through two steps' heights is impossible, since
+//!    planes are near-horizontal; a plane at one height may hold several separate surfaces).
+//! 2. Segments whose height extent exceeds epsilon are dropped.
+//! 3. The ground, the surface the robot stands on (the segment under the sensor, else the
+//!    lowest segment), and every segment at its height, are set aside: they are the floor.
+//! 4. The remaining segments are clustered by their (depth, width) with single linkage; the
+//!    biggest cluster is the staircase (ties: the cluster nearest the sensor).
+//! 5. The staircase's direction of ascent is the common axis of the segments' minimum-area
+//!    rectangles that points up the stairs; each step's rectangle is the extent of its voxels
+//!    along and across that direction, so a yawed staircase comes out right.
+
+use super::ransac::Plane;
+use super::supervoxel::{Clusters, Supervoxels, UNLABELLED};
+use super::voxel::VoxelCloud;
+use super::{PerceptionError, PerceptionParams, PlaneSegment};
+use crate::geom2d::{self, P2};
+use nalgebra::{Point3, Unit, Vector3};
+
+/// A candidate plane segment.
+struct Candidate {
+    voxels: Vec<u32>,
+    xy: Vec<P2>,
+    height: f64,
+    normal: Vector3<f64>,
+    /// (short side, long side) of the minimum-area rectangle, metres.
+    shape: [f64; 2],
+    /// Axis of the minimum-area rectangle.
+    axis: P2,
+    hull: Vec<P2>,
+    centroid: P2,
+}
+
+/// The steps (lowest first) and the number of candidate segments considered.
+pub fn extract(
+    vc: &VoxelCloud,
+    sv: &Supervoxels,
+    clusters: &Clusters,
+    planes: &[Plane],
+    viewpoint: &Point3<f64>,
+    gravity: &Unit<Vector3<f64>>,
+    p: &PerceptionParams,
+) -> Result<(Vec<PlaneSegment>, usize), PerceptionError> {
+    let mut members: Vec<Vec<u32>> = vec![Vec::new(); sv.centres.len()];
+    for (i, &l) in sv.labels.iter().enumerate() {
+        if l != UNLABELLED {
+            members[l as usize].push(i as u32);
+        }
+    }
+    let up = -gravity.into_inner();
+    let mut cands: Vec<Candidate> = Vec::new();
+    for plane in planes {
+        let mut by_cluster: Vec<(u32, Vec<u32>)> = Vec::new();
+        for &s in &plane.inliers {
+            let c = clusters.of_supervoxel[s as usize];
+            match by_cluster.iter_mut().find(|e| e.0 == c) {
+                Some(e) => e.1.push(s),
+                None => by_cluster.push((c, vec![s])),
+            }
+        }
+        for (_, svs) in by_cluster {
+            let zs: Vec<f64> =
+                svs.iter().map(|&s| sv.centres[s as usize].coords.cast::<f64>().dot(&up)).collect();
+            let dz = zs.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+                - zs.iter().cloned().fold(f64::INFINITY, f64::min);
+            if dz > p.max_height_extent_m {
+                continue;
+            }
+            let voxels: Vec<u32> = svs.iter().flat_map(|&s| members[s as usize].iter().copied()).collect();
+            if let Some(c) = candidate(vc, voxels, plane.normal.cast()) {
+                cands.push(c);
+            }
+        }
+    }
+    let n_candidates = cands.len();
+    if cands.is_empty() {
+        return Err(PerceptionError::NoStaircase(format!(
+            "no flat segment: {} planes, none within epsilon = {} m in height over a foot-sized cluster",
+            planes.len(),
+            p.max_height_extent_m
+        )));
+    }
+
+    // The ground: under the sensor, else the lowest segment (a sloped floor may have failed
+    // the epsilon test, as in the paper's own Exp. 1 data; the lowest flat piece is then floor).
+    let below = P2::new(viewpoint.x, viewpoint.y);
+    let ground = cands
+        .iter()
+        .position(|c| geom2d::contains(&c.hull, &below))
+        .or_else(|| (0..cands.len()).min_by(|&a, &b| cands[a].height.total_cmp(&cands[b].height)))
+        .unwrap_or(0);
+    let ground_h = cands[ground].height;
+    let steps: Vec<&Candidate> =
+        cands.iter().filter(|c| (c.height - ground_h).abs() > p.max_height_extent_m).collect();
+    if steps.is_empty() {
+        return Err(PerceptionError::NoStaircase(format!(
+            "only the ground: {n_candidates} flat segment(s), all at the ground's height {ground_h:.3} m"
+        )));
+    }
+
+    // Single-linkage clusters in (depth, width) space.
+    let n = steps.len();
+    let mut label: Vec<usize> = (0..n).collect();
+    for i in 0..n {
+        for j in 0..i {
+            let d = ((steps[i].shape[0] - steps[j].shape[0]).powi(2)
+                + (steps[i].shape[1] - steps[j].shape[1]).powi(2))
+            .sqrt();
+            if d <= p.shape_tolerance_m && label[i] != label[j] {
+                let (from, to) = (label[i], label[j]);
+                label.iter_mut().filter(|l| **l == from).for_each(|l| *l = to);
+            }
+        }
+    }
+    let dist_to_sensor = |c: &Candidate| (c.centroid - below).norm();
+    let best = (0..n)
+        .map(|i| label[i])
+        .max_by(|&a, &b| {
+            let size = |l: usize| label.iter().filter(|&&x| x == l).count();
+            let near = |l: usize| {
+                (0..n)
+                    .filter(|&i| label[i] == l)
+                    .map(|i| dist_to_sensor(steps[i]))
+                    .fold(f64::INFINITY, f64::min)
+            };
+            size(a).cmp(&size(b)).then(near(b).total_cmp(&near(a)))
+        })
+        .unwrap_or(0);
+    let mut stair: Vec<&Candidate> = (0..n).filter(|&i| label[i] == best).map(|i| steps[i]).collect();
+    stair.sort_by(|a, b| a.height.total_cmp(&b.height));
+
+    let along = ascent_direction(&stair, &below);
+    let segments = stair
+        .iter()
+        .filter_map(|c| {
+            let (ra, rb) = geom2d::extents(&c.xy, &along);
+            let left = P2::new(-along.y, along.x);
+            let mid = along * (ra[0] + ra[1]) / 2.0 + left * (rb[0] + rb[1]) / 2.0;
+            let centre = Point3::new(mid.x, mid.y, c.height);
+            let along3 = Vector3::new(along.x, along.y, 0.0);
+            PlaneSegment::new(centre, along3, ra[1] - ra[0], rb[1] - rb[0], c.normal, c.voxels.len())
+        })
+        .collect();
+    Ok((segments, n_candidates))
+}
+
+fn candidate(vc: &VoxelCloud, voxels: Vec<u32>, normal: Vector3<f64>) -> Option<Candidate> {
+    let xy: Vec<P2> = voxels.iter().map(|&v| vc.positions[v as usize].xy().coords.cast::<f64>()).collect();
+    let (axis, ra, rb) = geom2d::min_area_rect(&xy)?;
+    let (a, b) = (ra[1] - ra[0], rb[1] - rb[0]);
+    let height = voxels.iter().map(|&v| vc.positions[v as usize].z as f64).sum::<f64>() / voxels.len() as f64;
+    let centroid = xy.iter().sum::<P2>() / xy.len() as f64;
+    let hull = geom2d::convex_hull(&xy);
+    Some(Candidate { voxels, xy, height, normal, shape: [a.min(b), a.max(b)], axis, hull, centroid })
+}
+
+/// Unit horizontal direction of ascent of a staircase (steps sorted by height).
+fn ascent_direction(stair: &[&Candidate], sensor: &P2) -> P2 {
+    // The segments' rectangle axes, folded to [0, 90) degrees, averaged on the doubled
+    // circle of period 90 degrees (angle x 4), weighted by segment size.
+    let (mut s, mut c) = (0.0, 0.0);
+    for seg in stair {
+        let a = seg.axis.y.atan2(seg.axis.x);
+        let w = seg.voxels.len() as f64;
+        s += w * (4.0 * a).sin();
+        c += w * (4.0 * a).cos();
+    }
+    let a = s.atan2(c) / 4.0;
+    let axes = [P2::new(a.cos(), a.sin()), P2::new(-a.sin(), a.cos())];
+    // Which axis, and which way: up the stairs (lowest to highest step), or, for a single
+    // step, away from the sensor.
+    let way = match (stair.first(), stair.last()) {
+        (Some(lo), Some(hi)) if stair.len() >= 2 => hi.centroid - lo.centroid,
+        (Some(only), _) => only.centroid - sensor,
+        _ => P2::x(),
+    };
+    let pick = if axes[0].dot(&way).abs() >= axes[1].dot(&way).abs() { axes[0] } else { axes[1] };
+    if pick.dot(&way) < 0.0 {
+        -pick
+    } else {
+        pick
+    }
+}

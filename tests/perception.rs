@@ -1,0 +1,245 @@
+//! Perception against ground truth, the paper's real data, and bad input.
+
+mod common;
+
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use proptest::prelude::*;
+use stairbench::cloud::io::read_xyz_text;
+use stairbench::cloud::PointCloud;
+use stairbench::geom2d::{self, P2};
+use stairbench::perception::{
+    filter_slope, metrics, normals, perceive, perceive_voxels, NeighbourSearch, PerceptionError,
+    PerceptionParams,
+};
+use stairbench::scenario::Scenario;
+use stairbench::scene::mjcf::RobotFragment;
+use stairbench::sensor::{AssembleParams, SimLidar};
+use stairbench::sim::World;
+use std::path::Path;
+
+fn scan(s: &Scenario) -> PointCloud {
+    let scene = common::scene_of(s);
+    let world = World::new(&scene, &RobotFragment::stand_in(&scene.robot_start())).unwrap();
+    let lidar = SimLidar::new(&world, &s.lidar, s.seed).unwrap();
+    lidar.sweep_with_progress(&mut |_, _| {}).assemble(&AssembleParams::default()).unwrap()
+}
+
+fn exp1(noise_m: f64) -> Scenario {
+    let mut s = Scenario::default();
+    s.lidar.noise_sigma_m = noise_m;
+    s
+}
+
+#[test]
+fn papers_real_exp1_data_gives_the_papers_three_steps() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/paper/exp1");
+    if !dir.join("voxels.txt").exists() {
+        eprintln!("SKIPPED: ../shared/paper/exp1 is absent; the real-data check needs it");
+        return;
+    }
+    let cloud = read_xyz_text(&dir.join("voxels.txt")).unwrap();
+    let found = perceive_voxels(&cloud, &PerceptionParams::default()).unwrap();
+    let paper = read_xyz_text(&dir.join("rectangles.txt")).unwrap();
+    let mut rects: Vec<Vec<Point3<f32>>> = paper.points().chunks(4).map(|c| c.to_vec()).collect();
+    rects.sort_by(|a, b| a[0].z.total_cmp(&b[0].z));
+    assert_eq!(
+        found.segments.len(),
+        3,
+        "{:?}",
+        found.segments.iter().map(|s| s.height_m()).collect::<Vec<_>>()
+    );
+    for (seg, rect) in found.segments.iter().zip(&rects) {
+        let h = rect.iter().map(|p| p.z as f64).sum::<f64>() / 4.0;
+        assert!((seg.height_m() - h).abs() < 0.02, "height {} vs paper {h}", seg.height_m());
+        let theirs: Vec<P2> = rect.iter().map(|p| P2::new(p.x as f64, p.y as f64)).collect();
+        let iou = geom2d::iou(&metrics::xy(seg.corners()), &theirs);
+        assert!(iou >= 0.6, "IoU {iou:.2} with the paper's step at {h:.3} m");
+    }
+}
+
+#[test]
+fn exp1_scans_find_all_three_steps() {
+    for (noise, min_iou) in [(0.0, 0.85), (0.01, 0.85)] {
+        let s = exp1(noise);
+        let scene = common::scene_of(&s);
+        let p = PerceptionParams::default();
+        let r = perceive(&scan(&s), &p).unwrap();
+        let sc = metrics::score(&r.segments, scene.steps(), p.voxel_resolution_m);
+        assert_eq!(sc.found, 3, "noise {noise}: {sc:?}");
+        assert_eq!(sc.false_segments, 0, "noise {noise}: {sc:?}");
+        for st in &sc.steps {
+            assert!(st.iou >= min_iou, "noise {noise}: step {} IoU {:.2}", st.index + 1, st.iou);
+            assert!(
+                st.height_error_m.abs() < 0.005,
+                "noise {noise}: step {} dz {}",
+                st.index + 1,
+                st.height_error_m
+            );
+        }
+        if noise == 0.0 {
+            assert!(sc.steps[0].area_percent >= 90.0, "first step area {:.1} %", sc.steps[0].area_percent);
+        }
+    }
+}
+
+#[test]
+fn a_staircase_yawed_by_30_degrees_comes_out_turned() {
+    let mut s =
+        Scenario::from_toml_str("[staircase]\nyaw_deg = 30\nstart_m = [0.6, 0.1]\n", "yaw.toml").unwrap();
+    s.lidar.noise_sigma_m = 0.005;
+    let scene = common::scene_of(&s);
+    let r = perceive(&scan(&s), &PerceptionParams::default()).unwrap();
+    let sc = metrics::score(&r.segments, scene.steps(), 0.02);
+    assert_eq!(sc.found, 3, "{sc:?}");
+    for seg in &r.segments {
+        let a = seg.along();
+        let yaw = a.y.atan2(a.x).to_degrees();
+        assert!((yaw - 30.0).abs() < 3.0, "ascent at {yaw:.1} deg");
+        assert!(
+            (seg.width_m() - 0.5).abs() < 0.06 && (seg.depth_m() - 0.27).abs() < 0.06,
+            "{} x {}",
+            seg.depth_m(),
+            seg.width_m()
+        );
+    }
+}
+
+#[test]
+fn grid_neighbourhoods_match_the_kd_tree() {
+    let cloud = scan(&exp1(0.01));
+    let p = PerceptionParams::default();
+    let g = cloud.gravity();
+    let grid = normals::estimate(&cloud, 10, NeighbourSearch::ScanGrid);
+    let tree = normals::estimate(&cloud, 10, NeighbourSearch::KdTree);
+    let (a, b) = (
+        filter_slope(&grid, &g, p.normal_distance_threshold).len(),
+        filter_slope(&tree, &g, p.normal_distance_threshold).len(),
+    );
+    assert!((a as f64 / b as f64 - 1.0).abs() < 0.05, "Filter 1 keeps {a} (grid) vs {b} (k-d tree)");
+    let scene = common::scene_of(&exp1(0.01));
+    let mut scores = Vec::new();
+    for search in [NeighbourSearch::ScanGrid, NeighbourSearch::KdTree] {
+        let q = PerceptionParams { neighbour_search: search, ..p.clone() };
+        let r = perceive(&cloud, &q).unwrap();
+        scores.push(metrics::score(&r.segments, scene.steps(), 0.02));
+    }
+    assert_eq!((scores[0].found, scores[1].found), (3, 3));
+    for i in 0..3 {
+        let (x, y) = (scores[0].steps[i].iou, scores[1].steps[i].iou);
+        assert!((x - y).abs() < 0.05, "step {}: IoU {x:.2} (grid) vs {y:.2} (k-d tree)", i + 1);
+    }
+}
+
+fn no_staircase(cloud: &PointCloud) -> String {
+    match perceive(cloud, &PerceptionParams::default()) {
+        Err(e @ PerceptionError::NoStaircase(_)) => e.to_string(),
+        Err(e) => panic!("unexpected error {e}"),
+        Ok(r) => panic!("found {} steps", r.segments.len()),
+    }
+}
+
+fn grid_points(f: impl Fn(f32, f32) -> Point3<f32>, n: usize, step: f32) -> Vec<Point3<f32>> {
+    (0..n * n).map(|i| f((i % n) as f32 * step, (i / n) as f32 * step)).collect()
+}
+
+#[test]
+fn bad_clouds_give_a_clear_no_staircase() {
+    let vp = Point3::new(0.0, 0.0, 1.4);
+    assert!(no_staircase(&PointCloud::unorganized(vec![], vp)).contains("empty"));
+    no_staircase(&PointCloud::unorganized(vec![Point3::new(1.0, 0.0, 0.0)], vp));
+    let nan = vec![
+        Point3::new(f32::NAN, 0.0, 0.0),
+        Point3::new(f32::INFINITY, 1.0, 0.0),
+        Point3::new(0.0, f32::NEG_INFINITY, 2.0),
+    ];
+    no_staircase(&PointCloud::unorganized(nan, vp));
+    // Walls only: every normal is horizontal.
+    let wall = grid_points(|a, b| Point3::new(2.0, a - 1.0, b), 100, 0.01);
+    assert!(no_staircase(&PointCloud::unorganized(wall, vp)).contains("horizontal"));
+    // A flat floor only: found, but it is the ground.
+    let floor = grid_points(|a, b| Point3::new(a - 0.5, b - 0.5, 0.0), 150, 0.01);
+    assert!(no_staircase(&PointCloud::unorganized(floor, vp)).contains("only the ground"));
+}
+
+#[test]
+fn nan_points_in_a_real_scan_change_nothing() {
+    let mut cloud = scan(&exp1(0.0));
+    let mut pts = cloud.points().to_vec();
+    pts.extend((0..1000).map(|i| Point3::new(f32::NAN, i as f32, 0.0)));
+    cloud = PointCloud::unorganized(pts, cloud.viewpoint());
+    let scene = common::scene_of(&exp1(0.0));
+    let r = perceive(&cloud, &PerceptionParams::default()).unwrap();
+    assert_eq!(metrics::score(&r.segments, scene.steps(), 0.02).found, 3);
+}
+
+#[test]
+fn ten_million_points_are_handled() {
+    // A flat floor of 10 million points (unorganized: k-d tree path): a result, no panic.
+    let n = 3163; // n^2 > 10^7
+    let pts = grid_points(|a, b| Point3::new(a - 5.0, b - 5.0, 0.0), n, 0.003);
+    assert!(pts.len() >= 10_000_000);
+    let msg = no_staircase(&PointCloud::unorganized(pts, Point3::new(0.0, 0.0, 1.4)));
+    assert!(msg.contains("ground"), "{msg}");
+}
+
+#[test]
+fn invalid_parameters_name_the_field() {
+    let cloud = PointCloud::unorganized(vec![Point3::origin(); 10], Point3::new(0.0, 0.0, 1.0));
+    let p = PerceptionParams { normal_neighbours: 1, ..Default::default() };
+    let e = perceive(&cloud, &p).unwrap_err().to_string();
+    assert!(e.contains("normal_neighbours"), "{e}");
+    let p = PerceptionParams { voxel_resolution_m: f64::NAN, ..Default::default() };
+    assert!(perceive(&cloud, &p).unwrap_err().to_string().contains("voxel_resolution_m"));
+}
+
+/// A synthetic staircase: points on the treads, risers and floor, 1 cm apart (unorganized).
+fn synthetic_stairs() -> Vec<Point3<f32>> {
+    let mut pts = Vec::new();
+    let step = 0.01;
+    for i in 0..300 {
+        for j in 0..150 {
+            let (x, y) = (-1.0 + i as f32 * step, -0.75 + j as f32 * step);
+            let k = ((x - 0.6) / 0.27).floor();
+            let z = if x < 0.6 { 0.0 } else { 0.2 * (k + 1.0).min(3.0) };
+            pts.push(Point3::new(x, y, z));
+        }
+    }
+    for k in 0..3 {
+        for j in 0..150 {
+            for h in 0..20 {
+                pts.push(Point3::new(
+                    0.6 + 0.27 * k as f32,
+                    -0.75 + j as f32 * step,
+                    0.2 * k as f32 + h as f32 * step,
+                ));
+            }
+        }
+    }
+    pts
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(8))]
+
+    /// A turned and moved staircase gives the same rectangles, turned and moved.
+    #[test]
+    fn rigid_motions_move_the_rectangles(yaw in -3.1f64..3.1, tx in -3.0f64..3.0, ty in -3.0f64..3.0) {
+        let base = synthetic_stairs();
+        let vp = Point3::new(-1.5f32, 0.0, 1.4);
+        let p = PerceptionParams::default();
+        let r0 = perceive(&PointCloud::unorganized(base.clone(), vp.cast()), &p).unwrap();
+        let m = Isometry3::from_parts(Translation3::new(tx, ty, 0.0), UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw));
+        let mf = m.cast::<f32>();
+        let moved: Vec<Point3<f32>> = base.iter().map(|q| mf * q).collect();
+        let r1 = perceive(&PointCloud::unorganized(moved, (mf * vp).cast()), &p).unwrap();
+        prop_assert_eq!(r0.segments.len(), r1.segments.len());
+        for (a, b) in r0.segments.iter().zip(&r1.segments) {
+            let back: Vec<Point3<f64>> = b.corners().iter().map(|c| m.inverse_transform_point(c)).collect();
+            for c in a.corners() {
+                let d = back.iter().map(|q| (q - c).norm()).fold(f64::INFINITY, f64::min);
+                prop_assert!(d < 0.03, "corner {c} moved by {d}");
+            }
+            prop_assert!((a.height_m() - b.height_m()).abs() < 0.005);
+        }
+    }
+}
