@@ -13,6 +13,7 @@ use super::voxel::VoxelCloud;
 use super::PerceptionParams;
 use crate::geom2d::{self, P2};
 use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
 /// Label of a voxel that no supervoxel reached.
@@ -97,21 +98,23 @@ pub fn supervoxels(vc: &VoxelCloud, p: &PerceptionParams) -> Supervoxels {
     let mut rounds = 0;
     while rounds < MAX_ROUNDS {
         rounds += 1;
-        let mut moved = 0usize;
-        for i in 0..n {
-            let (q, nq) = (vc.positions[i], vc.normals[i]);
-            let mut best = (f32::INFINITY, UNLABELLED);
-            for &l in volume[i] {
-                let d = distance(p, q - centres[l as usize], &nq, &normals[l as usize]);
-                if d < best.0 {
-                    best = (d, l);
+        // Attachment given fixed centres is independent per voxel (a Lloyd step).
+        let next: Vec<u32> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let (q, nq) = (vc.positions[i], vc.normals[i]);
+                let mut best = (f32::INFINITY, UNLABELLED);
+                for &l in volume[i] {
+                    let d = distance(p, q - centres[l as usize], &nq, &normals[l as usize]);
+                    if d < best.0 {
+                        best = (d, l);
+                    }
                 }
-            }
-            if labels[i] != best.1 {
-                labels[i] = best.1;
-                moved += 1;
-            }
-        }
+                best.1
+            })
+            .collect();
+        let moved = next.iter().zip(&labels).filter(|(a, b)| a != b).count();
+        labels = next;
         update_centres(vc, &labels, &mut centres, &mut normals);
         if moved == 0 {
             break;
