@@ -257,6 +257,8 @@ pub struct Counts {
     pub after_filter2: usize,
     /// Supervoxels.
     pub supervoxels: usize,
+    /// Attachment passes of the supervoxel clustering.
+    pub supervoxel_passes: usize,
     /// Clusters of supervoxels before Filter 3.
     pub clusters: usize,
     /// Clusters kept by Filter 3.
@@ -376,6 +378,7 @@ fn from_voxels(
     let sv = supervoxel::supervoxels(&voxels, p);
     timings.supervoxels = ms(t);
     counts.supervoxels = sv.centres.len();
+    counts.supervoxel_passes = sv.rounds;
 
     let t = Instant::now();
     let clusters = supervoxel::cluster(&voxels, &sv, p);
