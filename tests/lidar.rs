@@ -128,7 +128,7 @@ fn first_step_is_hit_with_the_density_the_geometry_predicts() {
 
 #[test]
 fn the_robot_is_never_hit_though_it_is_in_the_way() {
-    let (s, scene, world) = exp1(0.0);
+    let (s, _scene, world) = exp1(0.0);
     let lidar = SimLidar::new(&world, &s.lidar, s.seed).unwrap();
     let robot_geoms: Vec<usize> = (0..world.model().ffi().ngeom as usize)
         .filter(|&g| world.geom_group(g) == ROBOT_GEOM_GROUP)
@@ -151,7 +151,6 @@ fn the_robot_is_never_hit_though_it_is_in_the_way() {
         robot_hits += hits.iter().flatten().filter(|h| world.geom_group(h.geom) == ROBOT_GEOM_GROUP).count();
     }
     assert_eq!(robot_hits, 0);
-    let _ = scene;
 }
 
 #[test]

@@ -115,9 +115,8 @@ pub fn voxelize(
 /// adjacency recomputed among the kept voxels.
 pub fn filter_sparse(vc: &VoxelCloud, min_adjacent: usize) -> VoxelCloud {
     let keep: Vec<bool> = (0..vc.len()).map(|i| vc.adjacency_size(i) > min_adjacent).collect();
-    let pick = |i: usize| keep[i];
     let mut out = VoxelCloud { resolution_m: vc.resolution_m, ..Default::default() };
-    for i in (0..vc.len()).filter(|&i| pick(i)) {
+    for i in (0..vc.len()).filter(|&i| keep[i]) {
         out.keys.push(vc.keys[i]);
         out.positions.push(vc.positions[i]);
         out.normals.push(vc.normals[i]);
