@@ -3,18 +3,27 @@
 mod common;
 
 use nalgebra::{Point3, Vector3};
+use stairbench::cloud::PointCloud;
 use stairbench::scenario::Scenario;
-use stairbench::scene::mjcf::{RobotFragment, ROBOT_GEOM_GROUP};
+use stairbench::scene::mjcf::ROBOT_GEOM_GROUP;
 use stairbench::scene::{Scene, SurfaceRole};
-use stairbench::sensor::{AssembleParams, SimLidar};
+use stairbench::sensor::{AssembleParams, SimLidar, Sweep};
 use stairbench::sim::World;
 
 fn exp1(noise_sigma_m: f64) -> (Scenario, Scene, World) {
     let mut s = Scenario::default();
     s.lidar.noise_sigma_m = noise_sigma_m;
     let scene = common::scene_of(&s);
-    let world = World::new(&scene, &RobotFragment::stand_in(&scene.robot_start())).unwrap();
+    let world = World::for_scene(&scene).unwrap();
     (s, scene, world)
+}
+
+/// The scenario's lidar in `world`, one whole sweep of it, and the sweep's cloud.
+fn swept<'w>(s: &Scenario, world: &'w World) -> (SimLidar<'w>, Sweep, PointCloud) {
+    let lidar = SimLidar::new(world, &s.lidar, s.seed).unwrap();
+    let sweep = lidar.sweep_with_progress(&mut |_, _| {});
+    let cloud = sweep.assemble(&AssembleParams::default()).unwrap();
+    (lidar, sweep, cloud)
 }
 
 /// Largest distance of any point to the world's surfaces, and the most negative signed
@@ -29,9 +38,7 @@ fn surface_errors(scene: &Scene, pts: &[Point3<f32>]) -> (f64, f64) {
 #[test]
 fn noise_free_points_lie_on_the_world_within_a_millimetre() {
     let (s, scene, world) = exp1(0.0);
-    let lidar = SimLidar::new(&world, &s.lidar, s.seed).unwrap();
-    let sweep = lidar.sweep_with_progress(&mut |_, _| {});
-    let cloud = sweep.assemble(&AssembleParams::default()).unwrap();
+    let (_, _, cloud) = swept(&s, &world);
     assert_eq!(cloud.len(), 259_440, "every beam of a closed room returns");
     let (worst, deepest) = surface_errors(&scene, cloud.points());
     assert!(worst < 1e-3, "a point is {:.2} mm off every surface", worst * 1e3);
@@ -88,9 +95,7 @@ fn range_noise_matches_the_configured_sigma() {
 #[test]
 fn first_step_is_hit_with_the_density_the_geometry_predicts() {
     let (s, scene, world) = exp1(0.0);
-    let lidar = SimLidar::new(&world, &s.lidar, s.seed).unwrap();
-    let sweep = lidar.sweep_with_progress(&mut |_, _| {});
-    let cloud = sweep.assemble(&AssembleParams::default()).unwrap();
+    let (lidar, sweep, cloud) = swept(&s, &world);
     let step = &scene.steps()[0];
     let on_tread = |p: &Point3<f64>| (p.z - step.height_m).abs() < 2e-3 && step.contains_xy(p, 0.0);
     let measured = cloud.points().iter().filter(|p| on_tread(&p.cast())).count();
@@ -156,8 +161,7 @@ fn the_robot_is_never_hit_though_it_is_in_the_way() {
 #[test]
 fn tilt_is_quantized_and_moves_during_each_row() {
     let (s, scene, world) = exp1(0.0);
-    let lidar = SimLidar::new(&world, &s.lidar, s.seed).unwrap();
-    let sweep = lidar.sweep_with_progress(&mut |_, _| {});
+    let (lidar, sweep, fitted) = swept(&s, &world);
     let tick = lidar.sweep().tick_rad();
     for r in &sweep.rows {
         let ticks = r.tilt_rad / tick;
@@ -170,7 +174,6 @@ fn tilt_is_quantized_and_moves_during_each_row() {
     // Holding each row's reading for the whole row leaves errors of several millimetres: the
     // scanner moves during a row. The fitted per-beam tilt removes them.
     let held = sweep.assemble(&AssembleParams { tilt_fit_half_window_rows: 0 }).unwrap();
-    let fitted = sweep.assemble(&AssembleParams::default()).unwrap();
     let (held_err, _) = surface_errors(&scene, held.points());
     let (fit_err, _) = surface_errors(&scene, fitted.points());
     assert!(

@@ -12,16 +12,11 @@ use stairbench::perception::{
     PerceptionParams,
 };
 use stairbench::scenario::Scenario;
-use stairbench::scene::mjcf::RobotFragment;
-use stairbench::sensor::{AssembleParams, SimLidar};
-use stairbench::sim::World;
+use stairbench::sensor::{scan_scenario, AssembleParams};
 use std::path::Path;
 
 fn scan(s: &Scenario) -> PointCloud {
-    let scene = common::scene_of(s);
-    let world = World::new(&scene, &RobotFragment::stand_in(&scene.robot_start())).unwrap();
-    let lidar = SimLidar::new(&world, &s.lidar, s.seed).unwrap();
-    lidar.sweep_with_progress(&mut |_, _| {}).assemble(&AssembleParams::default()).unwrap()
+    scan_scenario(s, &mut |_, _| {}).unwrap().sweep.assemble(&AssembleParams::default()).unwrap()
 }
 
 fn exp1(noise_m: f64) -> Scenario {

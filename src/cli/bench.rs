@@ -4,7 +4,6 @@
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use stairbench::scenario::Scenario;
-use stairbench::scene::mjcf::RobotFragment;
 use stairbench::scene::Scene;
 use stairbench::sensor::SimLidar;
 use stairbench::sim::World;
@@ -75,7 +74,7 @@ fn lidar(repeat: usize) -> Result<String> {
     const REAL_POINTS_PER_S: f64 = 43_240.0;
     let scenario = Scenario::default();
     let scene = Scene::from_scenario(&scenario)?;
-    let world = World::new(&scene, &RobotFragment::stand_in(&scene.robot_start()))?;
+    let world = World::for_scene(&scene)?;
     let lidar = SimLidar::new(&world, &scenario.lidar, scenario.seed)?;
     let rows = lidar.sweep().rows();
     let rays = (rows * lidar.lidar().beams()) as f64;

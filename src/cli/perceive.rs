@@ -7,10 +7,8 @@ use serde_json::json;
 use stairbench::cloud::io::{read_cloud, read_xyz_text};
 use stairbench::cloud::PointCloud;
 use stairbench::perception::{metrics, perceive, perceive_voxels, Perception, PerceptionParams};
-use stairbench::scene::mjcf::RobotFragment;
 use stairbench::scene::Scene;
-use stairbench::sensor::{AssembleParams, SimLidar};
-use stairbench::sim::World;
+use stairbench::sensor::{scan_scenario, AssembleParams};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -49,11 +47,9 @@ fn load(a: &PerceiveArgs) -> Result<Input> {
             if let Some(mm) = a.noise_mm {
                 scenario.lidar.noise_sigma_m = mm / 1000.0;
             }
-            let scene = Scene::from_scenario(&scenario)?;
-            let world = World::new(&scene, &RobotFragment::stand_in(&scene.robot_start()))?;
-            let lidar = SimLidar::new(&world, &scenario.lidar, scenario.seed)?;
-            let cloud = lidar.sweep_with_progress(&mut |_, _| {}).assemble(&AssembleParams::default())?;
-            Ok(Input::Scenario(Box::new(scene), cloud))
+            let scan = scan_scenario(&scenario, &mut |_, _| {})?;
+            let cloud = scan.sweep.assemble(&AssembleParams::default())?;
+            Ok(Input::Scenario(Box::new(scan.scene), cloud))
         }
     }
 }

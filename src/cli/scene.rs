@@ -2,7 +2,6 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
-use stairbench::scene::mjcf::{world_xml, RobotFragment};
 use stairbench::scene::Scene;
 use stairbench::sim::World;
 use std::path::PathBuf;
@@ -29,8 +28,7 @@ pub fn run(a: SceneArgs) -> Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
     let scene = Scene::from_scenario(&scenario)?;
-    let robot = RobotFragment::stand_in(&scene.robot_start());
-    let world = World::new(&scene, &robot)?;
+    let world = World::for_scene(&scene)?;
     println!(
         "scenario {}: {} boxes, {} bodies, {} geoms in MuJoCo",
         scene.name(),
@@ -54,8 +52,7 @@ pub fn run(a: SceneArgs) -> Result<ExitCode> {
     }
     if let Some(out) = a.output {
         super::ensure_parent(&out)?;
-        std::fs::write(&out, world_xml(&scene, &robot))
-            .with_context(|| format!("cannot write {}", out.display()))?;
+        std::fs::write(&out, world.xml()).with_context(|| format!("cannot write {}", out.display()))?;
         println!("MJCF written to {}", out.display());
     }
     Ok(ExitCode::SUCCESS)

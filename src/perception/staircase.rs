@@ -114,19 +114,16 @@ pub fn extract(
             }
         }
     }
-    let dist_to_sensor = |c: &Candidate| (c.centroid - below).norm();
+    // Per cluster (labels are indices): its size and its segment nearest the sensor.
+    let mut size = vec![0usize; n];
+    let mut nearest = vec![f64::INFINITY; n];
+    for (i, &l) in label.iter().enumerate() {
+        size[l] += 1;
+        nearest[l] = nearest[l].min((steps[i].centroid - below).norm());
+    }
     let best = (0..n)
-        .map(|i| label[i])
-        .max_by(|&a, &b| {
-            let size = |l: usize| label.iter().filter(|&&x| x == l).count();
-            let near = |l: usize| {
-                (0..n)
-                    .filter(|&i| label[i] == l)
-                    .map(|i| dist_to_sensor(steps[i]))
-                    .fold(f64::INFINITY, f64::min)
-            };
-            size(a).cmp(&size(b)).then(near(b).total_cmp(&near(a)))
-        })
+        .filter(|&l| size[l] > 0)
+        .max_by(|&a, &b| size[a].cmp(&size[b]).then(nearest[b].total_cmp(&nearest[a])))
         .unwrap_or(0);
     let mut stair: Vec<&Candidate> = (0..n).filter(|&i| label[i] == best).map(|i| steps[i]).collect();
     stair.sort_by(|a, b| a.height.total_cmp(&b.height));

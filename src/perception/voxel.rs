@@ -114,18 +114,64 @@ pub fn voxelize(
 /// Filter 2: keeps the voxels whose adjacency size exceeds `min_adjacent` (n_t), with the
 /// adjacency recomputed among the kept voxels.
 pub fn filter_sparse(vc: &VoxelCloud, min_adjacent: usize) -> VoxelCloud {
-    let keep: Vec<bool> = (0..vc.len()).map(|i| vc.adjacency_size(i) > min_adjacent).collect();
-    let mut out = VoxelCloud { resolution_m: vc.resolution_m, ..Default::default() };
-    for i in (0..vc.len()).filter(|&i| keep[i]) {
-        out.keys.push(vc.keys[i]);
-        out.positions.push(vc.positions[i]);
-        out.normals.push(vc.normals[i]);
-        out.counts.push(vc.counts[i]);
+    let kept: Vec<usize> = (0..vc.len()).filter(|&i| vc.adjacency_size(i) > min_adjacent).collect();
+    let mut new_index = vec![u32::MAX; vc.len()];
+    for (k, &i) in kept.iter().enumerate() {
+        new_index[i] = k as u32;
     }
-    let (adj_start, adjacent) = adjacency(&out.keys);
-    out.adj_start = adj_start;
-    out.adjacent = adjacent;
-    out
+    // The kept voxels' neighbours are their old neighbours that were kept.
+    let lists: Vec<Neighbours> = kept
+        .par_iter()
+        .map(|&i| {
+            let mut out = Neighbours::default();
+            for &j in vc.neighbours(i) {
+                if new_index[j as usize] != u32::MAX {
+                    out.push(new_index[j as usize]);
+                }
+            }
+            out
+        })
+        .collect();
+    let (adj_start, adjacent) = to_csr(&lists);
+    VoxelCloud {
+        resolution_m: vc.resolution_m,
+        keys: kept.iter().map(|&i| vc.keys[i]).collect(),
+        positions: kept.iter().map(|&i| vc.positions[i]).collect(),
+        normals: kept.iter().map(|&i| vc.normals[i]).collect(),
+        counts: kept.iter().map(|&i| vc.counts[i]).collect(),
+        adj_start,
+        adjacent,
+    }
+}
+
+/// The neighbours of one voxel, at most 26, kept on the stack.
+#[derive(Clone, Copy, Default)]
+struct Neighbours {
+    ids: [u32; 26],
+    len: u8,
+}
+
+impl Neighbours {
+    fn push(&mut self, id: u32) {
+        self.ids[self.len as usize] = id;
+        self.len += 1;
+    }
+
+    fn as_slice(&self) -> &[u32] {
+        &self.ids[..self.len as usize]
+    }
+}
+
+/// Concatenates per-voxel lists into CSR start offsets and indices.
+fn to_csr(lists: &[Neighbours]) -> (Vec<u32>, Vec<u32>) {
+    let mut start = Vec::with_capacity(lists.len() + 1);
+    let mut adj = Vec::with_capacity(lists.iter().map(|l| l.len as usize).sum());
+    start.push(0u32);
+    for l in lists {
+        adj.extend_from_slice(l.as_slice());
+        start.push(adj.len() as u32);
+    }
+    (start, adj)
 }
 
 const BITS: u32 = 21;
@@ -171,14 +217,15 @@ fn adjacency(keys: &[[i32; 3]]) -> (Vec<u32>, Vec<u32>) {
     }
     let (w, h) = ((xmax - xmin + 1) as usize, (ymax - ymin + 1) as usize);
     let columns = Columns::new(&runs, xmin, ymin, w, h);
-    let lists: Vec<Vec<u32>> = (0..n)
+    let lists: Vec<Neighbours> = (0..n)
         .into_par_iter()
         .map(|i| {
             let [x, y, z] = keys[i];
-            let mut out = Vec::with_capacity(12);
+            let mut out = Neighbours::default();
             for dx in -1..=1 {
                 for dy in -1..=1 {
                     if let Some((a, b)) = columns.get(x + dx, y + dy) {
+                        // Keys are unique cells, so at most 26 pass this test.
                         for j in a..b {
                             let dz = keys[j as usize][2] - z;
                             if dz.abs() <= 1 && j as usize != i {
@@ -191,14 +238,7 @@ fn adjacency(keys: &[[i32; 3]]) -> (Vec<u32>, Vec<u32>) {
             out
         })
         .collect();
-    let mut start = Vec::with_capacity(n + 1);
-    let mut adj = Vec::with_capacity(lists.iter().map(Vec::len).sum());
-    start.push(0u32);
-    for l in lists {
-        adj.extend_from_slice(&l);
-        start.push(adj.len() as u32);
-    }
-    (start, adj)
+    to_csr(&lists)
 }
 
 /// Column runs by (x, y): a dense table when the grid's footprint is small, else a hash map.

@@ -65,7 +65,14 @@ impl Issue {
 impl ScenarioError {
     pub(super) fn from_toml(origin: &str, text: &str, e: &toml::de::Error) -> Self {
         let line = e.span().map(|s| line_of_offset(text, s.start));
-        Self::Syntax { origin: origin.to_string(), line, message: e.message().trim().to_string() }
+        let message = e.message().trim();
+        // Name the field whose value the parser refused (a wrong type, a negative count).
+        let field = e.span().and_then(|s| field_at_offset(text, s.start));
+        let message = match field {
+            Some(f) if !message.contains(&f) => format!("`{f}`: {message}"),
+            _ => message.to_string(),
+        };
+        Self::Syntax { origin: origin.to_string(), line, message }
     }
 }
 
@@ -79,6 +86,44 @@ fn line_of_field(text: &str, field: &str) -> Option<usize> {
     let parts: Vec<&str> = field.split('.').collect();
     let span = span_of(doc.as_item(), &parts, None)?;
     Some(line_of_offset(text, span.start))
+}
+
+/// The dotted path of the key whose value (or key) covers byte `offset` of the text.
+fn field_at_offset(text: &str, offset: usize) -> Option<String> {
+    let doc = toml_edit::ImDocument::parse(text.to_string()).ok()?;
+    let mut path = Vec::new();
+    field_in(doc.as_item(), offset, &mut path).then(|| path.join("."))
+}
+
+fn field_in(item: &toml_edit::Item, offset: usize, path: &mut Vec<String>) -> bool {
+    if let Some(tables) = item.as_array_of_tables() {
+        for (i, t) in tables.iter().enumerate() {
+            if let Some(last) = path.last_mut() {
+                last.push_str(&format!("[{i}]"));
+            }
+            if field_in(&toml_edit::Item::Table(t.clone()), offset, path) {
+                return true;
+            }
+            if let Some(last) = path.last_mut() {
+                let cut = last.rfind('[').unwrap_or(last.len());
+                last.truncate(cut);
+            }
+        }
+        return false;
+    }
+    let Some(table) = item.as_table_like() else { return false };
+    for (key, value) in table.iter() {
+        path.push(key.to_string());
+        let covers = |r: Option<Span>| r.is_some_and(|r| r.contains(&offset));
+        let key_span = table.get_key_value(key).and_then(|(k, _)| k.span());
+        if field_in(value, offset, path)
+            || (!value.is_table_like() && (covers(value.span()) || covers(key_span)))
+        {
+            return true;
+        }
+        path.pop();
+    }
+    false
 }
 
 /// The span of the deepest key of `path` found below `item` (the last one found wins).

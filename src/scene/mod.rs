@@ -136,9 +136,4 @@ impl Scene {
     pub fn signed_distance(&self, p: &Point3<f64>) -> f64 {
         self.boxes.iter().map(|b| b.signed_distance(p)).fold(f64::INFINITY, f64::min)
     }
-
-    /// The box nearest to `p` (by distance to its surface).
-    pub fn nearest_box(&self, p: &Point3<f64>) -> Option<&SceneBox> {
-        self.boxes.iter().min_by(|a, b| a.signed_distance(p).abs().total_cmp(&b.signed_distance(p).abs()))
-    }
 }

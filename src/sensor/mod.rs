@@ -11,7 +11,7 @@ pub mod sim;
 pub use assemble::{assemble, AssembleParams};
 pub use lidar::LidarModel;
 pub use servo::TiltSweep;
-pub use sim::SimLidar;
+pub use sim::{scan_scenario, ScenarioScan, SimLidar};
 
 use nalgebra::Vector3;
 
@@ -39,6 +39,9 @@ impl ScanRow {
 /// Why a sensor could not produce or assemble rows.
 #[derive(Debug, thiserror::Error)]
 pub enum SensorError {
+    /// The scenario is invalid.
+    #[error(transparent)]
+    Scenario(#[from] crate::scenario::ScenarioError),
     /// A row's length differs from the lidar's beam count.
     #[error("row {row} has {got} ranges, the lidar has {expected} beams")]
     RowLength {
@@ -80,10 +83,5 @@ impl Sweep {
     /// Beams cast in the sweep.
     pub fn beam_count(&self) -> usize {
         self.rows.len() * self.lidar.beams()
-    }
-
-    /// Beams that returned a range.
-    pub fn return_count(&self) -> usize {
-        self.rows.iter().map(|r| (0..r.ranges_m.len()).filter(|&i| r.has_return(i)).count()).sum()
     }
 }

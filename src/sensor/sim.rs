@@ -49,23 +49,24 @@ impl<'w> SimLidar<'w> {
     /// Rows `range` of the sweep, cast in parallel (rayon). Deterministic for a seed.
     pub fn rows(&self, range: Range<usize>) -> Vec<ScanRow> {
         let end = range.end.min(self.sweep.rows());
-        (range.start..end).into_par_iter().map(|k| self.row_with_hits(k).0).collect()
-    }
-
-    /// The whole sweep.
-    pub fn sweep_all(&self) -> Vec<ScanRow> {
-        self.rows(0..self.sweep.rows())
+        (range.start..end).into_par_iter().map(|k| self.cast_row(k, None)).collect()
     }
 
     /// Row `k` and, for each beam, the true hit (before noise, dropouts and range limits).
     pub fn row_with_hits(&self, k: usize) -> (ScanRow, Vec<Option<RayHit>>) {
+        let mut hits = Vec::with_capacity(self.lidar.beams());
+        let row = self.cast_row(k, Some(&mut hits));
+        (row, hits)
+    }
+
+    /// Casts row `k`, recording each beam's true hit in `hits` when given.
+    fn cast_row(&self, k: usize, mut hits: Option<&mut Vec<Option<RayHit>>>) -> ScanRow {
         let stamp_s = self.sweep.row_stamp_s(k);
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed ^ (k as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
         let noise =
             Normal::new(0.0, self.lidar.noise_sigma_m).ok().filter(|_| self.lidar.noise_sigma_m > 0.0);
         let beams = self.lidar.beams();
         let mut ranges_m = Vec::with_capacity(beams);
-        let mut hits = Vec::with_capacity(beams);
         for i in 0..beams {
             let tilt = self.sweep.tilt_at(stamp_s + self.lidar.beam_time_offset_s(i));
             let scanner = self.mount_to_world * self.lidar.scanner_in_mount(tilt);
@@ -80,11 +81,12 @@ impl<'w> SimLidar<'w> {
                 self.lidar.dropout_probability > 0.0 && rng.random::<f64>() < self.lidar.dropout_probability;
             let valid = hit.is_some() && !dropped && self.lidar.in_range(range);
             ranges_m.push(if valid { range as f32 } else { 0.0 });
-            hits.push(hit);
+            if let Some(h) = hits.as_deref_mut() {
+                h.push(hit);
+            }
         }
         let gravity_mount = self.mount_to_world.rotation.inverse() * -Vector3::z();
-        let row = ScanRow { stamp_s, tilt_rad: self.sweep.reading_at(stamp_s), ranges_m, gravity_mount };
-        (row, hits)
+        ScanRow { stamp_s, tilt_rad: self.sweep.reading_at(stamp_s), ranges_m, gravity_mount }
     }
 }
 
@@ -103,4 +105,24 @@ impl SimLidar<'_> {
         }
         super::Sweep { rows, lidar: self.lidar.clone(), mount_to_world: self.mount_to_world }
     }
+}
+
+/// A scenario's world, scanned once by its lidar from the robot's start.
+pub struct ScenarioScan {
+    /// The scenario's scene (ground truth included).
+    pub scene: crate::scene::Scene,
+    /// The sweep.
+    pub sweep: super::Sweep,
+}
+
+/// Builds the world of `scenario` (with the bench's robot, see [`World::for_scene`]) and
+/// sweeps its lidar once; `progress(done_rows, total_rows)` is called along the way.
+pub fn scan_scenario(
+    scenario: &crate::scenario::Scenario,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<ScenarioScan, SensorError> {
+    let scene = crate::scene::Scene::from_scenario(scenario)?;
+    let world = World::for_scene(&scene)?;
+    let sweep = SimLidar::new(&world, &scenario.lidar, scenario.seed)?.sweep_with_progress(progress);
+    Ok(ScenarioScan { scene, sweep })
 }

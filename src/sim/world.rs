@@ -43,6 +43,13 @@ impl World {
         Self::from_xml(xml)
     }
 
+    /// The world of `scene` with the bench's robot standing at the scene's start. Today the
+    /// robot is the stand-in of [`RobotFragment::stand_in`]; this is the one place that
+    /// chooses it.
+    pub fn for_scene(scene: &Scene) -> Result<Self, SimError> {
+        Self::new(scene, &RobotFragment::stand_in(&scene.robot_start()))
+    }
+
     /// Compiles an MJCF text (geoms of group 2 are treated as the robot's).
     pub fn from_xml(xml: String) -> Result<Self, SimError> {
         let model = MjModel::from_xml_string(&xml).map_err(|e| SimError::Compile(e.to_string()))?;
