@@ -25,8 +25,12 @@ pub struct StepScore {
     pub height_error_m: f64,
     /// Mean distance from the segment's corners to the true corners, metres (NaN when none).
     pub corner_error_m: f64,
-    /// Eq. 3: p = a/A sum n_i over the segments on this step, percent.
+    /// Eq. 3: p = a/A sum n_i over the segments on this step, percent. Counts voxels, so a
+    /// tread lying on a voxel-layer boundary counts twice and p can exceed 100.
     pub area_percent: f64,
+    /// Footprint coverage: the part of the true top covered by the segments on this step
+    /// (their rectangles clipped to it), percent; at most 100.
+    pub coverage_percent: f64,
 }
 
 /// Scores of a perception result.
@@ -72,16 +76,27 @@ pub fn score(segments: &[PlaneSegment], truth: &[StepTop], voxel_m: f64) -> Scor
                 _ => (0.0, f64::NAN, f64::NAN),
             };
             let found = iou >= FOUND_IOU && dz.abs() <= FOUND_DZ_M;
-            let mut voxels = 0;
+            let (mut voxels, mut covered_m2) = (0, 0.0);
             for (i, s) in segments.iter().enumerate() {
                 let c = s.center();
                 if t.contains_xy(&c, 0.0) && (s.height_m() - t.height_m).abs() <= FOUND_DZ_M {
                     voxels += s.voxel_count();
+                    covered_m2 += geom2d::area(&geom2d::clip_convex(&xy(s.corners()), &txy));
                     matched[i] = true;
                 }
             }
             let area_percent = 100.0 * voxels as f64 * voxel_m * voxel_m / t.area_m2();
-            StepScore { index: t.index, found, iou, height_error_m: dz, corner_error_m: corner, area_percent }
+            // Segments on one step do not overlap (one per plane and cluster); clamp anyway.
+            let coverage_percent = (100.0 * covered_m2 / t.area_m2()).min(100.0);
+            StepScore {
+                index: t.index,
+                found,
+                iou,
+                height_error_m: dz,
+                corner_error_m: corner,
+                area_percent,
+                coverage_percent,
+            }
         })
         .collect();
     let found = steps.iter().filter(|s| s.found).count();

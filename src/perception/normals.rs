@@ -158,6 +158,7 @@ pub fn by_grid(points: &[Point3<f32>], grid: &ScanGrid, k: usize, viewpoint: Poi
                     }
                 }
             }
+            // A full sort of <= 81 keys measured faster than select_nth_unstable here.
             let chosen = if n > k {
                 keys[..n].sort_unstable();
                 k

@@ -95,6 +95,9 @@ pub fn supervoxels(vc: &VoxelCloud, p: &PerceptionParams) -> Supervoxels {
     let mut centres: Vec<Point3<f32>> = seeded.iter().map(|e| vc.positions[e.1 as usize]).collect();
     let mut normals: Vec<Vector3<f32>> = seeded.iter().map(|e| vc.normals[e.1 as usize]).collect();
     let mut labels = vec![UNLABELLED; n];
+    // Centres (position or normal) changed by the last update: a voxel none of whose
+    // candidates changed keeps its label, exactly as a full re-evaluation would give.
+    let mut changed = vec![true; centres.len()];
     let mut rounds = 0;
     while rounds < MAX_ROUNDS {
         rounds += 1;
@@ -102,6 +105,9 @@ pub fn supervoxels(vc: &VoxelCloud, p: &PerceptionParams) -> Supervoxels {
         let next: Vec<u32> = (0..n)
             .into_par_iter()
             .map(|i| {
+                if !volume[i].iter().any(|&l| changed[l as usize]) {
+                    return labels[i];
+                }
                 let (q, nq) = (vc.positions[i], vc.normals[i]);
                 let mut best = (f32::INFINITY, UNLABELLED);
                 for &l in volume[i] {
@@ -115,7 +121,7 @@ pub fn supervoxels(vc: &VoxelCloud, p: &PerceptionParams) -> Supervoxels {
             .collect();
         let moved = next.iter().zip(&labels).filter(|(a, b)| a != b).count();
         labels = next;
-        update_centres(vc, &labels, &mut centres, &mut normals);
+        update_centres(vc, &labels, &mut centres, &mut normals, &mut changed);
         if moved == 0 {
             break;
         }
@@ -134,6 +140,7 @@ fn update_centres(
     labels: &[u32],
     centres: &mut [Point3<f32>],
     normals: &mut [Vector3<f32>],
+    changed: &mut [bool],
 ) {
     let mut sum_p = vec![Vector3::<f32>::zeros(); centres.len()];
     let mut sum_n = vec![Vector3::<f32>::zeros(); centres.len()];
@@ -146,9 +153,12 @@ fn update_centres(
         }
     }
     for l in 0..centres.len() {
+        changed[l] = false;
         if count[l] > 0 {
-            centres[l] = Point3::from(sum_p[l] / count[l] as f32);
-            normals[l] = sum_n[l].try_normalize(1e-12).unwrap_or(normals[l]);
+            let (c, nl) = (Point3::from(sum_p[l] / count[l] as f32), sum_n[l].try_normalize(1e-12).unwrap_or(normals[l]));
+            changed[l] = c != centres[l] || nl != normals[l];
+            centres[l] = c;
+            normals[l] = nl;
         }
     }
 }

@@ -1,12 +1,12 @@
 //! `stairbench bench`: speed measurements, each as a ratio against a baseline run in the same
 //! process, printed as a Markdown table and optionally written into BENCHMARKS.md.
 
+mod lidar;
+mod perceive;
+mod plot;
+
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use stairbench::scenario::Scenario;
-use stairbench::scene::Scene;
-use stairbench::sensor::SimLidar;
-use stairbench::sim::World;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -22,6 +22,14 @@ pub struct BenchArgs {
     /// Also write the table into this Markdown file, replacing its previous section.
     #[arg(long)]
     write: Option<PathBuf>,
+    /// Perception: where to draw the Fig. 5 plot (PNG). Default: `fig5-perception.png`
+    /// beside the `--write` file, or no plot without `--write`.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Perception: the PCL peer's binary (built from ../shared/peers), run side by side on
+    /// the same exported cloud. Default: /tmp/peers/build/pcl_pipeline when it exists.
+    #[arg(long)]
+    pcl: Option<PathBuf>,
 }
 
 /// The benchmarks.
@@ -29,12 +37,23 @@ pub struct BenchArgs {
 pub enum BenchWhat {
     /// Rays per second of the simulated lidar on the Exp. 1 world with the robot present.
     Lidar,
+    /// The perception pipeline (§4): Fig. 5's sweep over k on Exp. 1 and Exp. 2, time per
+    /// phase, the k-d tree baseline, and the PCL peer on the same cloud.
+    #[value(alias = "perception")]
+    Perceive,
 }
 
 /// Runs `stairbench bench`.
 pub fn run(a: BenchArgs) -> Result<ExitCode> {
+    let repeat = a.repeat.max(1);
     let (key, table) = match a.what {
-        BenchWhat::Lidar => ("lidar", lidar(a.repeat.max(1))?),
+        BenchWhat::Lidar => ("lidar", lidar::run(repeat)?),
+        BenchWhat::Perceive => {
+            let plot = a.plot.clone().or_else(|| {
+                a.write.as_ref().map(|w| w.with_file_name("fig5-perception.png"))
+            });
+            ("perceive", perceive::run(repeat, plot.as_deref(), a.pcl.as_deref())?)
+        }
     };
     print!("{table}");
     if let Some(path) = a.write {
@@ -68,42 +87,6 @@ pub fn machine() -> String {
         })
         .unwrap_or_else(|| "unknown CPU".into());
     format!("{} cores ({cpu})", rayon::current_num_threads())
-}
-
-fn lidar(repeat: usize) -> Result<String> {
-    const REAL_POINTS_PER_S: f64 = 43_240.0;
-    let scenario = Scenario::default();
-    let scene = Scene::from_scenario(&scenario)?;
-    let world = World::for_scene(&scene)?;
-    let lidar = SimLidar::new(&world, &scenario.lidar, scenario.seed)?;
-    let rows = lidar.sweep().rows();
-    let rays = (rows * lidar.lidar().beams()) as f64;
-    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().context("thread pool")?;
-    let base_s = median_s(repeat, || {
-        one.install(|| std::hint::black_box(lidar.rows(0..rows)));
-    });
-    let par_s = median_s(repeat, || {
-        std::hint::black_box(lidar.rows(0..rows));
-    });
-    let mut t = String::new();
-    t += &format!(
-        "Simulated lidar, Exp. 1 world with the robot stand-in ({} geoms), one sweep of {rows} rows x {} beams = {rays:.0} rays, median of {repeat}; {}.\n\n",
-        world.model().ffi().ngeom,
-        lidar.lidar().beams(),
-        machine()
-    );
-    t += "| variant | wall per sweep | rays/s | x real sensor (43 240 points/s) | ratio to baseline |\n|---|---|---|---|---|\n";
-    for (name, s) in [("baseline: 1 thread, mj_ray per beam", base_s), ("rayon over rows, all cores", par_s)]
-    {
-        t += &format!(
-            "| {name} | {:.1} ms | {:.2} M | {:.0} x | {:.2} |\n",
-            s * 1e3,
-            rays / s / 1e6,
-            rays / s / REAL_POINTS_PER_S,
-            base_s / s
-        );
-    }
-    Ok(t)
 }
 
 /// Replaces the section `key` of a Markdown file (between `<!-- bench:key -->` and
