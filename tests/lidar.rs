@@ -139,9 +139,11 @@ fn the_robot_is_never_hit_though_it_is_in_the_way() {
         .filter(|&g| world.geom_group(g) == ROBOT_GEOM_GROUP)
         .collect();
     assert!(!robot_geoms.is_empty());
-    // The stand-in's head sphere encloses the optical centre: every beam starts inside a
-    // robot geom, so a lidar that did not exclude the robot would hit it with every beam.
-    let head = world.model().name_to_id(mujoco_rs::prelude::MjtObjBase::mjOBJ_GEOM, "stand_in_head").unwrap();
+    // HRP-4's head sphere encloses the optical centre (the servo sits on the neck): every
+    // beam starts inside a robot geom, so a lidar that did not exclude the robot would hit
+    // it with every beam.
+    let head =
+        world.model().name_to_id(mujoco_rs::prelude::MjtObjBase::mjOBJ_GEOM, "NECK_P_LINK_geom0").unwrap();
     let centre = Vector3::from(world.data().geom_xpos()[head]);
     let radius = world.model().geom_size()[head][0];
     let scanner = lidar.mount_to_world() * lidar.lidar().scanner_in_mount(lidar.sweep().tilt_at(0.0));

@@ -6,7 +6,9 @@ use clap::Args;
 use serde_json::json;
 use stairbench::cloud::io::{read_cloud, read_xyz_text};
 use stairbench::cloud::PointCloud;
-use stairbench::perception::{metrics, perceive, perceive_voxels, Perception, PerceptionParams};
+use stairbench::perception::{
+    metrics, perceive, perceive_voxels, NeighbourSearch, Perception, PerceptionParams,
+};
 use stairbench::scene::Scene;
 use stairbench::sensor::{scan_scenario, AssembleParams};
 use std::path::{Path, PathBuf};
@@ -21,6 +23,10 @@ pub struct PerceiveArgs {
     /// k, the neighbours of the normal estimation (paper §5: 10).
     #[arg(short, long)]
     k: Option<usize>,
+    /// Neighbourhood search of the normal estimation (auto: the scan grid when the cloud
+    /// has one).
+    #[arg(long, value_enum, default_value = "auto")]
+    search: SearchArg,
     /// Override the scan's range noise, millimetres (scenario input only).
     #[arg(long)]
     noise_mm: Option<f64>,
@@ -31,6 +37,14 @@ pub struct PerceiveArgs {
     /// Run the pipeline this many times and report the run of median total time.
     #[arg(long, default_value_t = 1)]
     repeat: usize,
+}
+
+/// `--search` values.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum SearchArg {
+    Auto,
+    KdTree,
+    ScanGrid,
 }
 
 enum Input {
@@ -63,6 +77,11 @@ pub fn run(a: PerceiveArgs) -> Result<ExitCode> {
     if let Some(k) = a.k {
         params.normal_neighbours = k;
     }
+    params.neighbour_search = match a.search {
+        SearchArg::Auto => NeighbourSearch::Auto,
+        SearchArg::KdTree => NeighbourSearch::KdTree,
+        SearchArg::ScanGrid => NeighbourSearch::ScanGrid,
+    };
     let input = load(&a)?;
     let (cloud, voxels, scene) = match &input {
         Input::Scenario(scene, cloud) => (cloud, false, Some(scene.as_ref())),

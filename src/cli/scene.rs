@@ -2,6 +2,7 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
+use stairbench::scene::mjcf::HEAD_SITE;
 use stairbench::scene::Scene;
 use stairbench::sim::World;
 use std::path::PathBuf;
@@ -35,6 +36,11 @@ pub fn run(a: SceneArgs) -> Result<ExitCode> {
         scene.boxes().len(),
         world.model().ffi().nbody,
         world.model().ffi().ngeom
+    );
+    let mount = world.site_pose(world.site_id(HEAD_SITE)?).translation.vector;
+    println!(
+        "robot: HRP-4-class model in half-sitting, lidar mount (`{HEAD_SITE}` site) at ({:.3}, {:.3}, {:.3}) m",
+        mount.x, mount.y, mount.z
     );
     println!("ground truth, step tops (world frame, metres):");
     println!("  step  height   depth   width   centre (x, y)");

@@ -31,13 +31,15 @@ pub enum NeighbourSearch {
 /// e.g. collinear points). Such points fail Filter 1.
 pub const NO_NORMAL: [f32; 3] = [f32::NAN; 3];
 
-/// Row and beam half-widths of the scan window searched for `k` neighbours: about 2.5 times
+/// Row and beam half-widths of the scan window searched for `k` neighbours: 2.5 to 3.5 times
 /// as many candidates as k, so the k nearest are chosen in 3-D, as a k-d tree would, and not
-/// by the window's shape.
+/// by the window's shape. At the default k = 10 the window is 5 rows x 7 beams: with 5 x 5,
+/// the first step's IoU on the noisy Exp. 1 scan seen from HRP-4's neck fell to 0.88 against
+/// the k-d tree's 0.96; with 5 x 7 it is 0.95 (normals about 25 % slower).
 pub fn grid_window(k: usize) -> (usize, usize) {
     match k {
         0..=5 => (1, 2),
-        6..=10 => (2, 2),
+        6..=10 => (2, 3),
         11..=14 => (2, 3),
         15..=19 => (3, 3),
         20..=25 => (3, 4),

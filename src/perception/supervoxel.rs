@@ -155,7 +155,10 @@ fn update_centres(
     for l in 0..centres.len() {
         changed[l] = false;
         if count[l] > 0 {
-            let (c, nl) = (Point3::from(sum_p[l] / count[l] as f32), sum_n[l].try_normalize(1e-12).unwrap_or(normals[l]));
+            let (c, nl) = (
+                Point3::from(sum_p[l] / count[l] as f32),
+                sum_n[l].try_normalize(1e-12).unwrap_or(normals[l]),
+            );
             changed[l] = c != centres[l] || nl != normals[l];
             centres[l] = c;
             normals[l] = nl;

@@ -1,6 +1,7 @@
 //! A compiled MuJoCo world (model + data) built from a [`Scene`] and a robot fragment, with
 //! thread-safe ray casting for the simulated lidar.
 
+use crate::robot::{self, hrp4};
 use crate::scene::mjcf::{world_xml, RobotFragment, ROBOT_GEOM_GROUP};
 use crate::scene::Scene;
 use mujoco_rs::mujoco_c::{mjNGROUP, mj_ray};
@@ -17,6 +18,9 @@ pub enum SimError {
     /// A frame the bench needs is missing from the model.
     #[error("the world has no site named `{0}`")]
     MissingSite(String),
+    /// The robot model could not be placed in the world.
+    #[error(transparent)]
+    Robot(#[from] crate::robot::RobotError),
 }
 
 /// One ray's hit.
@@ -43,11 +47,14 @@ impl World {
         Self::from_xml(xml)
     }
 
-    /// The world of `scene` with the bench's robot standing at the scene's start. Today the
-    /// robot is the stand-in of [`RobotFragment::stand_in`]; this is the one place that
-    /// chooses it.
+    /// The world of `scene` with the bench's robot, the HRP-4-class model, standing in
+    /// half-sitting with its feet at the scene's start. This is the one place that chooses
+    /// the robot.
     pub fn for_scene(scene: &Scene) -> Result<Self, SimError> {
-        Self::new(scene, &RobotFragment::stand_in(&scene.robot_start()))
+        let model = hrp4::model()?;
+        let joints = hrp4::half_sitting_joints(&model)?;
+        let q = hrp4::standing_config(&model, &joints, &scene.robot_start())?;
+        Self::new(scene, &robot::mjcf::fragment(&model, &q))
     }
 
     /// Compiles an MJCF text (geoms of group 2 are treated as the robot's).
@@ -55,6 +62,10 @@ impl World {
         let model = MjModel::from_xml_string(&xml).map_err(|e| SimError::Compile(e.to_string()))?;
         let model = Arc::new(model);
         let mut data = MjData::new(model.clone());
+        if model.ffi().nkey > 0 {
+            // The robot's initial state (keyframe 0 exists, so this cannot fail).
+            let _ = data.reset_keyframe(0);
+        }
         data.forward();
         let mut lidar_groups = [1u8; mjNGROUP as usize];
         lidar_groups[ROBOT_GEOM_GROUP] = 0;
@@ -86,6 +97,13 @@ impl World {
         self.model
             .name_to_id(MjtObjBase::mjOBJ_SITE, name)
             .ok_or_else(|| SimError::MissingSite(name.to_string()))
+    }
+
+    /// Id of a body by name.
+    pub fn body_id(&self, name: &str) -> Result<usize, SimError> {
+        self.model
+            .name_to_id(MjtObjBase::mjOBJ_BODY, name)
+            .ok_or_else(|| SimError::MissingSite(format!("(body) {name}")))
     }
 
     /// World pose of a site, from the last forward kinematics.

@@ -25,7 +25,7 @@ pub fn run(repeat: usize) -> Result<String> {
     });
     let mut t = String::new();
     t += &format!(
-        "Simulated lidar, Exp. 1 world with the robot stand-in ({} geoms), one sweep of {rows} rows x {} beams = {rays:.0} rays, median of {repeat}; {}.\n\n",
+        "Simulated lidar, Exp. 1 world with the HRP-4-class robot in it ({} geoms, the robot's excluded from the rays), one sweep of {rows} rows x {} beams = {rays:.0} rays, median of {repeat}; {}.\n\n",
         world.model().ffi().ngeom,
         lidar.lidar().beams(),
         machine()

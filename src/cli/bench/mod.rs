@@ -4,6 +4,7 @@
 mod lidar;
 mod perceive;
 mod plot;
+mod robot;
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
@@ -41,6 +42,8 @@ pub enum BenchWhat {
     /// phase, the k-d tree baseline, and the PCL peer on the same cloud.
     #[value(alias = "perception")]
     Perceive,
+    /// The robot's kinematics (FK, Jacobians, CoM) against MuJoCo's, and simulation speed.
+    Robot,
 }
 
 /// Runs `stairbench bench`.
@@ -48,10 +51,10 @@ pub fn run(a: BenchArgs) -> Result<ExitCode> {
     let repeat = a.repeat.max(1);
     let (key, table) = match a.what {
         BenchWhat::Lidar => ("lidar", lidar::run(repeat)?),
+        BenchWhat::Robot => ("robot", robot::run(repeat)?),
         BenchWhat::Perceive => {
-            let plot = a.plot.clone().or_else(|| {
-                a.write.as_ref().map(|w| w.with_file_name("fig5-perception.png"))
-            });
+            let plot =
+                a.plot.clone().or_else(|| a.write.as_ref().map(|w| w.with_file_name("fig5-perception.png")));
             ("perceive", perceive::run(repeat, plot.as_deref(), a.pcl.as_deref())?)
         }
     };

@@ -8,6 +8,7 @@ use anyhow::{bail, Context, Result};
 use stairbench::cloud::io::{write_cloud, CloudFormat};
 use stairbench::cloud::PointCloud;
 use stairbench::geom2d;
+use stairbench::perception::normals::grid_window;
 use stairbench::perception::{metrics, perceive, NeighbourSearch, Perception, PerceptionParams};
 use stairbench::scene::Scene;
 use stairbench::sensor::{scan_scenario, AssembleParams};
@@ -85,10 +86,13 @@ pub fn run(repeat: usize, plot_path: Option<&Path>, pcl: Option<&Path>) -> Resul
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().context("thread pool")?;
     let single = one.install(|| median_run(&exp1.cloud, &paper, repeat))?;
     let ours = median_run(&exp1.cloud, &paper, repeat)?;
+    let (hr, hb) = grid_window(K_PAPER);
     out += &format!(
-        "### Speed, {} ({} points), k = {K_PAPER}\n\nTimes in ms. The baseline is the same pipeline with exact kNN normals from a k-d tree (kiddo, rebuilt per frame), as §4.1 describes; the default finds each point's k nearest among a 5 x 5 window of the scan grid.\n\n",
+        "### Speed, {} ({} points), k = {K_PAPER}\n\nTimes in ms. The baseline is the same pipeline with exact kNN normals from a k-d tree (kiddo, rebuilt per frame), as §4.1 describes; the default finds each point's k nearest among a {} x {} (rows x beams) window of the scan grid.\n\n",
         exp1.label,
-        exp1.cloud.len()
+        exp1.cloud.len(),
+        2 * hr + 1,
+        2 * hb + 1
     );
     out += "| variant | normals | filter 1 | voxels + filter 2 | supervoxels | clusters + filter 3 | RANSAC | staircase | total | ratio to baseline | steps found | IoU steps 1/2/3 |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (name, r) in [
@@ -215,7 +219,13 @@ fn phase_row(name: &str, r: &Perception, scene: &Scene, base_ms: f64, p: &Percep
 
 /// Runs the PCL peer on `case`'s cloud exported as PCD; its table row (ratios against the
 /// baseline `base_ms` and the default `ours_ms`), or `None` when the binary is absent.
-fn pcl_peer(case: &Case, pcl: Option<&Path>, repeat: usize, base_ms: f64, ours_ms: f64) -> Result<Option<String>> {
+fn pcl_peer(
+    case: &Case,
+    pcl: Option<&Path>,
+    repeat: usize,
+    base_ms: f64,
+    ours_ms: f64,
+) -> Result<Option<String>> {
     let bin = match pcl {
         Some(p) if p.exists() => p.to_path_buf(),
         Some(p) => bail!("no PCL peer binary at {}", p.display()),
@@ -255,10 +265,8 @@ fn pcl_peer(case: &Case, pcl: Option<&Path>, repeat: usize, base_ms: f64, ours_m
             a.iter()
                 .filter_map(|s| {
                     let c = s["corners"].as_array()?;
-                    let xy: Option<Vec<geom2d::P2>> = c
-                        .iter()
-                        .map(|p| Some(geom2d::P2::new(p[0].as_f64()?, p[1].as_f64()?)))
-                        .collect();
+                    let xy: Option<Vec<geom2d::P2>> =
+                        c.iter().map(|p| Some(geom2d::P2::new(p[0].as_f64()?, p[1].as_f64()?))).collect();
                     Some((xy?, s["height"].as_f64()?))
                 })
                 .collect()

@@ -6,7 +6,8 @@ use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 use std::path::Path;
 
-const COLOURS: [RGBColor; 4] = [RGBColor(31, 119, 180), RGBColor(140, 190, 230), RGBColor(214, 39, 40), RGBColor(240, 150, 150)];
+const COLOURS: [RGBColor; 4] =
+    [RGBColor(31, 119, 180), RGBColor(140, 190, 230), RGBColor(214, 39, 40), RGBColor(240, 150, 150)];
 
 /// Draws the sweep `series` (label, points) to `path`.
 pub fn fig5(path: &Path, series: &[(String, Vec<SweepPoint>)]) -> Result<()> {
@@ -33,7 +34,10 @@ fn draw(path: &Path, series: &[(String, Vec<SweepPoint>)]) -> Result<(), Box<dyn
         .x_label_area_size(40)
         .y_label_area_size(55)
         .build_cartesian_2d(kmin..kmax, 0.0..pmax * 1.1)?;
-    a.configure_mesh().x_desc("k (neighbours of the normal estimation)").y_desc("percent of the true step").draw()?;
+    a.configure_mesh()
+        .x_desc("k (neighbours of the normal estimation)")
+        .y_desc("percent of the true step")
+        .draw()?;
     for (i, (label, pts)) in series.iter().enumerate() {
         let c = COLOURS[i % COLOURS.len()];
         let p: Vec<(f64, f64)> =
@@ -54,7 +58,10 @@ fn draw(path: &Path, series: &[(String, Vec<SweepPoint>)]) -> Result<(), Box<dyn
         .x_label_area_size(40)
         .y_label_area_size(55)
         .build_cartesian_2d(kmin..kmax, 0.0..tmax * 1.15)?;
-    b.configure_mesh().x_desc("k (neighbours of the normal estimation)").y_desc("time per frame, ms").draw()?;
+    b.configure_mesh()
+        .x_desc("k (neighbours of the normal estimation)")
+        .y_desc("time per frame, ms")
+        .draw()?;
     for (i, (label, pts)) in series.iter().enumerate() {
         let c = COLOURS[i % COLOURS.len()];
         let t: Vec<(f64, f64)> = pts.iter().map(|q| (q.k as f64, q.total_ms)).collect();

@@ -1,0 +1,125 @@
+//! `bench robot`: the kinematics the IK calls at every tick (FK, every frame's Jacobian, CoM,
+//! CoM Jacobian) against MuJoCo doing the same in the same process, on one core; and how fast
+//! MuJoCo simulates the standing robot at 1 kHz.
+
+use super::{machine, median_s};
+use anyhow::{Context, Result};
+use nalgebra::{Matrix3xX, Matrix6xX};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use stairbench::robot::model::Q_JOINTS;
+use stairbench::robot::{hrp4, Kinematics};
+use stairbench::scenario::Scenario;
+use stairbench::scene::Scene;
+use stairbench::sim::World;
+use std::hint::black_box;
+use std::time::Instant;
+
+/// Configurations per timing run.
+const CONFIGS: usize = 2000;
+/// Simulated seconds of the standing run.
+const STAND_S: f64 = 10.0;
+
+/// Returns the Markdown table.
+pub fn run(repeat: usize) -> Result<String> {
+    let model = hrp4::model()?;
+    let scene = Scene::from_scenario(&Scenario::default())?;
+    let mut world = World::for_scene(&scene)?;
+    let frames: Vec<usize> = (0..model.frames().len()).collect();
+    let sites: Vec<usize> =
+        model.frames().iter().map(|f| world.site_id(&f.name)).collect::<Result<_, _>>()?;
+    let root = world.body_id("BODY")?;
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let configs: Vec<Vec<f64>> = (0..CONFIGS)
+        .map(|_| {
+            let mut q = vec![0.0; model.nq()];
+            q[3] = 1.0;
+            for (i, j) in model.joints().iter().enumerate() {
+                q[Q_JOINTS + i] = rng.random_range(j.lower_rad..=j.upper_rad);
+            }
+            q
+        })
+        .collect();
+    let nv = model.nv();
+
+    // Ours: allocation-free after these buffers.
+    let mut kin = Kinematics::new(&model);
+    let mut jac = Matrix6xX::zeros(nv);
+    let mut jcom = Matrix3xX::zeros(nv);
+    let ours_s = median_s(repeat, || {
+        for q in &configs {
+            kin.update(q).expect("valid configuration");
+            for &f in &frames {
+                kin.frame_jacobian_into(f, &mut jac);
+                black_box(&jac);
+            }
+            black_box(kin.com());
+            kin.com_jacobian_into(&mut jcom);
+            black_box(&jcom);
+        }
+    }) / CONFIGS as f64;
+
+    // MuJoCo: mj_kinematics, mj_comPos, mj_jacSite per frame, mj_jacSubtreeCom.
+    let mut jp = vec![0.0; 3 * nv];
+    let mut jr = vec![0.0; 3 * nv];
+    let mut jc = vec![0.0; 3 * nv];
+    let mj_s = median_s(repeat, || {
+        for q in &configs {
+            let d = world.data_mut();
+            d.qpos_mut().copy_from_slice(q);
+            d.kinematics();
+            d.com_pos();
+            for &s in &sites {
+                // SAFETY: model and data are valid for the call, the buffers hold 3 x nv
+                // numbers as mj_jacSite requires, and `s` is a site id of this model.
+                unsafe {
+                    mujoco_rs::mujoco_c::mj_jacSite(
+                        world.model().ffi(),
+                        world.data().ffi(),
+                        jp.as_mut_ptr(),
+                        jr.as_mut_ptr(),
+                        s as i32,
+                    )
+                };
+                black_box(&jp);
+            }
+            world.data_mut().jac_subtree_com_into(root, &mut jc);
+            black_box(&jc);
+        }
+    }) / CONFIGS as f64;
+
+    // Simulation speed, standing in half-sitting with the servos holding it.
+    let mut stand = World::for_scene(&scene)?;
+    let steps = (STAND_S / stand.model().opt().timestep).round() as usize;
+    let t0 = Instant::now();
+    for _ in 0..steps {
+        stand.data_mut().step();
+    }
+    let wall_s = t0.elapsed().as_secs_f64();
+    let stand_com_z = stand.data().subtree_com()[root][2];
+    if !stand_com_z.is_finite() {
+        return Err(anyhow::anyhow!("the standing simulation diverged")).context("bench robot");
+    }
+
+    let mut t = format!(
+        "HRP-4-class model ({} joints, nq = {}, nv = {nv}), {CONFIGS} random configurations within the joint limits, median of {repeat}; single-threaded; machine: {}.\n\n",
+        model.joints().len(),
+        model.nq(),
+        machine()
+    );
+    t += "| per configuration | ours (nalgebra, allocation-free) | MuJoCo 3.17 (mj_kinematics + mj_comPos + mj_jacSite + mj_jacSubtreeCom) | ratio MuJoCo / ours |\n|---|---|---|---|\n";
+    t += &format!(
+        "| FK + {} frame Jacobians (6 x {nv}) + CoM + CoM Jacobian (3 x {nv}) | {:.2} us | {:.2} us | {:.2} |\n",
+        frames.len(),
+        ours_s * 1e6,
+        mj_s * 1e6,
+        mj_s / ours_s
+    );
+    t += &format!(
+        "\nSimulation: the standing robot (half-sitting, 34 position servos, feet in contact) at {:.0} Hz: {STAND_S:.0} simulated s in {:.2} wall s = **{:.1} x real time** (goal: at least 20 x).\n",
+        1.0 / stand.model().opt().timestep,
+        wall_s,
+        STAND_S / wall_s
+    );
+    Ok(t)
+}

@@ -1,0 +1,199 @@
+//! Floating-base forward kinematics, frame Jacobians, centre of mass and CoM Jacobian, with
+//! nalgebra. The IK calls these at every tick: [`Kinematics`] owns all its buffers, and after
+//! construction `update`, `frame_jacobian_into` and `com_jacobian_into` allocate nothing.
+//!
+//! Conventions are MuJoCo's, so the two can be compared entry by entry: Jacobian rows 0-2
+//! are the point's linear velocity and rows 3-5 the angular velocity, both in the world frame;
+//! the free-flyer's columns are world translations (0-2) and rotations about the base's own
+//! axes (3-5).
+
+use super::model::{RobotModel, Q_JOINTS, V_JOINTS};
+use nalgebra::{Isometry3, Matrix3xX, Matrix6xX, Point3, Quaternion, Translation3, UnitQuaternion, Vector3};
+
+/// Why a configuration was refused.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ConfigError {
+    /// Wrong length.
+    #[error("configuration has {got} entries, the robot needs {want}")]
+    Length {
+        /// Entries given.
+        got: usize,
+        /// Entries needed.
+        want: usize,
+    },
+    /// NaN or infinite entries, or a zero base quaternion.
+    #[error("configuration entry {0} is not finite (or the base quaternion is zero)")]
+    NotFinite(usize),
+}
+
+/// Kinematic state of one configuration of a [`RobotModel`].
+#[derive(Debug, Clone)]
+pub struct Kinematics<'m> {
+    model: &'m RobotModel,
+    /// World pose of each link frame.
+    poses: Vec<Isometry3<f64>>,
+    /// World joint axis of each link (unused for the root).
+    axes: Vec<Vector3<f64>>,
+    /// Mass times world CoM, summed over each link's subtree.
+    subtree_moment: Vec<Vector3<f64>>,
+    /// Mass of each link's subtree, kg.
+    subtree_mass: Vec<f64>,
+}
+
+impl<'m> Kinematics<'m> {
+    /// Buffers for `model`, at the identity base and zero joints.
+    pub fn new(model: &'m RobotModel) -> Self {
+        let n = model.links().len();
+        let mut k = Self {
+            model,
+            poses: vec![Isometry3::identity(); n],
+            axes: vec![Vector3::zeros(); n],
+            subtree_moment: vec![Vector3::zeros(); n],
+            subtree_mass: vec![0.0; n],
+        };
+        let mut q = vec![0.0; model.nq()];
+        q[3] = 1.0;
+        // The neutral configuration is valid by construction.
+        let _ = k.update(&q);
+        k
+    }
+
+    /// The model.
+    pub fn model(&self) -> &'m RobotModel {
+        self.model
+    }
+
+    /// Computes every link pose and the subtree masses and centres for configuration `q`
+    /// (layout in [`super::model`]); the base quaternion is normalized.
+    pub fn update(&mut self, q: &[f64]) -> Result<(), ConfigError> {
+        let want = self.model.nq();
+        if q.len() != want {
+            return Err(ConfigError::Length { got: q.len(), want });
+        }
+        if let Some(i) = q.iter().position(|x| !x.is_finite()) {
+            return Err(ConfigError::NotFinite(i));
+        }
+        let quat = Quaternion::new(q[3], q[4], q[5], q[6]);
+        if quat.norm() < 1e-12 {
+            return Err(ConfigError::NotFinite(3));
+        }
+        let base =
+            Isometry3::from_parts(Translation3::new(q[0], q[1], q[2]), UnitQuaternion::from_quaternion(quat));
+        for (i, link) in self.model.links().iter().enumerate() {
+            match (link.parent, link.joint) {
+                (Some(p), Some(j)) => {
+                    let angle = q[Q_JOINTS + j];
+                    let rot = UnitQuaternion::from_axis_angle(&link.axis, angle);
+                    let joint_frame = self.poses[p] * link.placement;
+                    self.axes[i] = joint_frame.rotation * link.axis.into_inner();
+                    self.poses[i] = joint_frame * rot;
+                }
+                (Some(p), None) => self.poses[i] = self.poses[p] * link.placement,
+                _ => self.poses[i] = base,
+            }
+            self.subtree_mass[i] = link.mass_kg;
+            self.subtree_moment[i] = (self.poses[i] * Point3::from(link.com_m)).coords * link.mass_kg;
+        }
+        for (i, link) in self.model.links().iter().enumerate().rev() {
+            if let Some(p) = link.parent {
+                let (m, c) = (self.subtree_mass[i], self.subtree_moment[i]);
+                self.subtree_mass[p] += m;
+                self.subtree_moment[p] += c;
+            }
+        }
+        Ok(())
+    }
+
+    /// World pose of link `link`.
+    pub fn link_pose(&self, link: usize) -> &Isometry3<f64> {
+        &self.poses[link]
+    }
+
+    /// World pose of frame `frame`.
+    pub fn frame_pose(&self, frame: usize) -> Isometry3<f64> {
+        let f = &self.model.frames()[frame];
+        self.poses[f.link] * f.placement
+    }
+
+    /// Centre of mass of the whole robot, world frame.
+    pub fn com(&self) -> Point3<f64> {
+        Point3::from(self.subtree_moment[0] / self.subtree_mass[0])
+    }
+
+    /// 6 x nv Jacobian of the point `point_world` rigidly attached to link `link`: rows 0-2
+    /// its linear velocity, rows 3-5 the link's angular velocity, world frame.
+    pub fn point_jacobian_into(&self, link: usize, point_world: &Point3<f64>, out: &mut Matrix6xX<f64>) {
+        out.fill(0.0);
+        let base = &self.poses[0];
+        let r = base.rotation.to_rotation_matrix();
+        let d = point_world - Point3::from(base.translation.vector);
+        for k in 0..3 {
+            out[(k, k)] = 1.0;
+            let a = r.matrix().column(k).into_owned();
+            let lin = a.cross(&d);
+            for row in 0..3 {
+                out[(row, 3 + k)] = lin[row];
+                out[(3 + row, 3 + k)] = a[row];
+            }
+        }
+        let mut i = link;
+        while let Some(p) = self.model.links()[i].parent {
+            if let Some(j) = self.model.links()[i].joint {
+                let a = &self.axes[i];
+                // The joint's anchor is the origin of the link frame (joints sit at it).
+                let lin = a.cross(&(point_world - Point3::from(self.poses[i].translation.vector)));
+                let col = V_JOINTS + j;
+                for row in 0..3 {
+                    out[(row, col)] = lin[row];
+                    out[(3 + row, col)] = a[row];
+                }
+            }
+            i = p;
+        }
+    }
+
+    /// 6 x nv Jacobian of frame `frame` (its origin's linear velocity and its angular
+    /// velocity, world frame), written into `out`.
+    pub fn frame_jacobian_into(&self, frame: usize, out: &mut Matrix6xX<f64>) {
+        let f = &self.model.frames()[frame];
+        let p = self.frame_pose(frame).translation.vector;
+        self.point_jacobian_into(f.link, &Point3::from(p), out);
+    }
+
+    /// 3 x nv Jacobian of the centre of mass, written into `out`.
+    pub fn com_jacobian_into(&self, out: &mut Matrix3xX<f64>) {
+        out.fill(0.0);
+        let total = self.subtree_mass[0];
+        let com = self.com();
+        let base = &self.poses[0];
+        let r = base.rotation.to_rotation_matrix();
+        let d = com - Point3::from(base.translation.vector);
+        for k in 0..3 {
+            out[(k, k)] = 1.0;
+            let lin = r.matrix().column(k).cross(&d);
+            for row in 0..3 {
+                out[(row, 3 + k)] = lin[row];
+            }
+        }
+        for (i, link) in self.model.links().iter().enumerate().skip(1) {
+            if let Some(j) = link.joint {
+                let m = self.subtree_mass[i];
+                let c = self.subtree_moment[i] / m;
+                let lin = self.axes[i].cross(&(c - self.poses[i].translation.vector)) * (m / total);
+                for row in 0..3 {
+                    out[(row, V_JOINTS + j)] = lin[row];
+                }
+            }
+        }
+    }
+
+    /// A zeroed 6 x nv matrix for [`Self::frame_jacobian_into`].
+    pub fn new_frame_jacobian(&self) -> Matrix6xX<f64> {
+        Matrix6xX::zeros(self.model.nv())
+    }
+
+    /// A zeroed 3 x nv matrix for [`Self::com_jacobian_into`].
+    pub fn new_com_jacobian(&self) -> Matrix3xX<f64> {
+        Matrix3xX::zeros(self.model.nv())
+    }
+}
