@@ -21,6 +21,9 @@ enum Command {
     Scan(cli::scan::ScanArgs),
     /// Find the staircase's steps in a scan (the paper's §4 perception).
     Perceive(cli::perceive::PerceiveArgs),
+    /// The static-stability polygon of a stance (contacts as JSON), by double description
+    /// or Bretl's projection.
+    Polygon(cli::polygon::PolygonArgs),
     /// Build a scenario's world: print its ground truth, optionally write the MJCF.
     Scene(cli::scene::SceneArgs),
     /// Measure speed (rays per second of the simulated lidar, ...).
@@ -33,6 +36,7 @@ fn main() -> ExitCode {
         Command::Scan(a) => cli::scan::run(a),
         Command::Scene(a) => cli::scene::run(a),
         Command::Perceive(a) => cli::perceive::run(a),
+        Command::Polygon(a) => cli::polygon::run(a),
         Command::Bench(a) => cli::bench::run(a),
     };
     match result {

@@ -4,6 +4,7 @@
 mod lidar;
 mod perceive;
 mod plot;
+mod polygon;
 mod robot;
 
 use anyhow::{Context, Result};
@@ -42,6 +43,8 @@ pub enum BenchWhat {
     /// phase, the k-d tree baseline, and the PCL peer on the same cloud.
     #[value(alias = "perception")]
     Perceive,
+    /// The static-stability polygon: double description against Bretl's projection.
+    Polygon,
     /// The robot's kinematics (FK, Jacobians, CoM) against MuJoCo's, and simulation speed.
     Robot,
 }
@@ -52,6 +55,7 @@ pub fn run(a: BenchArgs) -> Result<ExitCode> {
     let (key, table) = match a.what {
         BenchWhat::Lidar => ("lidar", lidar::run(repeat)?),
         BenchWhat::Robot => ("robot", robot::run(repeat)?),
+        BenchWhat::Polygon => ("polygon", polygon::run(repeat)?),
         BenchWhat::Perceive => {
             let plot =
                 a.plot.clone().or_else(|| a.write.as_ref().map(|w| w.with_file_name("fig5-perception.png")));
