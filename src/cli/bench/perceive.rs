@@ -136,7 +136,7 @@ pub fn run(repeat: usize, plot_path: Option<&Path>, pcl: Option<&Path>) -> Resul
         );
     }
 
-    out += "\nExp. 2's steps 6 to 11 are beyond the sweep's view from the start on the floor ; the paper, too, reconstructs the upper steps after climbing the lower ones (§5), which is the closed loop's job.\n";
+    out += "\nExp. 2's upper steps are beyond the sweep's view from the start on the floor (the found count is out of all 11); the paper, too, reconstructs the upper steps after climbing the lower ones (§5), which is the closed loop's job.\n";
 
     // Fig. 5 (a): first-step area and total time against k.
     eprintln!("Fig. 5 sweep over k = {}..{} ...", K_RANGE.start(), K_RANGE.end());
