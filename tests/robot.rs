@@ -63,6 +63,11 @@ fn published_figures() {
     let q = half_sitting_q(&m);
     k.update(&q).unwrap();
     let com = k.com();
+    println!(
+        "mass {:.3} kg, standing height {height:.3} m, feet {gap:.3} m apart, stretched leg {hip:.3} m, half-sitting CoM {:.3} m",
+        m.total_mass_kg(),
+        com.z
+    );
     assert!((com.z - 0.78).abs() <= 0.03, "half-sitting CoM height {}", com.z);
     for f in [r, l] {
         let p = k.frame_pose(f);
