@@ -9,7 +9,9 @@ use stairbench::cloud::io::{write_cloud, CloudFormat};
 use stairbench::cloud::PointCloud;
 use stairbench::geom2d;
 use stairbench::perception::normals::grid_window;
-use stairbench::perception::{metrics, perceive, NeighbourSearch, Perception, PerceptionParams};
+use stairbench::perception::{
+    metrics, perceive, NeighbourSearch, Perception, PerceptionParams, PhaseTimings,
+};
 use stairbench::scene::Scene;
 use stairbench::sensor::{scan_scenario, AssembleParams};
 use std::path::{Path, PathBuf};
@@ -115,20 +117,12 @@ pub fn run(repeat: usize, plot_path: Option<&Path>, pcl: Option<&Path>) -> Resul
     out += "| cloud | points | normals | filter 1 | voxels + filter 2 | supervoxels | clusters + filter 3 | RANSAC | staircase | total | supervoxels (count) | steps found | IoU per step |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for c in &cases {
         let r = median_run(&c.cloud, &paper, repeat)?;
-        let t = &r.timings;
         let s = metrics::score(&r.segments, c.scene.steps(), paper.voxel_resolution_m);
         out += &format!(
-            "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | **{:.1}** | {} | {}/{} | {} |\n",
+            "| {} | {} | {} | {} | {}/{} | {} |\n",
             c.label,
             c.cloud.len(),
-            t.normals,
-            t.filter1,
-            t.voxels,
-            t.supervoxels,
-            t.clusters,
-            t.ransac,
-            t.staircase,
-            t.total,
+            phase_cells(&r.timings),
             r.counts.supervoxels,
             s.found,
             s.steps.len(),
@@ -197,20 +191,19 @@ fn ious(s: &metrics::Score) -> String {
     s.steps.iter().map(|st| format!("{:.2}", st.iou)).collect::<Vec<_>>().join(" / ")
 }
 
+/// The phase times of one run as table cells: normals to staircase, then the total in bold.
+fn phase_cells(t: &PhaseTimings) -> String {
+    let phases = [t.normals, t.filter1, t.voxels, t.supervoxels, t.clusters, t.ransac, t.staircase];
+    let cells: Vec<String> = phases.iter().map(|v| format!("{v:.1}")).collect();
+    format!("{} | **{:.1}**", cells.join(" | "), t.total)
+}
+
 fn phase_row(name: &str, r: &Perception, scene: &Scene, base_ms: f64, p: &PerceptionParams) -> String {
-    let t = &r.timings;
     let s = metrics::score(&r.segments, scene.steps(), p.voxel_resolution_m);
     format!(
-        "| {name} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | **{:.1}** | {:.2} | {}/{} | {} |\n",
-        t.normals,
-        t.filter1,
-        t.voxels,
-        t.supervoxels,
-        t.clusters,
-        t.ransac,
-        t.staircase,
-        t.total,
-        base_ms / t.total,
+        "| {name} | {} | {:.2} | {}/{} | {} |\n",
+        phase_cells(&r.timings),
+        base_ms / r.timings.total,
         s.found,
         s.steps.len(),
         ious(&s)
