@@ -80,6 +80,26 @@ pub fn extents(points: &[P2], u: &P2) -> ([f64; 2], [f64; 2]) {
     (a, b)
 }
 
+/// The part of the convex polygon `poly` where n . p <= b + tol (one Sutherland-Hodgman
+/// step).
+pub fn clip_half_plane(poly: &[P2], n: &P2, b: f64, tol: f64) -> Vec<P2> {
+    let f = |p: &P2| n.x * p.x + n.y * p.y - b;
+    let mut out = Vec::with_capacity(poly.len() + 1);
+    for j in 0..poly.len() {
+        let (p, q) = (poly[j], poly[(j + 1) % poly.len()]);
+        let (fp, fq) = (f(&p), f(&q));
+        let (ip, iq) = (fp <= tol, fq <= tol);
+        if ip {
+            out.push(p);
+        }
+        if ip != iq {
+            let t = fp / (fp - fq);
+            out.push(p + (q - p) * t);
+        }
+    }
+    out
+}
+
 /// Intersection of two convex counter-clockwise polygons (Sutherland-Hodgman).
 pub fn clip_convex(subject: &[P2], clip: &[P2]) -> Vec<P2> {
     let mut out: Vec<P2> = subject.to_vec();
@@ -88,21 +108,10 @@ pub fn clip_convex(subject: &[P2], clip: &[P2]) -> Vec<P2> {
         if out.is_empty() {
             break;
         }
+        // Left of the edge a -> b: cross(a, b, p) >= 0, i.e. (dy, -dx) . p <= (dy, -dx) . a.
         let (a, b) = (clip[i], clip[(i + 1) % n]);
-        let input = std::mem::take(&mut out);
-        let inside = |p: &P2| cross(&a, &b, p) >= -1e-12;
-        for j in 0..input.len() {
-            let (p, q) = (input[j], input[(j + 1) % input.len()]);
-            let (ip, iq) = (inside(&p), inside(&q));
-            if ip {
-                out.push(p);
-            }
-            if ip != iq {
-                let (dp, dq) = (cross(&a, &b, &p), cross(&a, &b, &q));
-                let t = dp / (dp - dq);
-                out.push(p + (q - p) * t);
-            }
-        }
+        let normal = P2::new(b.y - a.y, a.x - b.x);
+        out = clip_half_plane(&out, &normal, normal.x * a.x + normal.y * a.y, 1e-12);
     }
     out
 }

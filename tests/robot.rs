@@ -16,6 +16,14 @@ fn model() -> RobotModel {
     hrp4::model().expect("the compiled-in URDF parses")
 }
 
+/// The Exp. 1 world with the robot in it, and the id of the robot's root body.
+fn exp1_world(m: &RobotModel) -> (World, usize) {
+    let scene = Scene::from_scenario(&Scenario::default()).unwrap();
+    let world = World::for_scene(&scene).unwrap();
+    let root = world.body_id(&m.root().name).unwrap();
+    (world, root)
+}
+
 fn half_sitting_q(m: &RobotModel) -> Vec<f64> {
     let joints = hrp4::half_sitting_joints(m).unwrap();
     hrp4::standing_config(m, &joints, &nalgebra::Isometry3::identity()).unwrap()
@@ -112,9 +120,7 @@ fn max_diff_rows(mj: &[f64], ours: &nalgebra::DMatrix<f64>, r0: usize) -> f64 {
 #[test]
 fn kinematics_agree_with_mujoco_at_1000_configurations() {
     let m = model();
-    let scene = Scene::from_scenario(&Scenario::default()).unwrap();
-    let mut world = World::for_scene(&scene).unwrap();
-    let root = world.body_id("BODY").unwrap();
+    let (mut world, root) = exp1_world(&m);
     let frames = [R_SOLE, L_SOLE, LIDAR_MOUNT];
     let sites: Vec<usize> = frames.iter().map(|f| world.site_id(f).unwrap()).collect();
     let ids: Vec<usize> = frames.iter().map(|f| m.frame_id(f).unwrap()).collect();
@@ -196,9 +202,7 @@ fn jacobian_matches_finite_differences() {
 #[test]
 fn stands_in_half_sitting_for_10_seconds() {
     let m = model();
-    let scene = Scene::from_scenario(&Scenario::default()).unwrap();
-    let mut world = World::for_scene(&scene).unwrap();
-    let root = world.body_id("BODY").unwrap();
+    let (mut world, root) = exp1_world(&m);
     let com0 = world.data().subtree_com()[root];
     let nu = world.model().ffi().nu as usize;
     assert_eq!(nu, 34);
@@ -247,4 +251,28 @@ fn lidar_mount_sees_the_floor_one_metre_ahead() {
     let hit = world.ray(&origin, &dir).expect("the ray from the lidar mount hits something");
     assert_eq!(world.geom_name(hit.geom), "floor");
     assert!((hit.distance_m - (target - origin).norm()).abs() < 1e-6);
+}
+
+#[test]
+fn soles_and_only_soles_get_the_sole_friction() {
+    use stairbench::robot::mjcf::{BODY_FRICTION, SOLE_FRICTION};
+    let m = model();
+    let (world, _) = exp1_world(&m);
+    let sole_links: Vec<&str> = [R_SOLE, L_SOLE]
+        .iter()
+        .map(|f| m.links()[m.frames()[m.frame_id(f).unwrap()].link].name.as_str())
+        .collect();
+    let mut soles = 0;
+    for g in 0..world.model().ffi().ngeom as usize {
+        if world.geom_group(g) != stairbench::scene::mjcf::ROBOT_GEOM_GROUP {
+            continue;
+        }
+        let name = world.geom_name(g);
+        let on_sole = sole_links.iter().any(|l| name.starts_with(&format!("{l}_geom")));
+        let friction = world.model().geom_friction()[g][0];
+        let want = if on_sole { SOLE_FRICTION } else { BODY_FRICTION };
+        assert_eq!(friction, want, "{name}");
+        soles += usize::from(on_sole);
+    }
+    assert_eq!(soles, 2, "one box per sole");
 }

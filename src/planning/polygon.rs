@@ -70,7 +70,7 @@ pub fn by_double_description(contacts: &[Contact], p: &DdParams) -> Result<Vec<P
             }
             continue;
         }
-        poly = clip_half_plane(&poly, nx / n, ny / n, b / n);
+        poly = geom2d::clip_half_plane(&poly, &P2::new(nx / n, ny / n), b / n, 0.0);
         if poly.len() < 3 {
             return Err(PolygonError::Empty);
         }
@@ -93,24 +93,6 @@ fn centre_of(contacts: &[Contact]) -> P2 {
         P2::new(acc.x + t.x, acc.y + t.y)
     });
     P2::new(s.x / n, s.y / n)
-}
-
-/// The part of the convex polygon `poly` where nx x + ny y <= b.
-fn clip_half_plane(poly: &[P2], nx: f64, ny: f64, b: f64) -> Vec<P2> {
-    let f = |p: &P2| nx * p.x + ny * p.y - b;
-    let mut out = Vec::with_capacity(poly.len() + 1);
-    for i in 0..poly.len() {
-        let (p, q) = (poly[i], poly[(i + 1) % poly.len()]);
-        let (fp, fq) = (f(&p), f(&q));
-        if fp <= 0.0 {
-            out.push(p);
-        }
-        if (fp < 0.0 && fq > 0.0) || (fp > 0.0 && fq < 0.0) {
-            let t = fp / (fp - fq);
-            out.push(P2::new(p.x + t * (q.x - p.x), p.y + t * (q.y - p.y)));
-        }
-    }
-    out
 }
 
 /// Removes repeated and collinear vertices.
@@ -140,26 +122,29 @@ fn simplify(poly: &[P2], tol: f64) -> Vec<P2> {
     v
 }
 
-/// One LP of the projection: the CoM farthest along `dir`, or `None` when infeasible.
+/// The LP of the projection, built once per stance; only the objective changes per query.
 struct Projection {
-    generators: Vec<Vector6<f64>>,
+    a: CscMatrix<f64>,
+    b: Vec<f64>,
+    p: CscMatrix<f64>,
+    cones: [SupportedConeT<f64>; 2],
 }
 
 impl Projection {
-    fn extreme(&self, dir: (f64, f64)) -> Result<Option<P2>, PolygonError> {
-        // Variables x = (c_x, c_y, lambda_1..m). Equalities: sum lambda_k s_k = (0, 0, 1,
-        // c_y, -c_x, 0) (m g0 = 1); lambda >= 0. Maximize dir . c.
-        let m = self.generators.len();
+    /// Variables x = (c_x, c_y, lambda_1..m). Equalities: sum lambda_k s_k = (0, 0, 1, c_y,
+    /// -c_x, 0) (with m g0 = 1); lambda >= 0.
+    fn new(generators: &[Vector6<f64>]) -> Self {
+        let m = generators.len();
         let n = 2 + m;
-        let mut tri: (Vec<usize>, Vec<usize>, Vec<f64>) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut rows, mut cols, mut vals) = (Vec::new(), Vec::new(), Vec::new());
         let mut push = |r: usize, c: usize, v: f64| {
             if v != 0.0 {
-                tri.0.push(r);
-                tri.1.push(c);
-                tri.2.push(v);
+                rows.push(r);
+                cols.push(c);
+                vals.push(v);
             }
         };
-        for (k, s) in self.generators.iter().enumerate() {
+        for (k, s) in generators.iter().enumerate() {
             for r in 0..6 {
                 push(r, 2 + k, s[r]);
             }
@@ -167,14 +152,21 @@ impl Projection {
         }
         push(3, 1, -1.0); // torque x = c_y
         push(4, 0, 1.0); // torque y = -c_x
-        let a = CscMatrix::new_from_triplets(6 + m, n, tri.0, tri.1, tri.2);
         let mut b = vec![0.0; 6 + m];
         b[2] = 1.0;
-        let mut q = vec![0.0; n];
+        Self {
+            a: CscMatrix::new_from_triplets(6 + m, n, rows, cols, vals),
+            b,
+            p: CscMatrix::zeros((n, n)),
+            cones: [SupportedConeT::ZeroConeT(6), SupportedConeT::NonnegativeConeT(m)],
+        }
+    }
+
+    /// The CoM farthest along `dir`, or `None` when no CoM is feasible.
+    fn extreme(&self, dir: (f64, f64)) -> Result<Option<P2>, PolygonError> {
+        let mut q = vec![0.0; self.a.n];
         q[0] = -dir.0;
         q[1] = -dir.1;
-        let p = CscMatrix::zeros((n, n));
-        let cones = [SupportedConeT::ZeroConeT(6), SupportedConeT::NonnegativeConeT(m)];
         let settings = DefaultSettingsBuilder::default()
             .verbose(false)
             .tol_gap_abs(1e-10)
@@ -182,7 +174,7 @@ impl Projection {
             .tol_feas(1e-10)
             .build()
             .map_err(|e| PolygonError::Lp(format!("{e:?}")))?;
-        let mut solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings)
+        let mut solver = DefaultSolver::new(&self.p, &q, &self.a, &self.b, &self.cones, settings)
             .map_err(|e| PolygonError::Lp(e.to_string()))?;
         solver.solve();
         match solver.solution.status {
@@ -202,7 +194,8 @@ pub fn by_bretl(contacts: &[Contact], tol_m: f64) -> Result<Vec<P2>, PolygonErro
     if contacts.is_empty() {
         return Err(PolygonError::NoContact);
     }
-    let lp = Projection { generators: contacts.iter().flat_map(|c| c.span()).collect() };
+    let spans: Vec<Vector6<f64>> = contacts.iter().flat_map(|c| c.span()).collect();
+    let lp = Projection::new(&spans);
     let mut poly: Vec<P2> = Vec::new();
     for k in 0..3 {
         let t = std::f64::consts::TAU * k as f64 / 3.0 + 0.1;
@@ -268,12 +261,8 @@ pub fn hausdorff(a: &[P2], b: &[P2]) -> f64 {
 /// Signed distance from `p` to the boundary of the convex counter-clockwise polygon `poly`:
 /// positive inside (the stability margin), negative outside.
 pub fn margin(poly: &[P2], p: &P2) -> f64 {
-    let inside = (0..poly.len()).all(|i| {
-        let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
-        (b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x) >= 0.0
-    });
     let d = boundary_distance(poly, p);
-    if inside {
+    if geom2d::contains(poly, p) {
         d
     } else {
         -d

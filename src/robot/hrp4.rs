@@ -13,8 +13,9 @@ pub const URDF: &str = include_str!("../../models/hrp4/hrp4.urdf");
 pub const R_SOLE: &str = "R_SOLE";
 /// Left sole centre frame.
 pub const L_SOLE: &str = "L_SOLE";
-/// Lidar servo mount on the neck (paper Fig. 2); the scenario's lidar mount is relative to it.
-pub const LIDAR_MOUNT: &str = "head";
+/// Lidar servo mount on the neck (paper Fig. 2); the scenario's lidar mount is relative to
+/// it. The world's head site, which the sensor looks up.
+pub const LIDAR_MOUNT: &str = crate::scene::mjcf::HEAD_SITE;
 /// Top of the head (for the standing-height figure).
 pub const HEAD_TOP: &str = "head_top";
 /// Sole size, length x width, metres (HRP-4's published figure).

@@ -8,7 +8,9 @@
 //! axes (3-5).
 
 use super::model::{RobotModel, Q_JOINTS, V_JOINTS};
-use nalgebra::{Isometry3, Matrix3xX, Matrix6xX, Point3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{
+    Isometry3, Matrix3x6, Matrix3xX, Matrix6xX, Point3, Quaternion, Translation3, UnitQuaternion, Vector3,
+};
 
 /// Why a configuration was refused.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -120,22 +122,27 @@ impl<'m> Kinematics<'m> {
         Point3::from(self.subtree_moment[0] / self.subtree_mass[0])
     }
 
+    /// The free-flyer's columns of the linear velocity of a point rigidly attached to the
+    /// robot: world translations (identity), then rotations about the base's own axes
+    /// (axis x (point - base origin)).
+    fn base_linear_block(&self, point_world: &Point3<f64>) -> Matrix3x6<f64> {
+        let base = &self.poses[0];
+        let r = base.rotation.to_rotation_matrix();
+        let d = point_world - Point3::from(base.translation.vector);
+        let mut block = Matrix3x6::zeros();
+        block.fixed_view_mut::<3, 3>(0, 0).fill_with_identity();
+        for k in 0..3 {
+            block.set_column(3 + k, &r.matrix().column(k).cross(&d));
+        }
+        block
+    }
+
     /// 6 x nv Jacobian of the point `point_world` rigidly attached to link `link`: rows 0-2
     /// its linear velocity, rows 3-5 the link's angular velocity, world frame.
     pub fn point_jacobian_into(&self, link: usize, point_world: &Point3<f64>, out: &mut Matrix6xX<f64>) {
         out.fill(0.0);
-        let base = &self.poses[0];
-        let r = base.rotation.to_rotation_matrix();
-        let d = point_world - Point3::from(base.translation.vector);
-        for k in 0..3 {
-            out[(k, k)] = 1.0;
-            let a = r.matrix().column(k).into_owned();
-            let lin = a.cross(&d);
-            for row in 0..3 {
-                out[(row, 3 + k)] = lin[row];
-                out[(3 + row, 3 + k)] = a[row];
-            }
-        }
+        out.fixed_view_mut::<3, 6>(0, 0).copy_from(&self.base_linear_block(point_world));
+        out.fixed_view_mut::<3, 3>(3, 3).copy_from(self.poses[0].rotation.to_rotation_matrix().matrix());
         let mut i = link;
         while let Some(p) = self.model.links()[i].parent {
             if let Some(j) = self.model.links()[i].joint {
@@ -164,17 +171,7 @@ impl<'m> Kinematics<'m> {
     pub fn com_jacobian_into(&self, out: &mut Matrix3xX<f64>) {
         out.fill(0.0);
         let total = self.subtree_mass[0];
-        let com = self.com();
-        let base = &self.poses[0];
-        let r = base.rotation.to_rotation_matrix();
-        let d = com - Point3::from(base.translation.vector);
-        for k in 0..3 {
-            out[(k, k)] = 1.0;
-            let lin = r.matrix().column(k).cross(&d);
-            for row in 0..3 {
-                out[(row, 3 + k)] = lin[row];
-            }
-        }
+        out.fixed_view_mut::<3, 6>(0, 0).copy_from(&self.base_linear_block(&self.com()));
         for (i, link) in self.model.links().iter().enumerate().skip(1) {
             if let Some(j) = link.joint {
                 let m = self.subtree_mass[i];

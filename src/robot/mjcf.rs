@@ -3,7 +3,7 @@
 //! placements, inertias and joint axes, one position servo per joint whose force range is the
 //! joint's torque limit, box soles at the exact sole size, capsules elsewhere.
 
-use super::model::{RobotModel, Shape, Q_JOINTS};
+use super::model::{RobotError, RobotModel, Shape, Q_JOINTS};
 use crate::scene::mjcf::{RobotFragment, ROBOT_GEOM_GROUP};
 use nalgebra::{Isometry3, UnitQuaternion};
 use std::fmt::Write;
@@ -20,6 +20,8 @@ pub const ARMATURE_KGM2: f64 = 0.02;
 pub const JOINT_DAMPING: f64 = 0.5;
 /// Sole friction coefficient against the world.
 pub const SOLE_FRICTION: f64 = 1.0;
+/// Friction of the robot's other geoms (shins, arms) against the world.
+pub const BODY_FRICTION: f64 = 0.5;
 
 fn fmt_pose(p: &Isometry3<f64>) -> String {
     let t = p.translation.vector;
@@ -28,8 +30,13 @@ fn fmt_pose(p: &Isometry3<f64>) -> String {
 }
 
 /// The robot's MJCF fragment, its base at `q`'s free-flyer pose; `q` also becomes the
-/// keyframe `initial` (load it with `mj_resetDataKeyframe`, or set qpos directly).
-pub fn fragment(model: &RobotModel, q: &[f64]) -> RobotFragment {
+/// keyframe `initial` (load it with `mj_resetDataKeyframe`, or set qpos directly). The
+/// links carrying the frames `sole_frames` get the sole friction.
+pub fn fragment(model: &RobotModel, q: &[f64], sole_frames: &[&str]) -> Result<RobotFragment, RobotError> {
+    let mut soles = vec![false; model.links().len()];
+    for f in sole_frames {
+        soles[model.frames()[model.frame_id(f)?].link] = true;
+    }
     let links = model.links();
     let mut children: Vec<Vec<usize>> = vec![Vec::new(); links.len()];
     for (i, l) in links.iter().enumerate() {
@@ -38,7 +45,7 @@ pub fn fragment(model: &RobotModel, q: &[f64]) -> RobotFragment {
         }
     }
     let mut body = String::new();
-    write_body(model, 0, &children, q, 2, &mut body);
+    write_body(model, 0, &children, &soles, q, 2, &mut body);
     let mut extras = String::from("  <actuator>\n");
     for j in model.joints() {
         let kp = KP_PER_EFFORT * j.effort_nm;
@@ -62,13 +69,14 @@ pub fn fragment(model: &RobotModel, q: &[f64]) -> RobotFragment {
         qs.join(" "),
         ctrl.join(" ")
     );
-    RobotFragment { body_xml: body.trim_end().to_string(), extras_xml: extras }
+    Ok(RobotFragment { body_xml: body.trim_end().to_string(), extras_xml: extras })
 }
 
 fn write_body(
     model: &RobotModel,
     i: usize,
     children: &[Vec<usize>],
+    soles: &[bool],
     q: &[f64],
     depth: usize,
     out: &mut String,
@@ -127,7 +135,7 @@ fn write_body(
             }
             Shape::Sphere(r) => ("sphere", format!("{r:?}")),
         };
-        let friction = if link.name.contains("ANKLE_R") { SOLE_FRICTION } else { 0.5 };
+        let friction = if soles[i] { SOLE_FRICTION } else { BODY_FRICTION };
         let _ = writeln!(
             out,
             r#"{pad}  <geom name="{}_geom{k}" type="{kind}" size="{size}" {} group="{ROBOT_GEOM_GROUP}" contype="2" conaffinity="1" condim="3" friction="{friction:?} 0.005 0.0001" rgba="0.75 0.78 0.85 1"/>"#,
@@ -139,7 +147,7 @@ fn write_body(
         let _ = writeln!(out, r#"{pad}  <site name="{}" {} size="0.01"/>"#, f.name, fmt_pose(&f.placement));
     }
     for &c in &children[i] {
-        write_body(model, c, children, q, depth + 1, out);
+        write_body(model, c, children, soles, q, depth + 1, out);
     }
     let _ = writeln!(out, "{pad}</body>");
 }

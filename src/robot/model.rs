@@ -300,6 +300,11 @@ impl RobotModel {
         &self.name
     }
 
+    /// The root link (the floating base).
+    pub fn root(&self) -> &Link {
+        &self.links[0]
+    }
+
     /// Links, a parent before its children.
     pub fn links(&self) -> &[Link] {
         &self.links

@@ -18,6 +18,9 @@ pub enum SimError {
     /// A frame the bench needs is missing from the model.
     #[error("the world has no site named `{0}`")]
     MissingSite(String),
+    /// A body the bench needs is missing from the model.
+    #[error("the world has no body named `{0}`")]
+    MissingBody(String),
     /// The robot model could not be placed in the world.
     #[error(transparent)]
     Robot(#[from] crate::robot::RobotError),
@@ -54,7 +57,7 @@ impl World {
         let model = hrp4::model()?;
         let joints = hrp4::half_sitting_joints(&model)?;
         let q = hrp4::standing_config(&model, &joints, &scene.robot_start())?;
-        Self::new(scene, &robot::mjcf::fragment(&model, &q))
+        Self::new(scene, &robot::mjcf::fragment(&model, &q, &[hrp4::R_SOLE, hrp4::L_SOLE])?)
     }
 
     /// Compiles an MJCF text (geoms of group 2 are treated as the robot's).
@@ -103,7 +106,7 @@ impl World {
     pub fn body_id(&self, name: &str) -> Result<usize, SimError> {
         self.model
             .name_to_id(MjtObjBase::mjOBJ_BODY, name)
-            .ok_or_else(|| SimError::MissingSite(format!("(body) {name}")))
+            .ok_or_else(|| SimError::MissingBody(name.to_string()))
     }
 
     /// World pose of a site, from the last forward kinematics.

@@ -49,7 +49,11 @@ fn scan(name: &str, noise_mm: f64) -> Result<Case> {
     let cloud = scan.sweep.assemble(&AssembleParams::default())?;
     let label = format!(
         "{}, {}",
-        if name == "exp1" { "Exp. 1" } else { "Exp. 2" },
+        match scenario.name.as_str() {
+            "exp1" => "Exp. 1".to_string(),
+            "exp2" => "Exp. 2".to_string(),
+            other => other.to_string(),
+        },
         if noise_mm > 0.0 { format!("sigma {noise_mm:.0} mm") } else { "noise-free".into() }
     );
     Ok(Case { label, scene: scan.scene, cloud })

@@ -3,7 +3,7 @@
 //! MuJoCo simulates the standing robot at 1 kHz.
 
 use super::{machine, median_s};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use nalgebra::{Matrix3xX, Matrix6xX};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -28,7 +28,7 @@ pub fn run(repeat: usize) -> Result<String> {
     let frames: Vec<usize> = (0..model.frames().len()).collect();
     let sites: Vec<usize> =
         model.frames().iter().map(|f| world.site_id(&f.name)).collect::<Result<_, _>>()?;
-    let root = world.body_id("BODY")?;
+    let root = world.body_id(&model.root().name)?;
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let configs: Vec<Vec<f64>> = (0..CONFIGS)
         .map(|_| {
@@ -96,10 +96,7 @@ pub fn run(repeat: usize) -> Result<String> {
         stand.data_mut().step();
     }
     let wall_s = t0.elapsed().as_secs_f64();
-    let stand_com_z = stand.data().subtree_com()[root][2];
-    if !stand_com_z.is_finite() {
-        return Err(anyhow::anyhow!("the standing simulation diverged")).context("bench robot");
-    }
+    anyhow::ensure!(stand.data().subtree_com()[root][2].is_finite(), "the standing simulation diverged");
 
     let mut t = format!(
         "HRP-4-class model ({} joints, nq = {}, nv = {nv}), {CONFIGS} random configurations within the joint limits, median of {repeat}; single-threaded; machine: {}.\n\n",
