@@ -24,6 +24,9 @@ enum Command {
     /// The static-stability polygon of a stance (contacts as JSON), by double description
     /// or Bretl's projection.
     Polygon(cli::polygon::PolygonArgs),
+    /// Plan the climb (§6): footholds, the five-segment gait with stability polygons, and
+    /// the whole-body trajectory by QP IK.
+    Plan(cli::plan::PlanArgs),
     /// Build a scenario's world: print its ground truth, optionally write the MJCF.
     Scene(cli::scene::SceneArgs),
     /// Measure speed (rays per second of the simulated lidar, ...).
@@ -37,6 +40,7 @@ fn main() -> ExitCode {
         Command::Scene(a) => cli::scene::run(a),
         Command::Perceive(a) => cli::perceive::run(a),
         Command::Polygon(a) => cli::polygon::run(a),
+        Command::Plan(a) => cli::plan::run(a),
         Command::Bench(a) => cli::bench::run(a),
     };
     match result {

@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod perceive;
+pub mod plan;
 pub mod polygon;
 pub mod scan;
 pub mod scene;

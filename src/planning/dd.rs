@@ -27,7 +27,7 @@ impl Default for DdParams {
 }
 
 /// Why the rays could not be computed.
-#[derive(Debug, thiserror::Error, PartialEq)]
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum DdError {
     /// The rows do not span the space: the cone contains a line (is not pointed).
     #[error("the cone is not pointed: its {rows} inequalities have rank {rank} < {dim}")]

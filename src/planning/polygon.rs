@@ -17,7 +17,7 @@ use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverSt
 use nalgebra::Vector6;
 
 /// Why no polygon.
-#[derive(Debug, thiserror::Error, PartialEq)]
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum PolygonError {
     /// No contact given.
     #[error("no contact: a stance needs at least one")]

@@ -1,0 +1,247 @@
+//! `stairbench plan`: footholds, the five-segment gait with its stability polygons, and the
+//! whole-body trajectory, from a scenario's steps (ground truth or perceived) or from a
+//! rectangles file in the paper's format.
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use serde_json::json;
+use stairbench::perception::{perceive, PerceptionParams, PlaneSegment};
+use stairbench::planning::motion::JointTrajectory;
+use stairbench::planning::{plan, rectangles, Plan, PlanParams};
+use stairbench::robot::{hrp4, RobotModel};
+use stairbench::scene::Scene;
+use stairbench::sensor::{scan_scenario, AssembleParams};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+/// Arguments of `stairbench plan`.
+#[derive(Debug, Args)]
+pub struct PlanArgs {
+    /// A scenario (file or name; default: the paper's Exp. 1) or a rectangles file (.txt, the
+    /// paper's format: x,y,z rows, four corners per step).
+    input: Option<PathBuf>,
+    /// Plan on the perceived steps (scan the scenario's world, run §4's perception) instead
+    /// of its ground truth.
+    #[arg(long)]
+    perceived: bool,
+    /// Rectangles file only: the floor's height in the file's frame, metres (default: the
+    /// lowest step's height minus the median rise).
+    #[arg(long, allow_negative_numbers = true)]
+    floor_z: Option<f64>,
+    /// Rectangles file only: the robot's start, from the middle of its feet to the lowest
+    /// step's front edge, metres.
+    #[arg(long, default_value_t = 0.20)]
+    standoff_m: f64,
+    /// Plan only the first N stances (default: to the top).
+    #[arg(long)]
+    stances: Option<usize>,
+    /// Planner parameters as TOML (sections [gait], [step], [ik]; fields left out keep
+    /// their defaults).
+    #[arg(long)]
+    params: Option<PathBuf>,
+    /// Write q(t) as CSV (t_s, base x y z qw qx qy qz, then one column per joint).
+    #[arg(long)]
+    trajectory: Option<PathBuf>,
+    /// Print one JSON object (ok, reason, footholds, segments with polygons and margins,
+    /// duration_s, tracking) instead of tables.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs `stairbench plan`.
+pub fn run(a: PlanArgs) -> Result<ExitCode> {
+    let params: PlanParams = match &a.params {
+        Some(p) => toml::from_str(
+            &std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?,
+        )
+        .with_context(|| format!("{}: not planner parameters", p.display()))?,
+        None => PlanParams::default(),
+    };
+    let model = hrp4::model()?;
+    let (rects, q0) = inputs(&a, &model)?;
+    let started = Instant::now();
+    let result = plan(&model, &q0, &rects, a.stances, &params);
+    let wall_s = started.elapsed().as_secs_f64();
+    let planned = match result {
+        Ok(p) => p,
+        Err(e) => {
+            if a.json {
+                println!("{}", json!({ "ok": false, "reason": e.to_string(), "segments": [] }));
+            } else {
+                println!("refused: {e}");
+            }
+            return Ok(ExitCode::from(1));
+        }
+    };
+    if let Some(path) = &a.trajectory {
+        write_csv(path, &model, &planned.trajectory)?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&to_json(&planned, wall_s))?);
+    } else {
+        print_tables(&planned, wall_s);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The rectangles and the start configuration.
+fn inputs(a: &PlanArgs, model: &RobotModel) -> Result<(Vec<PlaneSegment>, Vec<f64>)> {
+    let joints = hrp4::half_sitting_joints(model)?;
+    let is_txt = a.input.as_deref().and_then(Path::extension).is_some_and(|e| e.eq_ignore_ascii_case("txt"));
+    if is_txt {
+        let path = a.input.as_deref().unwrap_or(Path::new(""));
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+        let rects = rectangles::parse(&text).with_context(|| path.display().to_string())?;
+        let start = start_before(&rects, a.floor_z, a.standoff_m)?;
+        return Ok((rects, hrp4::standing_config(model, &joints, &start)?));
+    }
+    if a.floor_z.is_some() {
+        bail!("--floor-z is for rectangles files; a scenario's floor is at z = 0");
+    }
+    let scenario = super::load_scenario(a.input.as_deref())?;
+    let scene = Scene::from_scenario(&scenario)?;
+    let rects = if a.perceived {
+        let scan = scan_scenario(&scenario, &mut |_, _| {})?;
+        let cloud = scan.sweep.assemble(&AssembleParams::default())?;
+        perceive(&cloud, &PerceptionParams::default())?.segments
+    } else {
+        rectangles::from_step_tops(scene.steps())
+    };
+    Ok((rects, hrp4::standing_config(model, &joints, &scene.robot_start())?))
+}
+
+/// The floor point between the feet, `standoff_m` in front of the lowest rectangle's front
+/// edge, facing up the stairs.
+fn start_before(rects: &[PlaneSegment], floor_z: Option<f64>, standoff_m: f64) -> Result<Isometry3<f64>> {
+    let mut by_height: Vec<&PlaneSegment> = rects.iter().collect();
+    by_height.sort_by(|x, y| x.height_m().total_cmp(&y.height_m()));
+    let first = by_height[0];
+    let floor = match floor_z {
+        Some(z) => z,
+        None if by_height.len() >= 2 => {
+            let mut rises: Vec<f64> =
+                by_height.windows(2).map(|w| w[1].height_m() - w[0].height_m()).collect();
+            rises.sort_by(f64::total_cmp);
+            first.height_m() - rises[rises.len() / 2]
+        }
+        None => bail!("one step only: give the floor's height with --floor-z"),
+    };
+    let u = first.along();
+    let front = first.center() - u * (first.depth_m() / 2.0 + standoff_m);
+    Ok(Isometry3::from_parts(
+        Translation3::new(front.x, front.y, floor),
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), u.y.atan2(u.x)),
+    ))
+}
+
+fn xyz(p: &nalgebra::Point3<f64>) -> [f64; 3] {
+    [p.x, p.y, p.z]
+}
+
+fn to_json(p: &Plan, wall_s: f64) -> serde_json::Value {
+    let foot = |f: &Isometry3<f64>| {
+        let t = f.translation.vector;
+        json!({ "center": [t.x, t.y, t.z], "yaw_deg": f.rotation.euler_angles().2.to_degrees() })
+    };
+    json!({
+        "ok": true,
+        "duration_s": p.duration_s(),
+        "min_margin_m": p.min_margin_m(),
+        "footholds": p.stances.iter().map(|s| json!({ "step": s.step.map(|i| i + 1), "right": foot(&s.right), "left": foot(&s.left) })).collect::<Vec<_>>(),
+        "segments": p.segments.iter().map(|s| json!({
+            "phase": s.phase,
+            "stance": s.stance + 1,
+            "duration_s": s.duration_s,
+            "com_start": xyz(&s.com_start),
+            "com_end": xyz(&s.com_end),
+            "polygon": s.polygon.iter().map(|v| [v.x, v.y]).collect::<Vec<_>>(),
+            "margin": s.margin_m,
+            "support": s.support.iter().map(|(f, _)| f).collect::<Vec<_>>(),
+            "swing": s.swing.as_ref().map(|w| w.foot),
+        })).collect::<Vec<_>>(),
+        "tracking": p.tracking,
+        "samples": p.trajectory.samples.len(),
+        "rate_hz": p.trajectory.rate_hz,
+        "wall_s": wall_s,
+        "ik_tick_ms": 1e3 * p.tracking.ik_time_s / p.tracking.ik_ticks.max(1) as f64,
+    })
+}
+
+fn print_tables(p: &Plan, wall_s: f64) {
+    println!("footholds (sole centres, m):");
+    println!("  stance  on      right (x, y, z)            left (x, y, z)");
+    for (i, s) in p.stances.iter().enumerate() {
+        let (r, l) = (s.right.translation.vector, s.left.translation.vector);
+        let on = s.step.map_or("floor".to_string(), |k| format!("step {}", k + 1));
+        println!(
+            "  {:>6}  {on:<7} {:>7.3} {:>7.3} {:>7.3}    {:>7.3} {:>7.3} {:>7.3}",
+            i + 1,
+            r.x,
+            r.y,
+            r.z,
+            l.x,
+            l.y,
+            l.z
+        );
+    }
+    println!("\nsegments:");
+    println!(
+        "  #   stance  phase          time s   CoM start (x, y, z)      CoM end (x, y, z)        margin mm"
+    );
+    for (i, s) in p.segments.iter().enumerate() {
+        println!(
+            "  {:<3} {:>6}  {:<14} {:>6.2}   {:>6.3} {:>6.3} {:>6.3}    {:>6.3} {:>6.3} {:>6.3}    {:>6.1}",
+            i + 1,
+            s.stance + 1,
+            format!("{:?}", s.phase),
+            s.duration_s,
+            s.com_start.x,
+            s.com_start.y,
+            s.com_start.z,
+            s.com_end.x,
+            s.com_end.y,
+            s.com_end.z,
+            s.margin_m * 1e3
+        );
+    }
+    let t = &p.tracking;
+    println!(
+        "\nmotion {:.1} s, {} samples at {} Hz; smallest margin {:.1} mm",
+        p.duration_s(),
+        p.trajectory.samples.len(),
+        p.trajectory.rate_hz,
+        p.min_margin_m() * 1e3
+    );
+    println!(
+        "tracking: CoM within {:.2} mm, feet at touchdown within {:.2} mm, contacts still within {:.3} mm",
+        t.max_com_error_m * 1e3,
+        t.max_touchdown_error_m * 1e3,
+        t.max_contact_drift_m * 1e3
+    );
+    println!(
+        "planning took {:.2} s: gait and polygons {:.1} ms, IK {} ticks at {:.3} ms each",
+        wall_s,
+        p.gait_time_s * 1e3,
+        t.ik_ticks,
+        1e3 * t.ik_time_s / t.ik_ticks.max(1) as f64
+    );
+}
+
+fn write_csv(path: &Path, model: &RobotModel, traj: &JointTrajectory) -> Result<()> {
+    let mut f = std::io::BufWriter::new(
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?,
+    );
+    let names: Vec<&str> = model.joints().iter().map(|j| j.name.as_str()).collect();
+    writeln!(f, "t_s,x,y,z,qw,qx,qy,qz,{}", names.join(","))?;
+    for s in &traj.samples {
+        let row: Vec<String> =
+            std::iter::once(s.t_s).chain(s.q.iter().copied()).map(|v| format!("{v:.6}")).collect();
+        writeln!(f, "{}", row.join(","))?;
+    }
+    f.flush()?;
+    Ok(())
+}

@@ -1,0 +1,391 @@
+//! The gait (§6.1): five segments per step, each a linear CoM path between two waypoints and,
+//! when a foot moves, a swing path that clears the step's nose. Every segment has its own
+//! static-stability polygon (§6.2, from the contacts it keeps); both ends of its CoM path
+//! must lie inside with a margin. A waypoint too close to an edge is moved toward the middle
+//! of the polygons it belongs to; when even that does not give the margin, the plan is refused.
+
+use super::contact::Contact;
+use super::dd::DdParams;
+use super::footholds::{Foot, Stance};
+use super::polygon::{by_double_description, margin};
+use super::PlanError;
+use crate::geom2d::{self, P2};
+use crate::robot::hrp4;
+use crate::robot::model::RobotModel;
+use crate::robot::Kinematics;
+use nalgebra::{Isometry3, Point3, Vector3};
+
+/// The five segments of a step (§6.1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum Phase {
+    /// (1) CoM over the left ankle.
+    ShiftToLeft,
+    /// (2) Right foot to its target, making contact.
+    SwingRight,
+    /// (3) CoM over the right foot's contact.
+    ShiftToRight,
+    /// (4) CoM lifts while the left foot reaches its target.
+    LiftSwingLeft,
+    /// (5) CoM to the middle of the support area.
+    Centre,
+}
+
+/// A foot in the air: its sole's path as poses, each piece with its share of the time.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Swing {
+    /// The moving foot.
+    pub foot: Foot,
+    /// Lift-off, the top of the lift, above the target, the target.
+    pub path: Vec<Isometry3<f64>>,
+    /// Each piece's share of the segment's duration (sums to 1).
+    pub shares: Vec<f64>,
+}
+
+impl Swing {
+    /// The path's pieces' durations at `foot_speed_m_s`, each at least `min_piece_s`.
+    fn piece_durations(path: &[Isometry3<f64>], foot_speed_m_s: f64, min_piece_s: f64) -> Vec<f64> {
+        path.windows(2)
+            .map(|w| {
+                ((w[1].translation.vector - w[0].translation.vector).norm() / foot_speed_m_s).max(min_piece_s)
+            })
+            .collect()
+    }
+}
+
+/// One segment of the motion.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Segment {
+    /// Which of the five.
+    pub phase: Phase,
+    /// Index of the stance this step goes to.
+    pub stance: usize,
+    /// Duration, seconds.
+    pub duration_s: f64,
+    /// CoM at the start, world frame.
+    pub com_start: Point3<f64>,
+    /// CoM at the end.
+    pub com_end: Point3<f64>,
+    /// Feet in contact, held still, with their poses.
+    pub support: Vec<(Foot, Isometry3<f64>)>,
+    /// The foot that moves, if one does.
+    pub swing: Option<Swing>,
+    /// Static-stability polygon of the support (counter-clockwise, world x-y).
+    pub polygon: Vec<P2>,
+    /// Smallest distance of the two CoM ends from the polygon's edges, metres.
+    pub margin_m: f64,
+}
+
+/// Timing and clearances of the motion. Lengths in metres.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StepParams {
+    /// CoM speed along its linear segments, m/s (slow: the static criterion of §6.2 holds
+    /// only when accelerations are negligible).
+    pub com_speed_m_s: f64,
+    /// Free-foot speed along its path, m/s.
+    pub foot_speed_m_s: f64,
+    /// Shortest segment, seconds.
+    pub min_segment_s: f64,
+    /// Shortest piece of a swing (lift, across, descent), seconds: the foot lands slowly.
+    pub min_piece_s: f64,
+    /// Height of the swing above the higher of lift-off and target (§6.1: clears the
+    /// step's nose and edge).
+    pub swing_clearance_m: f64,
+    /// Least distance of a CoM waypoint from its polygons' edges.
+    pub min_margin_m: f64,
+    /// Friction coefficient of the contacts' pyramids (§6.2; Caron et al. 2015).
+    pub friction: f64,
+    /// The trailing leg is kept within this fraction of its full length (hip to ankle).
+    pub reach_fraction: f64,
+    /// Largest knee bend the leading leg may need, degrees at the user's edge, radians here.
+    pub knee_max_rad: f64,
+}
+
+impl Default for StepParams {
+    fn default() -> Self {
+        Self {
+            com_speed_m_s: 0.06,
+            foot_speed_m_s: 0.15,
+            min_segment_s: 0.8,
+            min_piece_s: 0.6,
+            swing_clearance_m: 0.05,
+            min_margin_m: 0.02,
+            friction: super::contact::DEFAULT_FRICTION,
+            reach_fraction: 0.95,
+            knee_max_rad: 125f64.to_radians(),
+        }
+    }
+}
+
+/// The figures of the body the gait needs, measured on the model in the start posture.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Body {
+    /// CoM height above the soles in the start posture.
+    pub com_height_m: f64,
+    /// CoM height above the hip pitch axes in the start posture.
+    pub com_above_hip_m: f64,
+    /// Hip pitch to knee.
+    pub thigh_m: f64,
+    /// Knee to ankle pitch.
+    pub shank_m: f64,
+    /// Ankle (pitch axis) in each sole's frame: right, left.
+    pub ankle_in_sole: [Vector3<f64>; 2],
+    /// Sole half length and half width.
+    pub sole_half_m: [f64; 2],
+}
+
+impl Body {
+    /// Measures the body at configuration `q` (standing on level soles).
+    pub fn measure(model: &RobotModel, q: &[f64]) -> Result<Self, PlanError> {
+        let mut kin = Kinematics::new(model);
+        kin.update(q).map_err(|e| PlanError::Config(e.to_string()))?;
+        let id = |n: &str| {
+            model.joint_id(n).map(|j| model.joints()[j].link).map_err(|e| PlanError::Config(e.to_string()))
+        };
+        let at = |l: usize| kin.link_pose(l).translation.vector;
+        let (hip, knee, ankle) = (id("R_HIP_P")?, id("R_KNEE_P")?, id("R_ANKLE_P")?);
+        let left_ankle = id("L_ANKLE_P")?;
+        let fid = |n: &str| model.frame_id(n).map_err(|e| PlanError::Config(e.to_string()));
+        let (rs, ls) = (kin.frame_pose(fid(hrp4::R_SOLE)?), kin.frame_pose(fid(hrp4::L_SOLE)?));
+        let com = kin.com();
+        let sole_z = (rs.translation.z + ls.translation.z) / 2.0;
+        Ok(Self {
+            com_height_m: com.z - sole_z,
+            com_above_hip_m: com.z - at(hip).z,
+            thigh_m: (at(hip) - at(knee)).norm(),
+            shank_m: (at(knee) - at(ankle)).norm(),
+            ankle_in_sole: [
+                rs.inverse_transform_point(&Point3::from(at(ankle))).coords,
+                ls.inverse_transform_point(&Point3::from(at(left_ankle))).coords,
+            ],
+            sole_half_m: [hrp4::SOLE_SIZE_M[0] / 2.0, hrp4::SOLE_SIZE_M[1] / 2.0],
+        })
+    }
+
+    fn ankle(&self, foot: Foot, sole: &Isometry3<f64>) -> Point3<f64> {
+        let k = usize::from(foot == Foot::Left);
+        sole.transform_point(&Point3::from(self.ankle_in_sole[k]))
+    }
+
+    fn contact(&self, sole: &Isometry3<f64>, friction: f64) -> Result<Contact, PlanError> {
+        Contact::new(*sole, self.sole_half_m[0], self.sole_half_m[1], friction).map_err(PlanError::Config)
+    }
+}
+
+/// The segments from `com` standing in `start` through every stance of `stances`.
+pub fn segments(
+    com: Point3<f64>,
+    start: &Stance,
+    stances: &[Stance],
+    body: &Body,
+    p: &StepParams,
+) -> Result<Vec<Segment>, PlanError> {
+    let mut out: Vec<Segment> = Vec::new();
+    let mut from = start.clone();
+    let mut c = com;
+    for (k, to) in stances.iter().enumerate() {
+        let step = one_step(c, &from, to, k, body, p)?;
+        c = step.last().map(|s| s.com_end).unwrap_or(c);
+        out.extend(step);
+        from = to.clone();
+    }
+    settle_waypoints(&mut out, p.min_margin_m)?;
+    for s in &mut out {
+        s.duration_s = duration(s, p);
+    }
+    Ok(out)
+}
+
+fn one_step(
+    com: Point3<f64>,
+    from: &Stance,
+    to: &Stance,
+    k: usize,
+    body: &Body,
+    p: &StepParams,
+) -> Result<Vec<Segment>, PlanError> {
+    let (lo_z, lead_z) = (from.left.translation.z, to.right.translation.z);
+    let forward = to.right.rotation * Vector3::x();
+    let lead_ankle = body.ankle(Foot::Right, &to.right);
+    let trail_ankle = body.ankle(Foot::Left, &from.left);
+    // (1): over the left ankle, low enough that the right leg reaches its target from there.
+    let z1 =
+        com.z.min(hip_height_max(body, p, &trail_ankle, &lead_ankle, &forward, k)? + body.com_above_hip_m);
+    let w1 = over(trail_ankle, z1);
+    // (3): over the right ankle, as high as the trailing leg reaches, no higher than standing.
+    let hip3 = hip_height_max(body, p, &lead_ankle, &trail_ankle, &forward, k)?
+        .min(lo_z.min(lead_z) + body.com_height_m - body.com_above_hip_m);
+    check_fold(body, p, hip3 - lead_ankle.z, k)?;
+    let w3 = over(lead_ankle, hip3 + body.com_above_hip_m);
+    // (4): standing height over the right ankle. (5): between the soles.
+    let w4 = over(lead_ankle, lead_z + body.com_height_m);
+    let mid = (to.right.translation.vector + to.left.translation.vector) / 2.0;
+    let w5 = Point3::new(mid.x, mid.y, mid.z + body.com_height_m);
+
+    let both = |a: &Isometry3<f64>, b: &Isometry3<f64>| vec![(Foot::Right, *a), (Foot::Left, *b)];
+    let swing = |foot: Foot, a: &Isometry3<f64>, b: &Isometry3<f64>| {
+        let path = swing_path(a, b, p.swing_clearance_m);
+        let d = Swing::piece_durations(&path, p.foot_speed_m_s, p.min_piece_s);
+        let total: f64 = d.iter().sum();
+        Swing { foot, path, shares: d.iter().map(|x| x / total).collect() }
+    };
+    let plan = [
+        (Phase::ShiftToLeft, com, w1, both(&from.right, &from.left), None),
+        (
+            Phase::SwingRight,
+            w1,
+            w1,
+            vec![(Foot::Left, from.left)],
+            Some(swing(Foot::Right, &from.right, &to.right)),
+        ),
+        (Phase::ShiftToRight, w1, w3, both(&to.right, &from.left), None),
+        (
+            Phase::LiftSwingLeft,
+            w3,
+            w4,
+            vec![(Foot::Right, to.right)],
+            Some(swing(Foot::Left, &from.left, &to.left)),
+        ),
+        (Phase::Centre, w4, w5, both(&to.right, &to.left), None),
+    ];
+    plan.into_iter()
+        .map(|(phase, a, b, support, swing)| {
+            let contacts: Vec<Contact> =
+                support.iter().map(|(_, pose)| body.contact(pose, p.friction)).collect::<Result<_, _>>()?;
+            let polygon = by_double_description(&contacts, &DdParams::default())?;
+            Ok(Segment {
+                phase,
+                stance: k,
+                duration_s: 0.0,
+                com_start: a,
+                com_end: b,
+                support,
+                swing,
+                polygon,
+                margin_m: 0.0,
+            })
+        })
+        .collect()
+}
+
+fn over(p: Point3<f64>, z: f64) -> Point3<f64> {
+    Point3::new(p.x, p.y, z)
+}
+
+/// The highest the hip over `over` can be while the leg still reaches `ankle` (within
+/// `reach_fraction` of its length), the distance measured along `forward`.
+fn hip_height_max(
+    body: &Body,
+    p: &StepParams,
+    over: &Point3<f64>,
+    ankle: &Point3<f64>,
+    forward: &Vector3<f64>,
+    stance: usize,
+) -> Result<f64, PlanError> {
+    let reach = p.reach_fraction * (body.thigh_m + body.shank_m);
+    let d = (ankle - over).dot(forward).abs();
+    if d >= reach {
+        return Err(PlanError::Reach {
+            stance,
+            what: format!("the feet are {d:.3} m apart along the ascent, a leg reaches {reach:.3} m"),
+        });
+    }
+    Ok(ankle.z + (reach * reach - d * d).sqrt())
+}
+
+/// Refuses a stance whose leading knee would fold beyond `knee_max_rad` with the hip
+/// `hip_above_ankle_m` over the ankle.
+fn check_fold(body: &Body, p: &StepParams, hip_above_ankle_m: f64, stance: usize) -> Result<(), PlanError> {
+    let (t, s) = (body.thigh_m, body.shank_m);
+    let fold = (t * t + s * s + 2.0 * t * s * p.knee_max_rad.cos()).sqrt();
+    if hip_above_ankle_m < fold {
+        return Err(PlanError::Reach {
+            stance,
+            what: format!(
+                "the leading knee would fold beyond {:.0} deg: hip {hip_above_ankle_m:.3} m above the ankle, needs {fold:.3} m",
+                p.knee_max_rad.to_degrees()
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Lift vertically to `clearance` above the higher of the two soles, move across, descend.
+fn swing_path(a: &Isometry3<f64>, b: &Isometry3<f64>, clearance_m: f64) -> Vec<Isometry3<f64>> {
+    let top = a.translation.z.max(b.translation.z) + clearance_m;
+    let mut lift = *a;
+    lift.translation.z = top;
+    let mut above = *b;
+    above.translation.z = top;
+    vec![*a, lift, above, *b]
+}
+
+/// Checks every CoM waypoint against the polygons of both segments it joins, moving it
+/// toward the middle of their intersection when its margin is short.
+fn settle_waypoints(segs: &mut [Segment], min_margin_m: f64) -> Result<(), PlanError> {
+    let start = P2::new(segs[0].com_start.x, segs[0].com_start.y);
+    if margin(&segs[0].polygon, &start) < 0.0 {
+        return Err(PlanError::Unstable { segment: 0, margin_m: margin(&segs[0].polygon, &start) });
+    }
+    for i in 0..segs.len() {
+        let end = segs[i].com_end;
+        let mut region = segs[i].polygon.clone();
+        if let Some(next) = segs.get(i + 1) {
+            region = geom2d::clip_convex(&region, &next.polygon);
+        }
+        let xy = P2::new(end.x, end.y);
+        let moved = if region.len() >= 3 && margin(&region, &xy) >= min_margin_m {
+            xy
+        } else {
+            toward_middle(&region, xy, min_margin_m).ok_or(PlanError::Unstable {
+                segment: i,
+                margin_m: if region.len() >= 3 { margin(&region, &xy) } else { f64::NEG_INFINITY },
+            })?
+        };
+        let new = Point3::new(moved.x, moved.y, end.z);
+        segs[i].com_end = new;
+        if let Some(next) = segs.get_mut(i + 1) {
+            // A segment whose CoM does not move keeps it still at the new place.
+            if next.com_end == next.com_start {
+                next.com_end = new;
+            }
+            next.com_start = new;
+        }
+    }
+    for s in segs.iter_mut() {
+        let ends = [s.com_start, s.com_end].map(|c| margin(&s.polygon, &P2::new(c.x, c.y)));
+        s.margin_m = ends[0].min(ends[1]);
+    }
+    Ok(())
+}
+
+/// The point nearest `p` on the segment from `p` to the region's centroid with at least
+/// `min_margin_m` of margin (bisection), or `None` when even the centroid has less.
+fn toward_middle(region: &[P2], p: P2, min_margin_m: f64) -> Option<P2> {
+    if region.len() < 3 {
+        return None;
+    }
+    let centroid = region.iter().sum::<P2>() / region.len() as f64;
+    if margin(region, &centroid) < min_margin_m {
+        return None;
+    }
+    let (mut lo, mut hi) = (0.0, 1.0); // fraction toward the centroid: lo fails, hi passes
+    for _ in 0..40 {
+        let mid = (lo + hi) / 2.0;
+        if margin(region, &(p + (centroid - p) * mid)) >= min_margin_m {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    Some(p + (centroid - p) * hi)
+}
+
+/// The segment's duration from the CoM's and the free foot's path lengths.
+fn duration(s: &Segment, p: &StepParams) -> f64 {
+    let com = (s.com_end - s.com_start).norm() / p.com_speed_m_s;
+    let foot = s.swing.as_ref().map_or(0.0, |sw| {
+        Swing::piece_durations(&sw.path, p.foot_speed_m_s, p.min_piece_s).iter().sum::<f64>()
+    });
+    com.max(foot).max(p.min_segment_s)
+}

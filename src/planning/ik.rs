@@ -1,0 +1,356 @@
+//! Velocity inverse kinematics as one quadratic programme per tick (§6.1), in the shape of
+//! Caron's pink library: a [`Task`] gives a Jacobian, a desired velocity and a weight; an
+//! [`Equality`] is a hard kinematic constraint (a contact held still); a [`Bounds`] is a box
+//! on the velocities (joint limits). [`solve`] stacks them into one QP for clarabel:
+//!
+//!   minimize   sum_k w_k ||J_k qd - v_k||^2 + damping ||qd||^2
+//!   subject to E qd = e,   lower <= qd <= upper.
+//!
+//! Constructors for the paper's terms ([`com_task`], [`frame_task`], [`posture_task`],
+//! [`contact`], [`joint_limits`]) turn the robot's state into these values, so a new term
+//! (a hand on a rail, say) is one more value in a list.
+
+use crate::robot::model::{RobotModel, Q_JOINTS, V_JOINTS};
+use crate::robot::Kinematics;
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{
+    DefaultSettings, DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+};
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3xX, Matrix6xX, Point3, UnitQuaternion, Vector3, Vector6};
+
+/// A soft objective: weight * ||jacobian qd - velocity||^2.
+#[derive(Debug, Clone)]
+pub struct Task {
+    /// rows x nv.
+    pub jacobian: DMatrix<f64>,
+    /// Desired velocity of the task's coordinates (rows).
+    pub velocity: DVector<f64>,
+    /// Weight (§6.1: CoM 1, free foot 0.2, posture 0.001).
+    pub weight: f64,
+}
+
+/// A hard equality: jacobian qd = velocity.
+#[derive(Debug, Clone)]
+pub struct Equality {
+    /// rows x nv.
+    pub jacobian: DMatrix<f64>,
+    /// Right-hand side (rows).
+    pub velocity: DVector<f64>,
+}
+
+/// A box on the generalized velocities, nv entries each; infinite for a free coordinate.
+#[derive(Debug, Clone)]
+pub struct Bounds {
+    /// Lower bound, rad/s or m/s.
+    pub lower: DVector<f64>,
+    /// Upper bound.
+    pub upper: DVector<f64>,
+}
+
+/// Why a tick's QP had no solution.
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
+pub enum IkError {
+    /// Sizes of the terms disagree with nv.
+    #[error("IK term has {got} columns, the robot has {want} velocities")]
+    Size {
+        /// Columns given.
+        got: usize,
+        /// Velocities of the robot.
+        want: usize,
+    },
+    /// The bounds leave no velocity (lower > upper).
+    #[error("velocity bounds cross at coordinate {0} (a joint is outside its limits)")]
+    CrossedBounds(usize),
+    /// The solver did not converge or found the constraints infeasible.
+    #[error("the IK QP failed: {0}")]
+    Solver(String),
+}
+
+/// Velocities minimizing the weighted tasks subject to the equalities and bounds.
+/// `damping` (>= 0) is added on every velocity so the QP stays strictly convex.
+pub fn solve(
+    nv: usize,
+    tasks: &[Task],
+    equalities: &[Equality],
+    bounds: &[Bounds],
+    damping: f64,
+) -> Result<DVector<f64>, IkError> {
+    let mut h = DMatrix::<f64>::identity(nv, nv) * damping;
+    let mut c = DVector::<f64>::zeros(nv);
+    for t in tasks {
+        check(nv, t.jacobian.ncols())?;
+        // 0.5 x' P x + c' x with P = 2 w J'J, c = -2 w J'v.
+        h.gemm_tr(2.0 * t.weight, &t.jacobian, &t.jacobian, 1.0);
+        c.gemv_tr(-2.0 * t.weight, &t.jacobian, &t.velocity, 1.0);
+    }
+    let (mut rows, mut cols, mut vals) = (Vec::new(), Vec::new(), Vec::new());
+    let mut b = Vec::new();
+    for e in equalities {
+        check(nv, e.jacobian.ncols())?;
+        for r in 0..e.jacobian.nrows() {
+            for col in 0..nv {
+                let v = e.jacobian[(r, col)];
+                if v != 0.0 {
+                    rows.push(b.len());
+                    cols.push(col);
+                    vals.push(v);
+                }
+            }
+            b.push(e.velocity[r]);
+        }
+    }
+    let n_eq = b.len();
+    for bd in bounds {
+        check(nv, bd.lower.len())?;
+        check(nv, bd.upper.len())?;
+        for i in 0..nv {
+            let (lo, hi) = (bd.lower[i], bd.upper[i]);
+            if lo > hi {
+                return Err(IkError::CrossedBounds(i));
+            }
+            if hi.is_finite() {
+                rows.push(b.len());
+                cols.push(i);
+                vals.push(1.0);
+                b.push(hi);
+            }
+            if lo.is_finite() {
+                rows.push(b.len());
+                cols.push(i);
+                vals.push(-1.0);
+                b.push(-lo);
+            }
+        }
+    }
+    let m = b.len();
+    let a = CscMatrix::new_from_triplets(m, nv, rows, cols, vals);
+    let p = upper_triangle(&h);
+    let cones = [SupportedConeT::ZeroConeT(n_eq), SupportedConeT::NonnegativeConeT(m - n_eq)];
+    let mut solver = DefaultSolver::new(&p, c.as_slice(), &a, &b, &cones, settings())
+        .map_err(|e| IkError::Solver(e.to_string()))?;
+    solver.solve();
+    match solver.solution.status {
+        SolverStatus::Solved | SolverStatus::AlmostSolved => {
+            Ok(DVector::from_column_slice(&solver.solution.x))
+        }
+        s => Err(IkError::Solver(format!("{s:?}"))),
+    }
+}
+
+fn check(want: usize, got: usize) -> Result<(), IkError> {
+    if got == want {
+        Ok(())
+    } else {
+        Err(IkError::Size { got, want })
+    }
+}
+
+fn settings() -> DefaultSettings<f64> {
+    // Valid by construction (every field is within its range).
+    DefaultSettingsBuilder::default()
+        .verbose(false)
+        .tol_gap_abs(1e-7)
+        .tol_gap_rel(1e-7)
+        .tol_feas(1e-7)
+        .build()
+        .unwrap_or_default()
+}
+
+fn upper_triangle(h: &DMatrix<f64>) -> CscMatrix<f64> {
+    let n = h.nrows();
+    let (mut rows, mut cols, mut vals) = (Vec::new(), Vec::new(), Vec::new());
+    for j in 0..n {
+        for i in 0..=j {
+            let v = h[(i, j)];
+            if v != 0.0 {
+                rows.push(i);
+                cols.push(j);
+                vals.push(v);
+            }
+        }
+    }
+    CscMatrix::new_from_triplets(n, n, rows, cols, vals)
+}
+
+/// 6-vector from a pose error: position (target - current), then the rotation vector taking
+/// the current orientation to the target, world frame.
+pub fn pose_error(current: &Isometry3<f64>, target: &Isometry3<f64>) -> Vector6<f64> {
+    let dp = target.translation.vector - current.translation.vector;
+    let dr: UnitQuaternion<f64> = target.rotation * current.rotation.inverse();
+    let w = dr.scaled_axis();
+    Vector6::new(dp.x, dp.y, dp.z, w.x, w.y, w.z)
+}
+
+/// CoM task: its velocity follows `velocity_ff` (m/s) plus `gain` (1/s) times the error.
+pub fn com_task(
+    kin: &Kinematics,
+    jac: &mut Matrix3xX<f64>,
+    target: &Point3<f64>,
+    velocity_ff: &Vector3<f64>,
+    gain: f64,
+    weight: f64,
+) -> Task {
+    kin.com_jacobian_into(jac);
+    let v = velocity_ff + (target - kin.com()) * gain;
+    Task {
+        jacobian: DMatrix::from_column_slice(3, jac.ncols(), jac.as_slice()),
+        velocity: DVector::from_column_slice(v.as_slice()),
+        weight,
+    }
+}
+
+/// Frame pose task (position and orientation): twist `twist_ff` (linear, angular; world)
+/// plus `gain` times the pose error.
+pub fn frame_task(
+    kin: &Kinematics,
+    jac: &mut Matrix6xX<f64>,
+    frame: usize,
+    target: &Isometry3<f64>,
+    twist_ff: &Vector6<f64>,
+    gain: f64,
+    weight: f64,
+) -> Task {
+    kin.frame_jacobian_into(frame, jac);
+    let v = twist_ff + pose_error(&kin.frame_pose(frame), target) * gain;
+    Task {
+        jacobian: DMatrix::from_column_slice(6, jac.ncols(), jac.as_slice()),
+        velocity: DVector::from_column_slice(v.as_slice()),
+        weight,
+    }
+}
+
+/// A contact held still at `target`: J qd = gain * pose error (the gain only removes
+/// integration drift; 0 gives the paper's J qd = 0).
+pub fn contact(
+    kin: &Kinematics,
+    jac: &mut Matrix6xX<f64>,
+    frame: usize,
+    target: &Isometry3<f64>,
+    gain: f64,
+) -> Equality {
+    kin.frame_jacobian_into(frame, jac);
+    let v = pose_error(&kin.frame_pose(frame), target) * gain;
+    Equality {
+        jacobian: DMatrix::from_column_slice(6, jac.ncols(), jac.as_slice()),
+        velocity: DVector::from_column_slice(v.as_slice()),
+    }
+}
+
+/// Posture task on the joints flagged in `mask`: qd_j = gain (q_ref_j - q_j); the other
+/// joints and the free-flyer are left to the other tasks.
+pub fn posture_task(
+    model: &RobotModel,
+    q: &[f64],
+    q_ref_joints: &[f64],
+    mask: &[bool],
+    gain: f64,
+    weight: f64,
+) -> Task {
+    let rows: Vec<usize> = (0..model.joints().len()).filter(|&i| mask[i]).collect();
+    let mut j = DMatrix::zeros(rows.len(), model.nv());
+    let mut v = DVector::zeros(rows.len());
+    for (r, &i) in rows.iter().enumerate() {
+        j[(r, V_JOINTS + i)] = 1.0;
+        v[r] = gain * (q_ref_joints[i] - q[Q_JOINTS + i]);
+    }
+    Task { jacobian: j, velocity: v, weight }
+}
+
+/// Orientation task on the free-flyer (the root link): its angular velocity, world frame,
+/// follows `gain` times the rotation from its orientation to `target`.
+pub fn base_orientation_task(
+    kin: &Kinematics,
+    jac: &mut Matrix6xX<f64>,
+    target: &UnitQuaternion<f64>,
+    gain: f64,
+    weight: f64,
+) -> Task {
+    let base = *kin.link_pose(0);
+    kin.point_jacobian_into(0, &Point3::from(base.translation.vector), jac);
+    let w = (target * base.rotation.inverse()).scaled_axis() * gain;
+    Task {
+        jacobian: DMatrix::from_fn(3, jac.ncols(), |r, c| jac[(3 + r, c)]),
+        velocity: DVector::from_column_slice(w.as_slice()),
+        weight,
+    }
+}
+
+/// §6.1's first-order velocity regulation: qd <= min(qd_max, K (q_max - q)) and
+/// qd >= max(-qd_max, K (q_min - q)) for every joint; the free-flyer is unbounded.
+pub fn joint_limits(model: &RobotModel, q: &[f64], max_speed_rad_s: f64, gain: f64) -> Bounds {
+    let nv = model.nv();
+    let mut lower = DVector::from_element(nv, f64::NEG_INFINITY);
+    let mut upper = DVector::from_element(nv, f64::INFINITY);
+    for (i, jt) in model.joints().iter().enumerate() {
+        let qi = q[Q_JOINTS + i];
+        let vmax = max_speed_rad_s.min(jt.velocity_rad_s);
+        upper[V_JOINTS + i] = vmax.min(gain * (jt.upper_rad - qi)).max(0.0);
+        lower[V_JOINTS + i] = (-vmax).max(gain * (jt.lower_rad - qi)).min(0.0);
+    }
+    Bounds { lower, upper }
+}
+
+/// q advanced by velocity `qd` for `dt_s`: world translation, the base rotated about its own
+/// axes (MuJoCo's free-joint convention), joints added.
+pub fn integrate(q: &mut [f64], qd: &[f64], dt_s: f64) {
+    for k in 0..3 {
+        q[k] += qd[k] * dt_s;
+    }
+    let rot = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[3], q[4], q[5], q[6]));
+    let w = Vector3::new(qd[3], qd[4], qd[5]) * dt_s;
+    let next = rot * UnitQuaternion::from_scaled_axis(w);
+    q[3..7].copy_from_slice(&[next.w, next.i, next.j, next.k]);
+    for (qi, vi) in q[Q_JOINTS..].iter_mut().zip(&qd[V_JOINTS..]) {
+        *qi += vi * dt_s;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unconstrained_least_squares_is_exact() {
+        // Two tasks on disjoint coordinates are each met exactly.
+        let mut j1 = DMatrix::zeros(1, 3);
+        j1[(0, 0)] = 2.0;
+        let mut j2 = DMatrix::zeros(1, 3);
+        j2[(0, 1)] = 1.0;
+        let t = [
+            Task { jacobian: j1, velocity: DVector::from_element(1, 4.0), weight: 1.0 },
+            Task { jacobian: j2, velocity: DVector::from_element(1, -1.0), weight: 0.2 },
+        ];
+        let x = solve(3, &t, &[], &[], 1e-9).unwrap();
+        assert!((x[0] - 2.0).abs() < 1e-6 && (x[1] + 1.0).abs() < 1e-6 && x[2].abs() < 1e-6, "{x}");
+    }
+
+    #[test]
+    fn equality_and_bounds_hold() {
+        let t = [Task {
+            jacobian: DMatrix::identity(2, 2),
+            velocity: DVector::from_vec(vec![3.0, 3.0]),
+            weight: 1.0,
+        }];
+        let e = [Equality {
+            jacobian: DMatrix::from_row_slice(1, 2, &[1.0, 1.0]),
+            velocity: DVector::from_element(1, 1.0),
+        }];
+        let b = [Bounds {
+            lower: DVector::from_vec(vec![-10.0, -10.0]),
+            upper: DVector::from_vec(vec![0.25, 10.0]),
+        }];
+        let x = solve(2, &t, &e, &b, 0.0).unwrap();
+        assert!((x[0] - 0.25).abs() < 1e-6 && (x[1] - 0.75).abs() < 1e-6, "{x}");
+        let bad =
+            [Bounds { lower: DVector::from_vec(vec![1.0, 0.0]), upper: DVector::from_vec(vec![0.0, 1.0]) }];
+        assert_eq!(solve(2, &t, &[], &bad, 0.0), Err(IkError::CrossedBounds(0)));
+    }
+
+    #[test]
+    fn pose_error_is_the_rotation_vector() {
+        let a = Isometry3::identity();
+        let b = Isometry3::new(Vector3::new(0.1, 0.0, 0.0), Vector3::new(0.0, 0.0, 0.3));
+        let e = pose_error(&a, &b);
+        assert!((e[0] - 0.1).abs() < 1e-12 && (e[5] - 0.3).abs() < 1e-12);
+    }
+}

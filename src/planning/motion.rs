@@ -1,0 +1,294 @@
+//! The whole-body trajectory (§6.1): the gait's CoM and free-foot paths tracked by the QP
+//! IK of [`super::ik`] at a fixed rate, giving q(t) sampled as a [`JointTrajectory`], with
+//! what it reached (CoM, feet) and how closely it tracked.
+
+use super::footholds::Foot;
+use super::gait::{Segment, Swing};
+use super::ik::{self, Task};
+use super::PlanError;
+use crate::robot::hrp4;
+use crate::robot::model::{RobotModel, Q_JOINTS};
+use crate::robot::Kinematics;
+use nalgebra::{Isometry3, Point3, Translation3, Vector6};
+use std::time::Instant;
+
+/// The IK's weights and gains (§6.1).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct IkParams {
+    /// Samples per second of the trajectory (one QP per sample).
+    pub rate_hz: f64,
+    /// §6.1 objective (1): CoM deviation, w_CoM = 1.
+    pub weight_com: f64,
+    /// §6.1 objective (2): free foot pose deviation, w_free = 0.2.
+    pub weight_free_foot: f64,
+    /// §6.1 objective (3): deviation from the reference posture, w_ref = 0.001.
+    pub weight_posture: f64,
+    /// Gain turning CoM and foot errors into velocities, 1/s.
+    pub task_gain_per_s: f64,
+    /// K_ref of the posture term, 1/s.
+    pub posture_gain_per_s: f64,
+    /// Gain removing integration drift from the contacts (0 = the paper's J qd = 0), 1/s.
+    pub contact_gain_per_s: f64,
+    /// §6.1 constraint (2): the fixed maximum joint speed qd_max, rad/s (small, so the
+    /// motion stays quasi-static).
+    pub max_joint_speed_rad_s: f64,
+    /// §6.1 constraint (2): K, the DOF-limit velocity gain, 1/s.
+    pub limit_gain_per_s: f64,
+    /// Damping on every velocity (keeps the QP strictly convex).
+    pub damping: f64,
+    /// Largest CoM tracking error accepted, metres; beyond, the plan is refused.
+    pub com_tolerance_m: f64,
+    /// Largest free-foot error at touchdown accepted, metres.
+    pub foot_tolerance_m: f64,
+}
+
+impl Default for IkParams {
+    fn default() -> Self {
+        Self {
+            rate_hz: 200.0,
+            weight_com: 1.0,
+            weight_free_foot: 0.2,
+            weight_posture: 0.001,
+            task_gain_per_s: 40.0,
+            posture_gain_per_s: 0.5,
+            contact_gain_per_s: 40.0,
+            max_joint_speed_rad_s: 1.0,
+            limit_gain_per_s: 5.0,
+            damping: 1e-6,
+            com_tolerance_m: 0.01,
+            foot_tolerance_m: 0.005,
+        }
+    }
+}
+
+/// One sample of the trajectory.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sample {
+    /// Time from the start, seconds.
+    pub t_s: f64,
+    /// Configuration (layout of [`crate::robot::model`]).
+    pub q: Vec<f64>,
+    /// CoM reached.
+    pub com: Point3<f64>,
+    /// CoM wanted.
+    pub com_ref: Point3<f64>,
+    /// Right and left sole poses reached.
+    pub feet: [Isometry3<f64>; 2],
+    /// Index of the segment.
+    pub segment: usize,
+}
+
+/// q(t) at a fixed rate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointTrajectory {
+    /// Samples per second.
+    pub rate_hz: f64,
+    /// The samples, from t = 0.
+    pub samples: Vec<Sample>,
+}
+
+impl JointTrajectory {
+    /// Duration, seconds.
+    pub fn duration_s(&self) -> f64 {
+        self.samples.last().map_or(0.0, |s| s.t_s)
+    }
+
+    /// The configuration at `t_s`, linearly interpolated (the base quaternion normalized),
+    /// written into `q`.
+    pub fn q_at(&self, t_s: f64, q: &mut [f64]) {
+        let n = self.samples.len();
+        if n == 0 {
+            return;
+        }
+        let x = (t_s * self.rate_hz).clamp(0.0, (n - 1) as f64);
+        let i = (x.floor() as usize).min(n - 1);
+        let j = (i + 1).min(n - 1);
+        let f = x - i as f64;
+        for (k, qk) in q.iter_mut().enumerate() {
+            *qk = self.samples[i].q[k] * (1.0 - f) + self.samples[j].q[k] * f;
+        }
+        let norm = q[3..7].iter().map(|v| v * v).sum::<f64>().sqrt();
+        q[3..7].iter_mut().for_each(|v| *v /= norm);
+    }
+}
+
+/// How well the IK tracked the gait.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct Tracking {
+    /// Largest CoM error over the trajectory, metres.
+    pub max_com_error_m: f64,
+    /// Largest free-foot position error at touchdown, metres.
+    pub max_touchdown_error_m: f64,
+    /// Largest displacement of a contact from where it was set, metres.
+    pub max_contact_drift_m: f64,
+    /// QPs solved.
+    pub ik_ticks: usize,
+    /// Wall time in the IK (kinematics, QP build, solve), seconds.
+    pub ik_time_s: f64,
+}
+
+/// Smooth time law on [0, 1]: 3 t^2 - 2 t^3 and its derivative.
+fn ease(t: f64) -> (f64, f64) {
+    let t = t.clamp(0.0, 1.0);
+    (t * t * (3.0 - 2.0 * t), 6.0 * t * (1.0 - t))
+}
+
+/// The free foot's pose and twist at fraction `tau` of its swing; `duration_s` scales the twist.
+fn along_path(sw: &Swing, tau: f64, duration_s: f64) -> (Isometry3<f64>, Vector6<f64>) {
+    let mut start = 0.0;
+    let last = sw.shares.len() - 1;
+    for (k, w) in sw.path.windows(2).enumerate() {
+        let share = sw.shares[k];
+        if tau <= start + share || k == last {
+            let (s, ds) = ease((tau - start) / share);
+            let dt_piece = share * duration_s;
+            let p = w[0].translation.vector.lerp(&w[1].translation.vector, s);
+            let r = w[0].rotation.slerp(&w[1].rotation, s);
+            let v = (w[1].translation.vector - w[0].translation.vector) * ds / dt_piece;
+            let omega = (w[1].rotation * w[0].rotation.inverse()).scaled_axis() * ds / dt_piece;
+            let pose = Isometry3::from_parts(Translation3::from(p), r);
+            return (pose, Vector6::new(v.x, v.y, v.z, omega.x, omega.y, omega.z));
+        }
+        start += share;
+    }
+    (sw.path[sw.path.len() - 1], Vector6::zeros())
+}
+
+/// The joints of the upper body: every joint not on a chain from the root to a foot
+/// (§6.1 holds these near the reference posture).
+pub fn upper_body_mask(model: &RobotModel, feet: &[usize]) -> Vec<bool> {
+    let mut mask = vec![true; model.joints().len()];
+    for &f in feet {
+        let mut link = Some(model.frames()[f].link);
+        while let Some(l) = link {
+            if let Some(j) = model.links()[l].joint {
+                mask[j] = false;
+            }
+            link = model.links()[l].parent;
+        }
+    }
+    mask
+}
+
+fn frame_of(model: &RobotModel, foot: Foot) -> Result<usize, PlanError> {
+    let name = match foot {
+        Foot::Right => hrp4::R_SOLE,
+        Foot::Left => hrp4::L_SOLE,
+    };
+    model.frame_id(name).map_err(|e| PlanError::Config(e.to_string()))
+}
+
+/// Tracks `segments` from configuration `q0`: one QP per sample at `p.rate_hz`.
+pub fn track(
+    model: &RobotModel,
+    q0: &[f64],
+    segments: &[Segment],
+    p: &IkParams,
+) -> Result<(JointTrajectory, Tracking), PlanError> {
+    let mut kin = Kinematics::new(model);
+    let config = |e: crate::robot::ConfigError| PlanError::Config(e.to_string());
+    kin.update(q0).map_err(config)?;
+    let feet = [frame_of(model, Foot::Right)?, frame_of(model, Foot::Left)?];
+    let q_ref: Vec<f64> = q0[Q_JOINTS..].to_vec();
+    let upper = upper_body_mask(model, &feet);
+    let base_ref = kin.link_pose(0).rotation;
+    let dt = 1.0 / p.rate_hz;
+    let mut q = q0.to_vec();
+    let mut com_jac = kin.new_com_jacobian();
+    let mut frame_jac = kin.new_frame_jacobian();
+    let mut stats = Tracking::default();
+    let sample = |kin: &Kinematics, q: &[f64], t_s: f64, com_ref: Point3<f64>, segment: usize| Sample {
+        t_s,
+        q: q.to_vec(),
+        com: kin.com(),
+        com_ref,
+        feet: [kin.frame_pose(feet[0]), kin.frame_pose(feet[1])],
+        segment,
+    };
+    let mut samples = vec![sample(&kin, &q, 0.0, kin.com(), 0)];
+    let mut t0 = 0.0;
+    let mut tick = 0usize;
+    for (si, seg) in segments.iter().enumerate() {
+        let end = t0 + seg.duration_s;
+        while (tick + 1) as f64 * dt <= end + 1e-9 {
+            let t = (tick + 1) as f64 * dt;
+            let tau = ((t - t0) / seg.duration_s).clamp(0.0, 1.0);
+            let (s, ds) = ease(tau);
+            let com_ref = seg.com_start + (seg.com_end - seg.com_start) * s;
+            let com_v = (seg.com_end - seg.com_start) * ds / seg.duration_s;
+            let started = Instant::now();
+            let mut tasks: Vec<Task> =
+                vec![ik::com_task(&kin, &mut com_jac, &com_ref, &com_v, p.task_gain_per_s, p.weight_com)];
+            if let Some(sw) = &seg.swing {
+                let (pose, twist) = along_path(sw, tau, seg.duration_s);
+                let f = feet[usize::from(sw.foot == Foot::Left)];
+                tasks.push(ik::frame_task(
+                    &kin,
+                    &mut frame_jac,
+                    f,
+                    &pose,
+                    &twist,
+                    p.task_gain_per_s,
+                    p.weight_free_foot,
+                ));
+            }
+            tasks.push(ik::posture_task(model, &q, &q_ref, &upper, p.posture_gain_per_s, p.weight_posture));
+            tasks.push(ik::base_orientation_task(
+                &kin,
+                &mut frame_jac,
+                &base_ref,
+                p.posture_gain_per_s,
+                p.weight_posture,
+            ));
+            let equalities: Vec<ik::Equality> = seg
+                .support
+                .iter()
+                .map(|(f, pose)| {
+                    ik::contact(
+                        &kin,
+                        &mut frame_jac,
+                        feet[usize::from(*f == Foot::Left)],
+                        pose,
+                        p.contact_gain_per_s,
+                    )
+                })
+                .collect();
+            let bounds = [ik::joint_limits(model, &q, p.max_joint_speed_rad_s, p.limit_gain_per_s)];
+            let qd = ik::solve(model.nv(), &tasks, &equalities, &bounds, p.damping)
+                .map_err(|error| PlanError::Ik { t_s: t, segment: si, error })?;
+            ik::integrate(&mut q, qd.as_slice(), dt);
+            kin.update(&q).map_err(config)?;
+            stats.ik_time_s += started.elapsed().as_secs_f64();
+            stats.ik_ticks += 1;
+            tick += 1;
+            stats.max_com_error_m = stats.max_com_error_m.max((kin.com() - com_ref).norm());
+            for (f, pose) in &seg.support {
+                let at = kin.frame_pose(feet[usize::from(*f == Foot::Left)]);
+                stats.max_contact_drift_m =
+                    stats.max_contact_drift_m.max((at.translation.vector - pose.translation.vector).norm());
+            }
+            samples.push(sample(&kin, &q, t, com_ref, si));
+        }
+        if let Some(sw) = &seg.swing {
+            let f = feet[usize::from(sw.foot == Foot::Left)];
+            let target = sw.path[sw.path.len() - 1].translation.vector;
+            let err = (kin.frame_pose(f).translation.vector - target).norm();
+            stats.max_touchdown_error_m = stats.max_touchdown_error_m.max(err);
+            if err > p.foot_tolerance_m {
+                return Err(PlanError::Tracking {
+                    segment: si,
+                    what: format!("{:?} foot misses its target by {:.1} mm", sw.foot, err * 1e3),
+                });
+            }
+        }
+        t0 = end;
+    }
+    if stats.max_com_error_m > p.com_tolerance_m {
+        return Err(PlanError::Tracking {
+            segment: segments.len().saturating_sub(1),
+            what: format!("the CoM strays {:.1} mm from its path", stats.max_com_error_m * 1e3),
+        });
+    }
+    Ok((JointTrajectory { rate_hz: p.rate_hz, samples }, stats))
+}

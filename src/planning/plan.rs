@@ -1,0 +1,90 @@
+//! The planner end to end: step rectangles and the robot's configuration in, footholds, the
+//! gait's segments with their polygons and margins, and the joint trajectory out (§6).
+
+use super::footholds::{footholds, GaitParams, Stance};
+use super::gait::{segments, Body, Segment, StepParams};
+use super::motion::{track, IkParams, JointTrajectory, Tracking};
+use super::PlanError;
+use crate::perception::PlaneSegment;
+use crate::robot::hrp4;
+use crate::robot::model::RobotModel;
+use crate::robot::Kinematics;
+use std::time::Instant;
+
+/// Every parameter of the planner.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PlanParams {
+    /// Footholds: what the feet can use.
+    pub gait: GaitParams,
+    /// Timing, clearances and margins of the segments.
+    pub step: StepParams,
+    /// The QP IK.
+    pub ik: IkParams,
+}
+
+/// A planned climb.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// Where the feet stood at the start.
+    pub start: Stance,
+    /// The stances, in order.
+    pub stances: Vec<Stance>,
+    /// Five segments per stance.
+    pub segments: Vec<Segment>,
+    /// q(t).
+    pub trajectory: JointTrajectory,
+    /// How closely q(t) follows the gait.
+    pub tracking: Tracking,
+    /// Wall time of footholds and polygons (seconds).
+    pub gait_time_s: f64,
+}
+
+impl Plan {
+    /// Duration of the motion, seconds.
+    pub fn duration_s(&self) -> f64 {
+        self.segments.iter().map(|s| s.duration_s).sum()
+    }
+
+    /// The smallest CoM margin over all segments, metres.
+    pub fn min_margin_m(&self) -> f64 {
+        self.segments.iter().map(|s| s.margin_m).fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// Where the feet are at configuration `q`.
+pub fn stance_at(model: &RobotModel, q: &[f64]) -> Result<Stance, PlanError> {
+    let mut kin = Kinematics::new(model);
+    kin.update(q).map_err(|e| PlanError::Config(e.to_string()))?;
+    let frame = |n: &str| model.frame_id(n).map_err(|e| PlanError::Config(e.to_string()));
+    Ok(Stance {
+        right: kin.frame_pose(frame(hrp4::R_SOLE)?),
+        left: kin.frame_pose(frame(hrp4::L_SOLE)?),
+        step: None,
+    })
+}
+
+/// Plans the climb of `rects` from configuration `q0` (standing, both feet down).
+/// `max_stances` limits the plan to the first stances (the closed loop plans one step,
+/// moves, and scans again); `None` plans to the top.
+pub fn plan(
+    model: &RobotModel,
+    q0: &[f64],
+    rects: &[PlaneSegment],
+    max_stances: Option<usize>,
+    p: &PlanParams,
+) -> Result<Plan, PlanError> {
+    let started = Instant::now();
+    let start = stance_at(model, q0)?;
+    let mut stances = footholds(&start, rects, &p.gait)?;
+    if let Some(n) = max_stances {
+        stances.truncate(n);
+    }
+    let body = Body::measure(model, q0)?;
+    let mut kin = Kinematics::new(model);
+    kin.update(q0).map_err(|e| PlanError::Config(e.to_string()))?;
+    let segs = segments(kin.com(), &start, &stances, &body, &p.step)?;
+    let gait_time_s = started.elapsed().as_secs_f64();
+    let (trajectory, tracking) = track(model, q0, &segs, &p.ik)?;
+    Ok(Plan { start, stances, segments: segs, trajectory, tracking, gait_time_s })
+}

@@ -1,0 +1,231 @@
+//! The planner end to end (issue 5, §6): footholds, the five segments per step, the CoM
+//! checked against each segment's stability polygon (recomputed here by Bretl and Lall's
+//! projection, the independent method), the IK trajectory tracking its feet and holding its
+//! contacts, the swing clearing the steps, and the refusals.
+
+mod common;
+
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use stairbench::geom2d::P2;
+use stairbench::perception::PlaneSegment;
+use stairbench::planning::gait::Phase;
+use stairbench::planning::polygon::{by_bretl, margin};
+use stairbench::planning::{plan, rectangles, Contact, Foot, Plan, PlanError, PlanParams};
+use stairbench::robot::model::Q_JOINTS;
+use stairbench::robot::{hrp4, Kinematics, RobotModel};
+use stairbench::scenario::Scenario;
+use stairbench::scene::Scene;
+
+fn start_q(model: &RobotModel, at: &Isometry3<f64>) -> Vec<f64> {
+    let joints = hrp4::half_sitting_joints(model).unwrap();
+    hrp4::standing_config(model, &joints, at).unwrap()
+}
+
+fn scenario_plan(s: &Scenario) -> (Scene, Result<Plan, PlanError>) {
+    let model = hrp4::model().unwrap();
+    let scene = common::scene_of(s);
+    let rects = rectangles::from_step_tops(scene.steps());
+    let q0 = start_q(&model, &scene.robot_start());
+    let r = plan(&model, &q0, &rects, None, &PlanParams::default());
+    (scene, r)
+}
+
+/// Every property the issue names, checked from the plan's samples.
+fn check(plan: &Plan, scene: Option<&Scene>) {
+    let model = hrp4::model().unwrap();
+    let mut kin = Kinematics::new(&model);
+    let p = PlanParams::default();
+    let mut worst = (f64::INFINITY, f64::INFINITY, 0.0f64, 0.0f64); // margin, sample margin, drift, touchdown
+    let polys: Vec<Vec<P2>> = plan
+        .segments
+        .iter()
+        .map(|s| {
+            let contacts: Vec<Contact> = s
+                .support
+                .iter()
+                .map(|(_, pose)| Contact::new(*pose, 0.12, 0.065, p.step.friction).unwrap())
+                .collect();
+            by_bretl(&contacts, 1e-5).unwrap()
+        })
+        .collect();
+    for (s, poly) in plan.segments.iter().zip(&polys) {
+        for c in [s.com_start, s.com_end] {
+            let m = margin(poly, &P2::new(c.x, c.y));
+            assert!(
+                m >= p.step.min_margin_m - 1e-4,
+                "{:?} of stance {}: CoM waypoint margin {m}",
+                s.phase,
+                s.stance
+            );
+            worst.0 = worst.0.min(m);
+        }
+    }
+    let sole_box: Vec<Point3<f64>> = [-1.0, 1.0]
+        .iter()
+        .flat_map(|&sx| [-1.0, 1.0].map(move |sy| (sx, sy)))
+        .flat_map(|(sx, sy)| [0.0, 0.02].map(move |z| Point3::new(0.12 * sx, 0.065 * sy, z)))
+        .collect();
+    for (i, smp) in plan.trajectory.samples.iter().enumerate().skip(1) {
+        let seg = &plan.segments[smp.segment];
+        kin.update(&smp.q).unwrap();
+        assert!((kin.com() - smp.com).norm() < 1e-9);
+        let m = margin(&polys[smp.segment], &P2::new(smp.com.x, smp.com.y));
+        assert!(m > 0.0, "sample {i} (t = {:.3} s): CoM outside the polygon by {:.4} m", smp.t_s, -m);
+        worst.1 = worst.1.min(m);
+        for (f, pose) in &seg.support {
+            let at = &smp.feet[usize::from(*f == Foot::Left)];
+            let d = (at.translation.vector - pose.translation.vector).norm();
+            assert!(d < 1e-3, "sample {i}: {f:?} contact moved {d} m");
+            worst.2 = worst.2.max(d);
+        }
+        for (j, jt) in model.joints().iter().enumerate() {
+            let v = smp.q[Q_JOINTS + j];
+            assert!(
+                v >= jt.lower_rad - 1e-6 && v <= jt.upper_rad + 1e-6,
+                "sample {i}: {} at {v} outside its limits",
+                jt.name
+            );
+        }
+        if let (Some(sw), Some(scene)) = (&seg.swing, scene) {
+            let sole = &smp.feet[usize::from(sw.foot == Foot::Left)];
+            for c in &sole_box {
+                let d = scene.signed_distance(&sole.transform_point(c));
+                assert!(d > -1e-3, "sample {i} ({:?} of stance {}, t = {:.3} s): the swinging {:?} sole (z {:.4}, tilt {:.4} rad)  corner {c} is {d} m inside a step", seg.phase, seg.stance, smp.t_s, sw.foot, sole.translation.z, sole.rotation.angle());
+            }
+        }
+        let last_of_segment = plan.trajectory.samples.get(i + 1).is_none_or(|n| n.segment != smp.segment);
+        if let (Some(sw), true) = (&seg.swing, last_of_segment) {
+            let target = sw.path.last().unwrap();
+            let d = (smp.feet[usize::from(sw.foot == Foot::Left)].translation.vector
+                - target.translation.vector)
+                .norm();
+            assert!(d < 5e-3, "{:?} foot lands {d} m from its target", sw.foot);
+            worst.3 = worst.3.max(d);
+        }
+    }
+    // Five segments per stance, in the paper's order.
+    assert_eq!(plan.segments.len(), 5 * plan.stances.len());
+    let order =
+        [Phase::ShiftToLeft, Phase::SwingRight, Phase::ShiftToRight, Phase::LiftSwingLeft, Phase::Centre];
+    assert!(plan.segments.iter().enumerate().all(|(i, s)| s.phase == order[i % 5]));
+    println!(
+        "waypoint margin >= {:.1} mm, CoM margin at every sample >= {:.1} mm, contacts still within {:.3} mm, touchdown within {:.3} mm, {} samples, motion {:.1} s",
+        worst.0 * 1e3,
+        worst.1 * 1e3,
+        worst.2 * 1e3,
+        worst.3 * 1e3,
+        plan.trajectory.samples.len(),
+        plan.duration_s()
+    );
+}
+
+#[test]
+fn exp1_ground_truth_is_planned_to_the_top() {
+    let (scene, r) = scenario_plan(&Scenario::default());
+    let plan = r.expect("Exp. 1 is climbable");
+    check(&plan, Some(&scene));
+    // Both feet end on the top step, in the middle of its tread.
+    let top = scene.steps().last().unwrap();
+    let last = plan.stances.last().unwrap();
+    for f in [&last.right, &last.left] {
+        assert!((f.translation.z - top.height_m).abs() < 1e-9);
+        assert!((f.translation.x - top.center().x).abs() < 1e-9);
+    }
+}
+
+#[test]
+fn the_papers_rectangles_are_planned() {
+    let Ok(text) = std::fs::read_to_string("../shared/paper/exp1/rectangles.txt") else {
+        eprintln!("skipped: ../shared/paper/exp1/rectangles.txt is absent");
+        return;
+    };
+    let rects = rectangles::parse(&text).unwrap();
+    assert_eq!(rects.len(), 3);
+    let mut by_height = rects.clone();
+    by_height.sort_by(|a, b| a.height_m().total_cmp(&b.height_m()));
+    let first = &by_height[0];
+    // The robot on the floor (1.38 m below the file's origin, its README) in front of step 1.
+    let front = first.center() - first.along() * (first.depth_m() / 2.0 + 0.20);
+    let start = Isometry3::from_parts(Translation3::new(front.x, front.y, -1.38), UnitQuaternion::identity());
+    let model = hrp4::model().unwrap();
+    let plan = plan(&model, &start_q(&model, &start), &rects, None, &PlanParams::default())
+        .expect("the paper's climb");
+    assert_eq!(plan.stances.len(), 3, "one stance per step, no approach steps needed");
+    check(&plan, None);
+}
+
+fn refusal(s: &Scenario) -> PlanError {
+    match scenario_plan(s).1 {
+        Ok(p) => panic!("the plan must be refused, got {} stances", p.stances.len()),
+        Err(e) => e,
+    }
+}
+
+#[test]
+fn unclimbable_staircases_are_refused_with_the_reason() {
+    let mut high = Scenario::default();
+    high.staircase.rise_m = 0.40;
+    assert!(matches!(refusal(&high), PlanError::HighRise { step: 0, .. }), "{}", refusal(&high));
+    let mut short = Scenario::default();
+    short.staircase.tread_m = 0.18;
+    assert!(matches!(refusal(&short), PlanError::ShortTread { step: 0, .. }));
+    let mut narrow = Scenario::default();
+    narrow.staircase.width_m = 0.26;
+    assert!(matches!(refusal(&narrow), PlanError::OffTheSide { step: 0, .. }));
+    println!(
+        "40 cm rise: {}\n18 cm tread: {}\n26 cm wide: {}",
+        refusal(&high),
+        refusal(&short),
+        refusal(&narrow)
+    );
+}
+
+fn moved(r: &PlaneSegment, dx: f64) -> PlaneSegment {
+    PlaneSegment::new(
+        r.center() + Vector3::new(dx, 0.0, 0.0),
+        r.along(),
+        r.depth_m(),
+        r.width_m(),
+        Vector3::z(),
+        0,
+    )
+    .unwrap()
+}
+
+#[test]
+fn a_gap_a_missing_step_and_nothing_are_refused() {
+    let model = hrp4::model().unwrap();
+    let mut s = Scenario::default();
+    s.staircase.steps = 5;
+    let scene = common::scene_of(&s);
+    let rects = rectangles::from_step_tops(scene.steps());
+    let q0 = start_q(&model, &scene.robot_start());
+    let p = PlanParams::default();
+    // Steps 4 and 5 moved 15 cm away: a gap before step 4.
+    let gap: Vec<PlaneSegment> =
+        rects.iter().enumerate().map(|(i, r)| if i >= 3 { moved(r, 0.15) } else { r.clone() }).collect();
+    let e = plan(&model, &q0, &gap, None, &p).unwrap_err();
+    assert!(matches!(e, PlanError::Gap { step: 3, .. }), "{e}");
+    // Step 3 not seen: the rise to step 4 is twice the others.
+    let missing: Vec<PlaneSegment> =
+        rects.iter().enumerate().filter(|(i, _)| *i != 2).map(|(_, r)| r.clone()).collect();
+    let e2 = plan(&model, &q0, &missing, None, &p).unwrap_err();
+    assert!(matches!(e2, PlanError::MissingStep { step: 2, .. }), "{e2}");
+    assert_eq!(plan(&model, &q0, &[], None, &p).unwrap_err(), PlanError::NoSteps);
+    println!("gap: {e}\nmissing: {e2}");
+}
+
+#[test]
+fn a_yawed_staircase_is_planned_along_its_own_direction() {
+    let mut s = Scenario::default();
+    s.staircase.yaw_deg = 30.0;
+    s.robot.yaw_deg = 30.0;
+    let start = s.staircase.start_m;
+    let back = (30f64.to_radians().cos() * 0.6, 30f64.to_radians().sin() * 0.6);
+    s.robot.position_m = [start[0] - back.0, start[1] - back.1];
+    let (scene, r) = scenario_plan(&s);
+    let plan = r.expect("a yawed Exp. 1 is climbable");
+    check(&plan, Some(&scene));
+    let yaw = plan.stances.last().unwrap().right.rotation.euler_angles().2;
+    assert!((yaw - 30f64.to_radians()).abs() < 1e-6, "feet yaw {} deg", yaw.to_degrees());
+}
