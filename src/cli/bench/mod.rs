@@ -3,6 +3,7 @@
 
 mod lidar;
 mod perceive;
+mod plan;
 mod plot;
 mod polygon;
 mod robot;
@@ -45,6 +46,8 @@ pub enum BenchWhat {
     Perceive,
     /// The static-stability polygon: double description against Bretl's projection.
     Polygon,
+    /// The planner: one IK tick, and the Exp. 1 and Exp. 2 plans against their motion.
+    Plan,
     /// The robot's kinematics (FK, Jacobians, CoM) against MuJoCo's, and simulation speed.
     Robot,
 }
@@ -56,6 +59,7 @@ pub fn run(a: BenchArgs) -> Result<ExitCode> {
         BenchWhat::Lidar => ("lidar", lidar::run(repeat)?),
         BenchWhat::Robot => ("robot", robot::run(repeat)?),
         BenchWhat::Polygon => ("polygon", polygon::run(repeat)?),
+        BenchWhat::Plan => ("plan", plan::run(repeat)?),
         BenchWhat::Perceive => {
             let plot =
                 a.plot.clone().or_else(|| a.write.as_ref().map(|w| w.with_file_name("fig5-perception.png")));
