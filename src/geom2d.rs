@@ -113,7 +113,17 @@ pub fn clip_convex(subject: &[P2], clip: &[P2]) -> Vec<P2> {
         let normal = P2::new(b.y - a.y, a.x - b.x);
         out = clip_half_plane(&out, &normal, normal.x * a.x + normal.y * a.y, 1e-12);
     }
-    out
+    // Drop the near-duplicate vertices clipping leaves where an edge passes through a vertex.
+    let mut clean: Vec<P2> = Vec::with_capacity(out.len());
+    for p in out {
+        if clean.last().is_none_or(|l: &P2| (p - l).norm() > 1e-9) {
+            clean.push(p);
+        }
+    }
+    while clean.len() > 1 && (clean[0] - clean[clean.len() - 1]).norm() <= 1e-9 {
+        clean.pop();
+    }
+    clean
 }
 
 /// Intersection over union of two convex polygons (either orientation).
@@ -129,9 +139,16 @@ pub fn iou(a: &[P2], b: &[P2]) -> f64 {
     }
 }
 
-/// Whether `p` lies inside the convex counter-clockwise polygon `poly` (boundary included).
+/// Whether `p` lies inside the convex counter-clockwise polygon `poly` (boundary included,
+/// within 1 nm). Edges shorter than 1 nm (rounding left-overs of clipping) are skipped: their
+/// direction is noise.
 pub fn contains(poly: &[P2], p: &P2) -> bool {
-    poly.len() >= 3 && (0..poly.len()).all(|i| cross(&poly[i], &poly[(i + 1) % poly.len()], p) >= -1e-12)
+    poly.len() >= 3
+        && (0..poly.len()).all(|i| {
+            let (a, b) = (&poly[i], &poly[(i + 1) % poly.len()]);
+            let len = (b - a).norm();
+            len < 1e-9 || cross(a, b, p) / len >= -1e-9
+        })
 }
 
 #[cfg(test)]
@@ -140,6 +157,20 @@ mod tests {
 
     fn square(x0: f64, y0: f64, s: f64) -> Vec<P2> {
         vec![P2::new(x0, y0), P2::new(x0 + s, y0), P2::new(x0 + s, y0 + s), P2::new(x0, y0 + s)]
+    }
+
+    #[test]
+    fn contains_ignores_a_reversed_sliver_edge() {
+        // A clipping left-over: two vertices 1.6e-11 apart, their edge pointing the wrong way.
+        let poly = [
+            P2::new(0.105439363289512, 0.1663767865130676),
+            P2::new(0.10543936328918548, 0.1663767865288894),
+            P2::new(0.10813584385722272, 0.03640480784422101),
+            P2::new(0.3480841614435224, 0.04138306033585633),
+            P2::new(0.34538768087575095, 0.1713550390074572),
+        ];
+        assert!(contains(&poly, &P2::new(0.2129, 0.0937)));
+        assert!(!contains(&poly, &P2::new(0.2129, 0.01)));
     }
 
     #[test]

@@ -27,6 +27,9 @@ enum Command {
     /// Plan the climb (§6): footholds, the five-segment gait with stability polygons, and
     /// the whole-body trajectory by QP IK.
     Plan(cli::plan::PlanArgs),
+    /// The closed-loop climb in MuJoCo: scan, perceive, plan, execute with every check, scan
+    /// again, to the top; a report per cycle and a non-zero exit code when the climb fails.
+    Run(cli::run::RunArgs),
     /// Build a scenario's world: print its ground truth, optionally write the MJCF.
     Scene(cli::scene::SceneArgs),
     /// Measure speed (rays per second of the simulated lidar, ...).
@@ -41,6 +44,7 @@ fn main() -> ExitCode {
         Command::Perceive(a) => cli::perceive::run(a),
         Command::Polygon(a) => cli::polygon::run(a),
         Command::Plan(a) => cli::plan::run(a),
+        Command::Run(a) => cli::run::run(a),
         Command::Bench(a) => cli::bench::run(a),
     };
     match result {

@@ -4,6 +4,7 @@ pub mod bench;
 pub mod perceive;
 pub mod plan;
 pub mod polygon;
+pub mod run;
 pub mod scan;
 pub mod scene;
 

@@ -117,6 +117,19 @@ impl Default for StepParams {
     }
 }
 
+impl StepParams {
+    /// The same motion `factor` times faster (speeds up, shortest durations down).
+    pub fn faster(&self, factor: f64) -> Self {
+        Self {
+            com_speed_m_s: self.com_speed_m_s * factor,
+            foot_speed_m_s: self.foot_speed_m_s * factor,
+            min_segment_s: self.min_segment_s / factor,
+            min_piece_s: self.min_piece_s / factor,
+            ..self.clone()
+        }
+    }
+}
+
 /// The figures of the body the gait needs, measured on the model in the start posture.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Body {

@@ -1,5 +1,7 @@
 //! MuJoCo side of the bench: the compiled world and what is asked of it (ray casts, frames).
 
+pub mod climb;
+pub mod execute;
 pub mod world;
 
 pub use world::{RayHit, SimError, World};

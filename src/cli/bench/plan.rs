@@ -16,7 +16,8 @@ fn once(name: &str) -> Result<(Plan, f64)> {
     let q0 = hrp4::standing_config(&model, &hrp4::half_sitting_joints(&model)?, &scene.robot_start())?;
     let rects = rectangles::from_step_tops(scene.steps());
     let t = Instant::now();
-    let p = plan(&model, &q0, &rects, None, &PlanParams::default()).with_context(|| format!("{name}: plan refused"))?;
+    let p = plan(&model, &q0, &rects, None, &PlanParams::default())
+        .with_context(|| format!("{name}: plan refused"))?;
     Ok((p, t.elapsed().as_secs_f64()))
 }
 

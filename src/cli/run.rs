@@ -1,0 +1,105 @@
+//! `stairbench run`: the closed-loop climb of a scenario in MuJoCo (scan, perceive, plan,
+//! execute, scan again) with every check, a report per cycle, and an exit code for CI.
+
+use anyhow::{Context, Result};
+use clap::Args;
+use stairbench::sim::climb::{climb, ClimbParams, ClimbReport, CycleReport};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Arguments of `stairbench run`.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// The scenario (file or name in scenarios/; default: the paper's Exp. 1).
+    scenario: Option<PathBuf>,
+    /// Parameters as TOML: sections [perception], [plan.gait], [plan.step], [plan.ik],
+    /// [checks], [run]; fields left out keep their defaults.
+    #[arg(long)]
+    params: Option<PathBuf>,
+    /// Speed the planned motion up by this factor (CoM and foot speeds, shortest
+    /// segment and swing piece), to find how far from quasi-static the plan runs.
+    #[arg(long, default_value_t = 1.0)]
+    speedup: f64,
+    /// Also write the report as JSON to this file.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+/// Runs `stairbench run`; exit code 0 when the climb succeeded, 1 when it failed.
+pub fn run(a: RunArgs) -> Result<ExitCode> {
+    let scenario = super::load_scenario(a.scenario.as_deref())?;
+    let mut params: ClimbParams = match &a.params {
+        Some(p) => toml::from_str(
+            &std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?,
+        )
+        .with_context(|| format!("{}: not climb parameters", p.display()))?,
+        None => ClimbParams::default(),
+    };
+    anyhow::ensure!(
+        a.speedup.is_finite() && a.speedup > 0.0,
+        "--speedup must be a positive number, got {}",
+        a.speedup
+    );
+    params.plan.step = params.plan.step.faster(a.speedup);
+    println!(
+        "climbing {} ({} steps): scan, perceive, plan, execute, scan again",
+        scenario.name, scenario.staircase.steps
+    );
+    println!(
+        "{:>5}  {:<8} {:<5} {:>10} {:>14} {:<14} {:>12} {:>6} {:>10} {:>8} {:>7}",
+        "cycle",
+        "to",
+        "pass",
+        "margin mm",
+        "torque % lim",
+        "joint",
+        "touchdown mm",
+        "seen",
+        "perceive s",
+        "plan s",
+        "sim s"
+    );
+    let report = climb(&scenario, &params, &mut print_cycle)?;
+    print_summary(&report);
+    if let Some(path) = &a.json {
+        std::fs::write(path, serde_json::to_string_pretty(&report)?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        println!("report written to {}", path.display());
+    }
+    Ok(if report.success { ExitCode::SUCCESS } else { ExitCode::from(1) })
+}
+
+fn print_cycle(c: &CycleReport) {
+    println!(
+        "{:>5}  {:<8} {:<5} {:>10.1} {:>14.0} {:<14} {:>12.2} {:>6} {:>10.3} {:>8.2} {:>7.1}",
+        c.cycle,
+        c.to,
+        if c.pass { "yes" } else { "NO" },
+        c.min_margin_m * 1e3,
+        c.max_torque_ratio * 100.0,
+        c.torque_joint,
+        c.max_touchdown_error_m * 1e3,
+        c.steps_seen,
+        c.perceive_s,
+        c.plan_s,
+        c.sim_s
+    );
+    for v in &c.execution.violations {
+        println!("         t = {:.3} s  {}: {}", v.t_s, v.check, v.detail);
+    }
+}
+
+fn print_summary(r: &ClimbReport) {
+    println!(
+        "\n{}: {} of {} steps climbed, {:.1} s simulated in {:.1} s wall ({:.1} x real time)",
+        if r.success { "SUCCESS" } else { "FAILED" },
+        r.steps_climbed,
+        r.steps_total,
+        r.sim_s,
+        r.wall_s,
+        r.sim_s / r.wall_s.max(1e-9)
+    );
+    if let Some(why) = &r.stopped {
+        println!("stopped: {why}");
+    }
+}

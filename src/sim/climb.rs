@@ -1,0 +1,278 @@
+//! The closed loop (the bench's main job): stand, scan with the head lidar, perceive, plan the
+//! next stance, execute it in MuJoCo with every check, scan again from the new pose, until
+//! the top. The upper steps are reconstructed after stepping on the lower ones, as in the paper.
+
+use super::execute::{execute, CheckParams, Execution, ServoParams};
+use super::world::{SimError, World};
+use crate::perception::{perceive, PerceptionError, PerceptionParams, PlaneSegment};
+use crate::planning::plan::stance_at;
+use crate::planning::{plan, PlanParams};
+use crate::robot::hrp4;
+use crate::robot::model::RobotModel;
+use crate::scenario::Scenario;
+use crate::scene::Scene;
+use crate::sensor::sim::SimLidar;
+use crate::sensor::{AssembleParams, SensorError};
+use std::time::Instant;
+
+/// Every parameter of a climb.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ClimbParams {
+    /// Perception (§4, Table 1).
+    pub perception: PerceptionParams,
+    /// Planning (§6).
+    pub plan: PlanParams,
+    /// The servos.
+    pub servo: ServoParams,
+    /// The checks.
+    pub checks: CheckParams,
+    /// Loop settings.
+    pub run: RunParams,
+}
+
+/// Settings of the loop itself.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RunParams {
+    /// Stances planned and executed between two scans.
+    pub stances_per_scan: usize,
+    /// Most scan-plan-execute cycles before giving up.
+    pub max_cycles: usize,
+    /// Standing still before each scan, seconds (the servos settle; the real robot scans
+    /// standing still too).
+    pub settle_s: f64,
+    /// Steps lower than the feet plus this are behind the robot, metres.
+    pub ahead_margin_m: f64,
+    /// A new scan's rectangle replaces a known one whose centre is within this distance
+    /// (and height within a third of it); known steps the new scan misses (too close under
+    /// the lidar, say) are kept.
+    pub same_step_m: f64,
+}
+
+impl Default for RunParams {
+    fn default() -> Self {
+        Self { stances_per_scan: 1, max_cycles: 40, settle_s: 0.3, ahead_margin_m: 0.05, same_step_m: 0.15 }
+    }
+}
+
+/// Why a climb could not run at all (bad world or sensor), as opposed to a failed climb.
+#[derive(Debug, thiserror::Error)]
+pub enum ClimbError {
+    /// The world.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// The lidar.
+    #[error(transparent)]
+    Sensor(#[from] SensorError),
+    /// The scenario.
+    #[error(transparent)]
+    Scenario(#[from] crate::scenario::ScenarioError),
+    /// The robot model.
+    #[error(transparent)]
+    Robot(#[from] crate::robot::RobotError),
+}
+
+/// One scan-plan-execute cycle.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct CycleReport {
+    /// 1-based cycle.
+    pub cycle: usize,
+    /// Where the cycle took the feet: `floor` or `step N`.
+    pub to: String,
+    /// No check violated.
+    pub pass: bool,
+    /// Smallest CoM margin in the real contacts' polygon, metres.
+    pub min_margin_m: f64,
+    /// Largest torque demand over its limit.
+    pub max_torque_ratio: f64,
+    /// Its joint.
+    pub torque_joint: String,
+    /// Largest touchdown error, metres.
+    pub max_touchdown_error_m: f64,
+    /// Steps perception found ahead.
+    pub steps_seen: usize,
+    /// Perception wall time, seconds.
+    pub perceive_s: f64,
+    /// Planning wall time, seconds.
+    pub plan_s: f64,
+    /// Simulated seconds of the execution.
+    pub sim_s: f64,
+    /// The execution's details.
+    pub execution: Execution,
+}
+
+/// The whole climb.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ClimbReport {
+    /// Scenario name.
+    pub scenario: String,
+    /// Climbed to the top with no check violated.
+    pub success: bool,
+    /// Steps whose tread both feet stood on at the end (the highest reached).
+    pub steps_climbed: usize,
+    /// Steps of the staircase.
+    pub steps_total: usize,
+    /// Why the loop stopped early (a refusal, no staircase, a fall), if it did.
+    pub stopped: Option<String>,
+    /// One entry per cycle.
+    pub cycles: Vec<CycleReport>,
+    /// Simulated time, seconds.
+    pub sim_s: f64,
+    /// Wall time, seconds.
+    pub wall_s: f64,
+}
+
+/// Holds the robot at its commanded posture for `seconds`.
+fn settle(world: &mut World, seconds: f64) {
+    let n = (seconds / world.model().opt().timestep).round() as usize;
+    for _ in 0..n {
+        world.data_mut().step();
+    }
+}
+
+/// The measured configuration, in the kinematics' layout.
+fn measured_q(world: &World, model: &RobotModel) -> Vec<f64> {
+    world.data().qpos()[..model.nq()].to_vec()
+}
+
+/// Scans from the robot's current pose and perceives.
+fn look(
+    world: &World,
+    scenario: &Scenario,
+    cycle: usize,
+    p: &PerceptionParams,
+) -> Result<(Result<Vec<PlaneSegment>, PerceptionError>, f64), ClimbError> {
+    let lidar = SimLidar::new(world, &scenario.lidar, scenario.seed.wrapping_add(cycle as u64))?;
+    let cloud = lidar.sweep_with_progress(&mut |_, _| {}).assemble(&AssembleParams::default())?;
+    let t = Instant::now();
+    let r = perceive(&cloud, p).map(|r| r.segments);
+    Ok((r, t.elapsed().as_secs_f64()))
+}
+
+/// Runs the closed loop on `scenario`; `on_cycle` sees each cycle as it ends.
+pub fn climb(
+    scenario: &Scenario,
+    p: &ClimbParams,
+    on_cycle: &mut dyn FnMut(&CycleReport),
+) -> Result<ClimbReport, ClimbError> {
+    let started = Instant::now();
+    let scene = Scene::from_scenario(scenario)?;
+    let model = hrp4::model()?;
+    let mut world = World::for_scene(&scene)?;
+    let t0 = world.data().time();
+    let mut report = ClimbReport {
+        scenario: scenario.name.clone(),
+        success: false,
+        steps_climbed: 0,
+        steps_total: scene.steps().len(),
+        stopped: None,
+        cycles: Vec::new(),
+        sim_s: 0.0,
+        wall_s: 0.0,
+    };
+    let mut known: Vec<PlaneSegment> = Vec::new();
+    for cycle in 1..=p.run.max_cycles {
+        settle(&mut world, p.run.settle_s);
+        let q = measured_q(&world, &model);
+        let (seen, perceive_s) = look(&world, scenario, cycle, &p.perception)?;
+        let feet_z = stance_at(&model, &q)
+            .map(|s| s.right.translation.z.max(s.left.translation.z))
+            .unwrap_or(f64::NEG_INFINITY);
+        let seen = match seen {
+            Ok(segs) => segs,
+            Err(PerceptionError::NoStaircase(_)) => Vec::new(),
+            Err(e) => {
+                report.stopped = Some(format!("perception failed: {e}"));
+                break;
+            }
+        };
+        known = merge(&known, seen, p.run.same_step_m);
+        let ahead: Vec<PlaneSegment> =
+            known.iter().filter(|s| s.height_m() > feet_z + p.run.ahead_margin_m).cloned().collect();
+        if ahead.is_empty() {
+            if climbed(&scene, &model, &q) < scene.steps().len() {
+                report.stopped = Some("no staircase found ahead before the top".into());
+            }
+            break;
+        }
+        let t = Instant::now();
+        let planned = match plan(&model, &q, &ahead, Some(p.run.stances_per_scan), &p.plan) {
+            Ok(x) => x,
+            Err(e) => {
+                report.stopped = Some(format!("plan refused: {e}"));
+                break;
+            }
+        };
+        let plan_s = t.elapsed().as_secs_f64();
+        let execution = execute(&mut world, &model, &scene, &planned, &p.servo, &p.checks)?;
+        let to =
+            planned.stances.last().and_then(|s| s.step.map(|_| s)).map_or("floor".to_string(), |s| {
+                format!("step {}", true_step(&scene, s.right.translation.z))
+            });
+        let c = CycleReport {
+            cycle,
+            to,
+            pass: execution.pass(),
+            min_margin_m: execution.min_margin_m,
+            max_torque_ratio: execution.max_torque_ratio,
+            torque_joint: execution.torque_joint.clone(),
+            max_touchdown_error_m: execution.touchdowns.iter().map(|t| t.error_m).fold(0.0, f64::max),
+            steps_seen: ahead.len(),
+            perceive_s,
+            plan_s,
+            sim_s: execution.sim_s,
+            execution,
+        };
+        on_cycle(&c);
+        let fell = c.execution.fell;
+        report.cycles.push(c);
+        if fell {
+            report.stopped = Some("the robot fell".into());
+            break;
+        }
+    }
+    let q = measured_q(&world, &model);
+    report.steps_climbed = climbed(&scene, &model, &q);
+    report.sim_s = world.data().time() - t0;
+    report.wall_s = started.elapsed().as_secs_f64();
+    report.success = report.stopped.is_none()
+        && report.steps_climbed == report.steps_total
+        && report.cycles.iter().all(|c| c.pass);
+    Ok(report)
+}
+
+/// The staircase as known after a scan: the new rectangles, plus the known ones no new
+/// rectangle matches (the paper re-estimates upper steps as the robot climbs; a step under
+/// the lidar's blind spot stays as last seen).
+fn merge(known: &[PlaneSegment], seen: Vec<PlaneSegment>, same_m: f64) -> Vec<PlaneSegment> {
+    let matches = |a: &PlaneSegment, b: &PlaneSegment| {
+        (a.center() - b.center()).norm() < same_m && (a.height_m() - b.height_m()).abs() < same_m / 3.0
+    };
+    let kept: Vec<PlaneSegment> =
+        known.iter().filter(|k| !seen.iter().any(|s| matches(k, s))).cloned().collect();
+    seen.into_iter().chain(kept).collect()
+}
+
+/// The true step (1-based) at height `z`: the ground-truth step nearest it.
+fn true_step(scene: &Scene, z: f64) -> usize {
+    scene
+        .steps()
+        .iter()
+        .enumerate()
+        .min_by(|a, b| (a.1.height_m - z).abs().total_cmp(&(b.1.height_m - z).abs()))
+        .map_or(0, |(i, _)| i + 1)
+}
+
+/// How many steps the robot has climbed: the highest true step both soles stand on.
+pub fn climbed(scene: &Scene, model: &RobotModel, q: &[f64]) -> usize {
+    let Ok(stance) = stance_at(model, q) else { return 0 };
+    let on = |i: usize| {
+        let s = &scene.steps()[i];
+        [&stance.right, &stance.left].iter().all(|f| {
+            let c = nalgebra::Point3::from(f.translation.vector);
+            (c.z - s.height_m).abs() < 0.02 && s.contains_xy(&c, 0.0)
+        })
+    };
+    (0..scene.steps().len()).rev().find(|&i| on(i)).map_or(0, |i| i + 1)
+}
