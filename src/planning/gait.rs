@@ -402,3 +402,47 @@ fn duration(s: &Segment, p: &StepParams) -> f64 {
     });
     com.max(foot).max(p.min_segment_s)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square(x0: f64, y0: f64, s: f64) -> Vec<P2> {
+        vec![P2::new(x0, y0), P2::new(x0 + s, y0), P2::new(x0 + s, y0 + s), P2::new(x0, y0 + s)]
+    }
+
+    fn seg(a: Point3<f64>, b: Point3<f64>, polygon: Vec<P2>) -> Segment {
+        Segment {
+            phase: Phase::ShiftToLeft,
+            stance: 0,
+            duration_s: 1.0,
+            com_start: a,
+            com_end: b,
+            support: Vec::new(),
+            swing: None,
+            polygon,
+            margin_m: 0.0,
+        }
+    }
+
+    #[test]
+    fn a_waypoint_outside_is_moved_inside_both_polygons_or_refused() {
+        // The end of the first segment lies outside the second's polygon: it moves into the
+        // intersection with the margin, and the second segment starts there.
+        let mut segs = vec![
+            seg(Point3::new(0.5, 0.5, 0.8), Point3::new(0.95, 0.5, 0.8), square(0.0, 0.0, 1.0)),
+            seg(Point3::new(0.95, 0.5, 0.8), Point3::new(0.5, 0.3, 0.8), square(0.0, 0.0, 0.8)),
+        ];
+        settle_waypoints(&mut segs, 0.02).unwrap();
+        let end = P2::new(segs[0].com_end.x, segs[0].com_end.y);
+        assert!(margin(&segs[1].polygon, &end) >= 0.02 - 1e-9, "{end:?}");
+        assert_eq!(segs[0].com_end, segs[1].com_start);
+        assert!(segs.iter().all(|s| s.margin_m >= 0.02 - 1e-9));
+        // Disjoint polygons: no place for the waypoint, the plan is refused.
+        let mut apart = vec![
+            seg(Point3::new(0.5, 0.5, 0.8), Point3::new(0.9, 0.5, 0.8), square(0.0, 0.0, 1.0)),
+            seg(Point3::new(0.9, 0.5, 0.8), Point3::new(2.5, 0.5, 0.8), square(2.0, 0.0, 1.0)),
+        ];
+        assert!(matches!(settle_waypoints(&mut apart, 0.02), Err(PlanError::Unstable { segment: 0, .. })));
+    }
+}
