@@ -113,17 +113,23 @@ pub fn clip_convex(subject: &[P2], clip: &[P2]) -> Vec<P2> {
         let normal = P2::new(b.y - a.y, a.x - b.x);
         out = clip_half_plane(&out, &normal, normal.x * a.x + normal.y * a.y, 1e-12);
     }
-    // Drop the near-duplicate vertices clipping leaves where an edge passes through a vertex.
-    let mut clean: Vec<P2> = Vec::with_capacity(out.len());
-    for p in out {
-        if clean.last().is_none_or(|l: &P2| (p - l).norm() > 1e-9) {
-            clean.push(p);
+    // Clipping leaves near-duplicate vertices where an edge passes through a vertex.
+    dedup_vertices(&out, 1e-9)
+}
+
+/// The polygon without consecutive vertices closer than `tol` (the last against the first
+/// too).
+pub fn dedup_vertices(poly: &[P2], tol: f64) -> Vec<P2> {
+    let mut v: Vec<P2> = Vec::with_capacity(poly.len());
+    for p in poly {
+        if v.last().is_none_or(|l: &P2| (p - l).norm() > tol) {
+            v.push(*p);
         }
     }
-    while clean.len() > 1 && (clean[0] - clean[clean.len() - 1]).norm() <= 1e-9 {
-        clean.pop();
+    while v.len() > 1 && (v[0] - v[v.len() - 1]).norm() <= tol {
+        v.pop();
     }
-    clean
+    v
 }
 
 /// Intersection over union of two convex polygons (either orientation).

@@ -10,15 +10,14 @@ use stairbench::geom2d::P2;
 use stairbench::perception::PlaneSegment;
 use stairbench::planning::gait::Phase;
 use stairbench::planning::polygon::{by_bretl, margin};
-use stairbench::planning::{plan, rectangles, Contact, Foot, Plan, PlanError, PlanParams};
+use stairbench::planning::{plan, rectangles, Contact, Plan, PlanError, PlanParams};
 use stairbench::robot::model::Q_JOINTS;
 use stairbench::robot::{hrp4, Kinematics, RobotModel};
 use stairbench::scenario::Scenario;
 use stairbench::scene::Scene;
 
 fn start_q(model: &RobotModel, at: &Isometry3<f64>) -> Vec<f64> {
-    let joints = hrp4::half_sitting_joints(model).unwrap();
-    hrp4::standing_config(model, &joints, at).unwrap()
+    hrp4::half_sitting_at(model, at).unwrap()
 }
 
 fn scenario_plan(s: &Scenario) -> (Scene, Result<Plan, PlanError>) {
@@ -73,7 +72,7 @@ fn check(plan: &Plan, scene: Option<&Scene>) {
         assert!(m > 0.0, "sample {i} (t = {:.3} s): CoM outside the polygon by {:.4} m", smp.t_s, -m);
         worst.1 = worst.1.min(m);
         for (f, pose) in &seg.support {
-            let at = &smp.feet[usize::from(*f == Foot::Left)];
+            let at = &smp.feet[f.index()];
             let d = (at.translation.vector - pose.translation.vector).norm();
             assert!(d < 1e-3, "sample {i}: {f:?} contact moved {d} m");
             worst.2 = worst.2.max(d);
@@ -87,7 +86,7 @@ fn check(plan: &Plan, scene: Option<&Scene>) {
             );
         }
         if let (Some(sw), Some(scene)) = (&seg.swing, scene) {
-            let sole = &smp.feet[usize::from(sw.foot == Foot::Left)];
+            let sole = &smp.feet[sw.foot.index()];
             for c in &sole_box {
                 let d = scene.signed_distance(&sole.transform_point(c));
                 assert!(d > -1e-3, "sample {i} ({:?} of stance {}, t = {:.3} s): the swinging {:?} sole (z {:.4}, tilt {:.4} rad)  corner {c} is {d} m inside a step", seg.phase, seg.stance, smp.t_s, sw.foot, sole.translation.z, sole.rotation.angle());
@@ -96,9 +95,7 @@ fn check(plan: &Plan, scene: Option<&Scene>) {
         let last_of_segment = plan.trajectory.samples.get(i + 1).is_none_or(|n| n.segment != smp.segment);
         if let (Some(sw), true) = (&seg.swing, last_of_segment) {
             let target = sw.path.last().unwrap();
-            let d = (smp.feet[usize::from(sw.foot == Foot::Left)].translation.vector
-                - target.translation.vector)
-                .norm();
+            let d = (smp.feet[sw.foot.index()].translation.vector - target.translation.vector).norm();
             assert!(d < 5e-3, "{:?} foot lands {d} m from its target", sw.foot);
             worst.3 = worst.3.max(d);
         }
@@ -141,9 +138,7 @@ fn the_papers_rectangles_are_planned() {
     };
     let rects = rectangles::parse(&text).unwrap();
     assert_eq!(rects.len(), 3);
-    let mut by_height = rects.clone();
-    by_height.sort_by(|a, b| a.height_m().total_cmp(&b.height_m()));
-    let first = &by_height[0];
+    let first = rectangles::by_height(&rects)[0];
     // The robot on the floor (1.38 m below the file's origin, its README) in front of step 1.
     let front = first.center() - first.along() * (first.depth_m() / 2.0 + 0.20);
     let start = Isometry3::from_parts(Translation3::new(front.x, front.y, -1.38), UnitQuaternion::identity());

@@ -206,11 +206,7 @@ fn stands_in_half_sitting_for_10_seconds() {
     let com0 = world.data().subtree_com()[root];
     let nu = world.model().ffi().nu as usize;
     assert_eq!(nu, 34);
-    let (kp, kv): (Vec<f64>, Vec<f64>) = {
-        let gp = world.model().actuator_gainprm();
-        let bp = world.model().actuator_biasprm();
-        ((0..nu).map(|a| gp[a][0]).collect(), (0..nu).map(|a| -bp[a][2]).collect())
-    };
+    let (kp, kv) = world.servo_gains();
     let qadr: Vec<usize> = (0..nu).map(|a| Q_JOINTS + a).collect();
     let mut worst_ratio = 0.0f64;
     let steps = (10.0 / world.model().opt().timestep) as usize;

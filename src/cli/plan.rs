@@ -89,7 +89,6 @@ pub fn run(a: PlanArgs) -> Result<ExitCode> {
 
 /// The rectangles and the start configuration.
 fn inputs(a: &PlanArgs, model: &RobotModel) -> Result<(Vec<PlaneSegment>, Vec<f64>)> {
-    let joints = hrp4::half_sitting_joints(model)?;
     let is_txt = a.input.as_deref().and_then(Path::extension).is_some_and(|e| e.eq_ignore_ascii_case("txt"));
     if is_txt {
         let path = a.input.as_deref().unwrap_or(Path::new(""));
@@ -97,7 +96,7 @@ fn inputs(a: &PlanArgs, model: &RobotModel) -> Result<(Vec<PlaneSegment>, Vec<f6
             std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
         let rects = rectangles::parse(&text).with_context(|| path.display().to_string())?;
         let start = start_before(&rects, a.floor_z, a.standoff_m)?;
-        return Ok((rects, hrp4::standing_config(model, &joints, &start)?));
+        return Ok((rects, hrp4::half_sitting_at(model, &start)?));
     }
     if a.floor_z.is_some() {
         bail!("--floor-z is for rectangles files; a scenario's floor is at z = 0");
@@ -111,24 +110,18 @@ fn inputs(a: &PlanArgs, model: &RobotModel) -> Result<(Vec<PlaneSegment>, Vec<f6
     } else {
         rectangles::from_step_tops(scene.steps())
     };
-    Ok((rects, hrp4::standing_config(model, &joints, &scene.robot_start())?))
+    Ok((rects, hrp4::half_sitting_at(model, &scene.robot_start())?))
 }
 
 /// The floor point between the feet, `standoff_m` in front of the lowest rectangle's front
 /// edge, facing up the stairs.
 fn start_before(rects: &[PlaneSegment], floor_z: Option<f64>, standoff_m: f64) -> Result<Isometry3<f64>> {
-    let mut by_height: Vec<&PlaneSegment> = rects.iter().collect();
-    by_height.sort_by(|x, y| x.height_m().total_cmp(&y.height_m()));
+    let by_height = rectangles::by_height(rects);
     let first = by_height[0];
-    let floor = match floor_z {
-        Some(z) => z,
-        None if by_height.len() >= 2 => {
-            let mut rises: Vec<f64> =
-                by_height.windows(2).map(|w| w[1].height_m() - w[0].height_m()).collect();
-            rises.sort_by(f64::total_cmp);
-            first.height_m() - rises[rises.len() / 2]
-        }
-        None => bail!("one step only: give the floor's height with --floor-z"),
+    let floor = match (floor_z, rectangles::median(&rectangles::rises_m(&by_height, None))) {
+        (Some(z), _) => z,
+        (None, Some(rise)) => first.height_m() - rise,
+        (None, None) => bail!("one step only: give the floor's height with --floor-z"),
     };
     let u = first.along();
     let front = first.center() - u * (first.depth_m() / 2.0 + standoff_m);

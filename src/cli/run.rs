@@ -75,14 +75,14 @@ fn print_cycle(c: &CycleReport) {
         c.cycle,
         c.to,
         if c.pass { "yes" } else { "NO" },
-        c.min_margin_m * 1e3,
-        c.max_torque_ratio * 100.0,
-        c.torque_joint,
-        c.max_touchdown_error_m * 1e3,
+        c.execution.min_margin_m * 1e3,
+        c.execution.max_torque_ratio * 100.0,
+        c.execution.torque_joint,
+        c.execution.max_touchdown_error_m() * 1e3,
         c.steps_seen,
         c.perceive_s,
         c.plan_s,
-        c.sim_s
+        c.execution.sim_s
     );
     for v in &c.execution.violations {
         println!("         t = {:.3} s  {}: {}", v.t_s, v.check, v.detail);

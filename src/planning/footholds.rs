@@ -18,6 +18,19 @@ pub enum Foot {
     Left,
 }
 
+impl Foot {
+    /// Both feet, in `[right, left]` order.
+    pub const BOTH: [Foot; 2] = [Foot::Right, Foot::Left];
+
+    /// 0 for the right foot, 1 for the left: the index into every `[right, left]` pair.
+    pub fn index(self) -> usize {
+        match self {
+            Foot::Right => 0,
+            Foot::Left => 1,
+        }
+    }
+}
+
 /// Both feet's sole poses in one double-support stance.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stance {
@@ -99,8 +112,7 @@ pub fn footholds(start: &Stance, rects: &[PlaneSegment], p: &GaitParams) -> Resu
     if rects.is_empty() {
         return Err(PlanError::NoSteps);
     }
-    let mut steps: Vec<&PlaneSegment> = rects.iter().collect();
-    steps.sort_by(|a, b| a.height_m().total_cmp(&b.height_m()));
+    let steps = super::rectangles::by_height(rects);
     let u = steps[0].along();
     for (i, s) in steps.iter().enumerate() {
         if s.along().dot(&u) < 10f64.to_radians().cos() {
@@ -114,15 +126,22 @@ pub fn footholds(start: &Stance, rects: &[PlaneSegment], p: &GaitParams) -> Resu
     let lanes = [(r0 - o.coords).dot(&w), (l0 - o.coords).dot(&w)];
     let start_along = ((r0 + l0) / 2.0 - o.coords).dot(&u);
 
-    let rises: Vec<f64> = steps
-        .iter()
-        .enumerate()
-        .map(|(i, s)| s.height_m() - if i == 0 { floor_z } else { steps[i - 1].height_m() })
-        .collect();
-    let mut sorted = rises.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted[sorted.len() / 2];
+    let rises = super::rectangles::rises_m(&steps, Some(floor_z));
+    let median = super::rectangles::median(&rises).unwrap_or(0.0);
     let yaw = UnitQuaternion::from_euler_angles(0.0, 0.0, u.y.atan2(u.x));
+    // Both feet `along` the ascent in their lanes, on the plane through `point` with normal
+    // `n` (the foot tilted with it, yawed with the staircase).
+    let stance_on = |along: f64, point: Point3<f64>, n: Vector3<f64>, step: Option<usize>| {
+        let tilt =
+            UnitQuaternion::rotation_between(&Vector3::z(), &n).unwrap_or_else(UnitQuaternion::identity);
+        let foot = |lane: f64| {
+            let xy = o + u * along + w * lane;
+            let z = point.z - (n.x * (xy.x - point.x) + n.y * (xy.y - point.y)) / n.z;
+            Isometry3::from_parts(Translation3::new(xy.x, xy.y, z), tilt * yaw)
+        };
+        Stance { right: foot(lanes[0]), left: foot(lanes[1]), step }
+    };
+    let floor = Point3::new(o.x, o.y, floor_z);
 
     let mut out = Vec::new();
     let mut prev_along = start_along;
@@ -147,7 +166,7 @@ pub fn footholds(start: &Stance, rects: &[PlaneSegment], p: &GaitParams) -> Resu
             }
         }
         let side = (c - o).dot(&w);
-        for (f, lane) in [Foot::Right, Foot::Left].into_iter().zip(lanes) {
+        for (f, lane) in Foot::BOTH.into_iter().zip(lanes) {
             let over = (lane - side).abs() + p.sole_width_m / 2.0 - s.width_m() / 2.0;
             if over > p.side_overhang_m {
                 return Err(PlanError::OffTheSide { step: i, foot: f, overhang_m: over });
@@ -159,11 +178,7 @@ pub fn footholds(start: &Stance, rects: &[PlaneSegment], p: &GaitParams) -> Resu
             let n = ((last - prev_along) / p.approach_stride_m).ceil().max(0.0) as usize;
             for k in 1..=n {
                 let a = prev_along + (last - prev_along) * k as f64 / n as f64;
-                let foot = |lane: f64| {
-                    let v = o.coords + u * a + w * lane;
-                    Isometry3::from_parts(Translation3::new(v.x, v.y, floor_z), yaw)
-                };
-                out.push(Stance { right: foot(lanes[0]), left: foot(lanes[1]), step: None });
+                out.push(stance_on(a, floor, Vector3::z(), None));
             }
             if n > 0 {
                 prev_along = last;
@@ -173,16 +188,7 @@ pub fn footholds(start: &Stance, rects: &[PlaneSegment], p: &GaitParams) -> Resu
         if stride > p.max_stride_m || stride < 0.0 {
             return Err(PlanError::Stride { step: i, stride_m: stride, max_m: p.max_stride_m });
         }
-        let n = s.normal().into_inner();
-        let tilt =
-            UnitQuaternion::rotation_between(&Vector3::z(), &n).unwrap_or_else(UnitQuaternion::identity);
-        let foot = |lane: f64| {
-            let xy = o + u * along + w * lane;
-            // Height of the rectangle's plane below the foot.
-            let z = c.z - (n.x * (xy.x - c.x) + n.y * (xy.y - c.y)) / n.z;
-            Isometry3::from_parts(Translation3::from(Point3::new(xy.x, xy.y, z).coords), tilt * yaw)
-        };
-        out.push(Stance { right: foot(lanes[0]), left: foot(lanes[1]), step: Some(i) });
+        out.push(stance_on(along, c, s.normal().into_inner(), Some(i)));
         prev_along = along;
     }
     Ok(out)

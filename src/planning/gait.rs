@@ -11,7 +11,6 @@ use super::polygon::{by_double_description, margin};
 use super::PlanError;
 use crate::geom2d::{self, P2};
 use crate::robot::hrp4;
-use crate::robot::model::RobotModel;
 use crate::robot::Kinematics;
 use nalgebra::{Isometry3, Point3, Vector3};
 
@@ -39,16 +38,25 @@ pub struct Swing {
     pub path: Vec<Isometry3<f64>>,
     /// Each piece's share of the segment's duration (sums to 1).
     pub shares: Vec<f64>,
+    /// The swing's own duration at the foot's speed, seconds (the segment may be longer when
+    /// the CoM has farther to go).
+    pub natural_s: f64,
 }
 
 impl Swing {
-    /// The path's pieces' durations at `foot_speed_m_s`, each at least `min_piece_s`.
-    fn piece_durations(path: &[Isometry3<f64>], foot_speed_m_s: f64, min_piece_s: f64) -> Vec<f64> {
-        path.windows(2)
+    /// From `a` to `b`: lift to `p.swing_clearance_m` above the higher sole, cross, descend,
+    /// each piece at the foot's speed and no shorter than `p.min_piece_s`.
+    fn new(foot: Foot, a: &Isometry3<f64>, b: &Isometry3<f64>, p: &StepParams) -> Self {
+        let path = swing_path(a, b, p.swing_clearance_m);
+        let pieces: Vec<f64> = path
+            .windows(2)
             .map(|w| {
-                ((w[1].translation.vector - w[0].translation.vector).norm() / foot_speed_m_s).max(min_piece_s)
+                ((w[1].translation.vector - w[0].translation.vector).norm() / p.foot_speed_m_s)
+                    .max(p.min_piece_s)
             })
-            .collect()
+            .collect();
+        let natural_s: f64 = pieces.iter().sum();
+        Self { foot, path, shares: pieces.iter().map(|x| x / natural_s).collect(), natural_s }
     }
 }
 
@@ -97,7 +105,8 @@ pub struct StepParams {
     pub friction: f64,
     /// The trailing leg is kept within this fraction of its full length (hip to ankle).
     pub reach_fraction: f64,
-    /// Largest knee bend the leading leg may need, degrees at the user's edge, radians here.
+    /// Largest knee bend the leading leg may need, radians (the name carries the unit in
+    /// parameter files too).
     pub knee_max_rad: f64,
 }
 
@@ -148,18 +157,15 @@ pub struct Body {
 }
 
 impl Body {
-    /// Measures the body at configuration `q` (standing on level soles).
-    pub fn measure(model: &RobotModel, q: &[f64]) -> Result<Self, PlanError> {
-        let mut kin = Kinematics::new(model);
-        kin.update(q).map_err(|e| PlanError::Config(e.to_string()))?;
-        let id = |n: &str| {
-            model.joint_id(n).map(|j| model.joints()[j].link).map_err(|e| PlanError::Config(e.to_string()))
-        };
+    /// Measures the body in the configuration `kin` was last updated with (standing on level
+    /// soles); `soles` are the sole frames, right then left.
+    pub fn measure(kin: &Kinematics, soles: [usize; 2]) -> Result<Self, PlanError> {
+        let model = kin.model();
+        let link = |n: &str| model.joint_id(n).map(|j| model.joints()[j].link);
         let at = |l: usize| kin.link_pose(l).translation.vector;
-        let (hip, knee, ankle) = (id("R_HIP_P")?, id("R_KNEE_P")?, id("R_ANKLE_P")?);
-        let left_ankle = id("L_ANKLE_P")?;
-        let fid = |n: &str| model.frame_id(n).map_err(|e| PlanError::Config(e.to_string()));
-        let (rs, ls) = (kin.frame_pose(fid(hrp4::R_SOLE)?), kin.frame_pose(fid(hrp4::L_SOLE)?));
+        let (hip, knee, ankle) = (link("R_HIP_P")?, link("R_KNEE_P")?, link("R_ANKLE_P")?);
+        let left_ankle = link("L_ANKLE_P")?;
+        let (rs, ls) = (kin.frame_pose(soles[0]), kin.frame_pose(soles[1]));
         let com = kin.com();
         let sole_z = (rs.translation.z + ls.translation.z) / 2.0;
         Ok(Self {
@@ -171,12 +177,12 @@ impl Body {
                 rs.inverse_transform_point(&Point3::from(at(ankle))).coords,
                 ls.inverse_transform_point(&Point3::from(at(left_ankle))).coords,
             ],
-            sole_half_m: [hrp4::SOLE_SIZE_M[0] / 2.0, hrp4::SOLE_SIZE_M[1] / 2.0],
+            sole_half_m: hrp4::SOLE_HALF_M,
         })
     }
 
     fn ankle(&self, foot: Foot, sole: &Isometry3<f64>) -> Point3<f64> {
-        let k = usize::from(foot == Foot::Left);
+        let k = foot.index();
         sole.transform_point(&Point3::from(self.ankle_in_sole[k]))
     }
 
@@ -236,12 +242,7 @@ fn one_step(
     let w5 = Point3::new(mid.x, mid.y, mid.z + body.com_height_m);
 
     let both = |a: &Isometry3<f64>, b: &Isometry3<f64>| vec![(Foot::Right, *a), (Foot::Left, *b)];
-    let swing = |foot: Foot, a: &Isometry3<f64>, b: &Isometry3<f64>| {
-        let path = swing_path(a, b, p.swing_clearance_m);
-        let d = Swing::piece_durations(&path, p.foot_speed_m_s, p.min_piece_s);
-        let total: f64 = d.iter().sum();
-        Swing { foot, path, shares: d.iter().map(|x| x / total).collect() }
-    };
+    let swing = |foot: Foot, a: &Isometry3<f64>, b: &Isometry3<f64>| Swing::new(foot, a, b, p);
     let plan = [
         (Phase::ShiftToLeft, com, w1, both(&from.right, &from.left), None),
         (
@@ -397,9 +398,7 @@ fn toward_middle(region: &[P2], p: P2, min_margin_m: f64) -> Option<P2> {
 /// The segment's duration from the CoM's and the free foot's path lengths.
 fn duration(s: &Segment, p: &StepParams) -> f64 {
     let com = (s.com_end - s.com_start).norm() / p.com_speed_m_s;
-    let foot = s.swing.as_ref().map_or(0.0, |sw| {
-        Swing::piece_durations(&sw.path, p.foot_speed_m_s, p.min_piece_s).iter().sum::<f64>()
-    });
+    let foot = s.swing.as_ref().map_or(0.0, |sw| sw.natural_s);
     com.max(foot).max(p.min_segment_s)
 }
 

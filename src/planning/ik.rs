@@ -228,12 +228,9 @@ pub fn contact(
     target: &Isometry3<f64>,
     gain: f64,
 ) -> Equality {
-    kin.frame_jacobian_into(frame, jac);
-    let v = pose_error(&kin.frame_pose(frame), target) * gain;
-    Equality {
-        jacobian: DMatrix::from_column_slice(6, jac.ncols(), jac.as_slice()),
-        velocity: DVector::from_column_slice(v.as_slice()),
-    }
+    // The frame task's rows with no feed-forward, held exactly instead of weighted.
+    let t = frame_task(kin, jac, frame, target, &Vector6::zeros(), gain, 1.0);
+    Equality { jacobian: t.jacobian, velocity: t.velocity }
 }
 
 /// Posture task on the joints flagged in `mask`: qd_j = gain (q_ref_j - q_j); the other

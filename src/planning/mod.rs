@@ -129,3 +129,15 @@ pub enum PlanError {
     #[error("robot: {0}")]
     Config(String),
 }
+
+impl From<crate::robot::RobotError> for PlanError {
+    fn from(e: crate::robot::RobotError) -> Self {
+        PlanError::Config(e.to_string())
+    }
+}
+
+impl From<crate::robot::ConfigError> for PlanError {
+    fn from(e: crate::robot::ConfigError) -> Self {
+        PlanError::Config(e.to_string())
+    }
+}

@@ -2,7 +2,6 @@
 //! IK of [`super::ik`] at a fixed rate, giving q(t) sampled as a [`JointTrajectory`], with
 //! what it reached (CoM, feet) and how closely it tracked.
 
-use super::footholds::Foot;
 use super::gait::{Segment, Swing};
 use super::ik::{self, Task};
 use super::PlanError;
@@ -94,6 +93,12 @@ impl JointTrajectory {
         self.samples.last().map_or(0.0, |s| s.t_s)
     }
 
+    /// The sample at or just before `t_s` (clamped to the ends).
+    pub fn sample_at(&self, t_s: f64) -> &Sample {
+        let i = ((t_s * self.rate_hz).max(0.0) as usize).min(self.samples.len().saturating_sub(1));
+        &self.samples[i]
+    }
+
     /// The configuration at `t_s`, linearly interpolated (the base quaternion normalized),
     /// written into `q`.
     pub fn q_at(&self, t_s: f64, q: &mut [f64]) {
@@ -171,14 +176,6 @@ pub fn upper_body_mask(model: &RobotModel, feet: &[usize]) -> Vec<bool> {
     mask
 }
 
-fn frame_of(model: &RobotModel, foot: Foot) -> Result<usize, PlanError> {
-    let name = match foot {
-        Foot::Right => hrp4::R_SOLE,
-        Foot::Left => hrp4::L_SOLE,
-    };
-    model.frame_id(name).map_err(|e| PlanError::Config(e.to_string()))
-}
-
 /// Tracks `segments` from configuration `q0`: one QP per sample at `p.rate_hz`.
 pub fn track(
     model: &RobotModel,
@@ -187,9 +184,8 @@ pub fn track(
     p: &IkParams,
 ) -> Result<(JointTrajectory, Tracking), PlanError> {
     let mut kin = Kinematics::new(model);
-    let config = |e: crate::robot::ConfigError| PlanError::Config(e.to_string());
-    kin.update(q0).map_err(config)?;
-    let feet = [frame_of(model, Foot::Right)?, frame_of(model, Foot::Left)?];
+    kin.update(q0)?;
+    let feet = hrp4::sole_frames(model)?;
     let q_ref: Vec<f64> = q0[Q_JOINTS..].to_vec();
     let upper = upper_body_mask(model, &feet);
     let base_ref = kin.link_pose(0).rotation;
@@ -209,6 +205,7 @@ pub fn track(
     let mut samples = vec![sample(&kin, &q, 0.0, kin.com(), 0)];
     let mut t0 = 0.0;
     let mut tick = 0usize;
+    let mut worst_com_segment = 0;
     for (si, seg) in segments.iter().enumerate() {
         let end = t0 + seg.duration_s;
         while (tick + 1) as f64 * dt <= end + 1e-9 {
@@ -222,7 +219,7 @@ pub fn track(
                 vec![ik::com_task(&kin, &mut com_jac, &com_ref, &com_v, p.task_gain_per_s, p.weight_com)];
             if let Some(sw) = &seg.swing {
                 let (pose, twist) = along_path(sw, tau, seg.duration_s);
-                let f = feet[usize::from(sw.foot == Foot::Left)];
+                let f = feet[sw.foot.index()];
                 tasks.push(ik::frame_task(
                     &kin,
                     &mut frame_jac,
@@ -245,33 +242,31 @@ pub fn track(
                 .support
                 .iter()
                 .map(|(f, pose)| {
-                    ik::contact(
-                        &kin,
-                        &mut frame_jac,
-                        feet[usize::from(*f == Foot::Left)],
-                        pose,
-                        p.contact_gain_per_s,
-                    )
+                    ik::contact(&kin, &mut frame_jac, feet[f.index()], pose, p.contact_gain_per_s)
                 })
                 .collect();
             let bounds = [ik::joint_limits(model, &q, p.max_joint_speed_rad_s, p.limit_gain_per_s)];
             let qd = ik::solve(model.nv(), &tasks, &equalities, &bounds, p.damping)
                 .map_err(|error| PlanError::Ik { t_s: t, segment: si, error })?;
             ik::integrate(&mut q, qd.as_slice(), dt);
-            kin.update(&q).map_err(config)?;
+            kin.update(&q)?;
             stats.ik_time_s += started.elapsed().as_secs_f64();
             stats.ik_ticks += 1;
             tick += 1;
-            stats.max_com_error_m = stats.max_com_error_m.max((kin.com() - com_ref).norm());
+            let com_error = (kin.com() - com_ref).norm();
+            if com_error > stats.max_com_error_m {
+                stats.max_com_error_m = com_error;
+                worst_com_segment = si;
+            }
             for (f, pose) in &seg.support {
-                let at = kin.frame_pose(feet[usize::from(*f == Foot::Left)]);
+                let at = kin.frame_pose(feet[f.index()]);
                 stats.max_contact_drift_m =
                     stats.max_contact_drift_m.max((at.translation.vector - pose.translation.vector).norm());
             }
             samples.push(sample(&kin, &q, t, com_ref, si));
         }
         if let Some(sw) = &seg.swing {
-            let f = feet[usize::from(sw.foot == Foot::Left)];
+            let f = feet[sw.foot.index()];
             let target = sw.path[sw.path.len() - 1].translation.vector;
             let err = (kin.frame_pose(f).translation.vector - target).norm();
             stats.max_touchdown_error_m = stats.max_touchdown_error_m.max(err);
@@ -286,7 +281,7 @@ pub fn track(
     }
     if stats.max_com_error_m > p.com_tolerance_m {
         return Err(PlanError::Tracking {
-            segment: segments.len().saturating_sub(1),
+            segment: worst_com_segment,
             what: format!("the CoM strays {:.1} mm from its path", stats.max_com_error_m * 1e3),
         });
     }

@@ -52,16 +52,16 @@ impl Plan {
     }
 }
 
+/// Where the feet are in the configuration `kin` was last updated with.
+pub fn stance_of(kin: &Kinematics, soles: [usize; 2]) -> Stance {
+    Stance { right: kin.frame_pose(soles[0]), left: kin.frame_pose(soles[1]), step: None }
+}
+
 /// Where the feet are at configuration `q`.
 pub fn stance_at(model: &RobotModel, q: &[f64]) -> Result<Stance, PlanError> {
     let mut kin = Kinematics::new(model);
-    kin.update(q).map_err(|e| PlanError::Config(e.to_string()))?;
-    let frame = |n: &str| model.frame_id(n).map_err(|e| PlanError::Config(e.to_string()));
-    Ok(Stance {
-        right: kin.frame_pose(frame(hrp4::R_SOLE)?),
-        left: kin.frame_pose(frame(hrp4::L_SOLE)?),
-        step: None,
-    })
+    kin.update(q)?;
+    Ok(stance_of(&kin, hrp4::sole_frames(model)?))
 }
 
 /// Plans the climb of `rects` from configuration `q0` (standing, both feet down).
@@ -75,14 +75,15 @@ pub fn plan(
     p: &PlanParams,
 ) -> Result<Plan, PlanError> {
     let started = Instant::now();
-    let start = stance_at(model, q0)?;
+    let soles = hrp4::sole_frames(model)?;
+    let mut kin = Kinematics::new(model);
+    kin.update(q0)?;
+    let start = stance_of(&kin, soles);
     let mut stances = footholds(&start, rects, &p.gait)?;
     if let Some(n) = max_stances {
         stances.truncate(n);
     }
-    let body = Body::measure(model, q0)?;
-    let mut kin = Kinematics::new(model);
-    kin.update(q0).map_err(|e| PlanError::Config(e.to_string()))?;
+    let body = Body::measure(&kin, soles)?;
     let segs = segments(kin.com(), &start, &stances, &body, &p.step)?;
     let gait_time_s = started.elapsed().as_secs_f64();
     let (trajectory, tracking) = track(model, q0, &segs, &p.ik)?;

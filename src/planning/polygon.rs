@@ -97,15 +97,7 @@ fn centre_of(contacts: &[Contact]) -> P2 {
 
 /// Removes repeated and collinear vertices.
 fn simplify(poly: &[P2], tol: f64) -> Vec<P2> {
-    let mut v: Vec<P2> = Vec::with_capacity(poly.len());
-    for p in poly {
-        if v.last().is_none_or(|l: &P2| (l.x - p.x).hypot(l.y - p.y) > tol) {
-            v.push(*p);
-        }
-    }
-    while v.len() > 1 && (v[0].x - v[v.len() - 1].x).hypot(v[0].y - v[v.len() - 1].y) <= tol {
-        v.pop();
-    }
+    let mut v = geom2d::dedup_vertices(poly, tol);
     let mut changed = true;
     while changed && v.len() > 3 {
         changed = false;

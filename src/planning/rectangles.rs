@@ -35,6 +35,27 @@ pub enum RectanglesError {
     },
 }
 
+/// The rectangles from the lowest up.
+pub fn by_height(rects: &[PlaneSegment]) -> Vec<&PlaneSegment> {
+    let mut v: Vec<&PlaneSegment> = rects.iter().collect();
+    v.sort_by(|a, b| a.height_m().total_cmp(&b.height_m()));
+    v
+}
+
+/// Each rectangle's rise above the one before it (`sorted` from the lowest up); the first
+/// one's rise above `floor_z`, or none without a floor.
+pub fn rises_m(sorted: &[&PlaneSegment], floor_z: Option<f64>) -> Vec<f64> {
+    let below = floor_z.into_iter().chain(sorted.iter().map(|s| s.height_m()));
+    sorted.iter().skip(usize::from(floor_z.is_none())).zip(below).map(|(s, z)| s.height_m() - z).collect()
+}
+
+/// The median of `values` (the upper one of an even count), `None` when empty.
+pub fn median(values: &[f64]) -> Option<f64> {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied()
+}
+
 /// Ground truth as rectangles (normal up, ascent along the step's depth).
 pub fn from_step_tops(steps: &[StepTop]) -> Vec<PlaneSegment> {
     steps
@@ -131,5 +152,18 @@ mod tests {
         assert!(matches!(parse("0,0,NaN\n"), Err(RectanglesError::Row { line: 1, .. })));
         let skew = "0,0,0\n0.3,0,0\n0.5,0.5,0\n0,0.5,0\n";
         assert!(matches!(parse(skew), Err(RectanglesError::NotRectangle { step: 0, .. })));
+    }
+
+    #[test]
+    fn rises_and_their_median() {
+        let text = "0.3,0,0.2\n0.6,0,0.2\n0.6,0.5,0.2\n0.3,0.5,0.2\n0,0,0\n0.3,0,0\n0.3,0.5,0\n0,0.5,0\n";
+        let r = parse(text).unwrap();
+        let sorted = by_height(&r);
+        assert_eq!(sorted[0].height_m(), 0.0);
+        let with_floor = rises_m(&sorted, Some(-0.25));
+        assert!((with_floor[0] - 0.25).abs() < 1e-12 && (with_floor[1] - 0.2).abs() < 1e-12);
+        assert_eq!(rises_m(&sorted, None).len(), 1);
+        assert_eq!(median(&[0.3, 0.1, 0.2]), Some(0.2));
+        assert_eq!(median(&[]), None);
     }
 }

@@ -20,6 +20,8 @@ pub const LIDAR_MOUNT: &str = crate::scene::mjcf::HEAD_SITE;
 pub const HEAD_TOP: &str = "head_top";
 /// Sole size, length x width, metres (HRP-4's published figure).
 pub const SOLE_SIZE_M: [f64; 2] = [0.24, 0.13];
+/// Half the sole's length and width, metres (a contact rectangle's half sizes).
+pub const SOLE_HALF_M: [f64; 2] = [SOLE_SIZE_M[0] / 2.0, SOLE_SIZE_M[1] / 2.0];
 
 /// Half-sitting, HRP-4's standard posture, degrees (the task's figures); joints not listed
 /// are at 0.
@@ -59,6 +61,17 @@ pub fn half_sitting_joints(model: &RobotModel) -> Result<Vec<f64>, RobotError> {
     Ok(q)
 }
 
+/// The sole frames' indices, right then left.
+pub fn sole_frames(model: &RobotModel) -> Result<[usize; 2], RobotError> {
+    Ok([model.frame_id(R_SOLE)?, model.frame_id(L_SOLE)?])
+}
+
+/// Half-sitting, standing with the soles' mean centre at `feet` (see [`standing_config`]):
+/// the configuration the bench's robot starts in.
+pub fn half_sitting_at(model: &RobotModel, feet: &Isometry3<f64>) -> Result<Vec<f64>, RobotError> {
+    standing_config(model, &half_sitting_joints(model)?, feet)
+}
+
 /// The configuration standing with joint angles `joints` and the soles' mean centre at
 /// `feet`: the base is tilted so the soles' mean orientation is level, yawed with `feet`,
 /// and placed so that the lower sole touches `feet`'s height.
@@ -67,7 +80,7 @@ pub fn standing_config(
     joints: &[f64],
     feet: &Isometry3<f64>,
 ) -> Result<Vec<f64>, RobotError> {
-    let (r, l) = (model.frame_id(R_SOLE)?, model.frame_id(L_SOLE)?);
+    let [r, l] = sole_frames(model)?;
     let mut q = vec![0.0; model.nq()];
     q[3] = 1.0;
     q[Q_JOINTS..].copy_from_slice(joints);

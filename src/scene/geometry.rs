@@ -119,14 +119,20 @@ impl StepTop {
         self.depth_m * self.width_m
     }
 
-    /// Whether the horizontal projection of `p` falls on the tread (with `margin_m` inside).
-    pub fn contains_xy(&self, p: &Point3<f64>, margin_m: f64) -> bool {
+    /// How far the horizontal projection of `p` lies outside the tread, metres, along its
+    /// axes (negative inside: minus the distance to the nearest edge).
+    pub fn outside_m(&self, p: &Point3<f64>) -> f64 {
         let o = self.corners[0];
         let u = (self.corners[1] - o).normalize();
         let v = (self.corners[3] - o).normalize();
         let d = p - o;
         let (a, b) = (d.dot(&u), d.dot(&v));
-        a >= margin_m && a <= self.depth_m - margin_m && b >= margin_m && b <= self.width_m - margin_m
+        (-a).max(a - self.depth_m).max(-b).max(b - self.width_m)
+    }
+
+    /// Whether the horizontal projection of `p` falls on the tread (with `margin_m` inside).
+    pub fn contains_xy(&self, p: &Point3<f64>, margin_m: f64) -> bool {
+        self.outside_m(p) <= -margin_m
     }
 }
 

@@ -80,25 +80,17 @@ pub struct CycleReport {
     pub cycle: usize,
     /// Where the cycle took the feet: `floor` or `step N`.
     pub to: String,
-    /// No check violated.
+    /// No check violated (`execution.pass()`, kept for the JSON report's readers).
     pub pass: bool,
-    /// Smallest CoM margin in the real contacts' polygon, metres.
-    pub min_margin_m: f64,
-    /// Largest torque demand over its limit.
-    pub max_torque_ratio: f64,
-    /// Its joint.
-    pub torque_joint: String,
-    /// Largest touchdown error, metres.
-    pub max_touchdown_error_m: f64,
     /// Steps perception found ahead.
     pub steps_seen: usize,
     /// Perception wall time, seconds.
     pub perceive_s: f64,
     /// Planning wall time, seconds.
     pub plan_s: f64,
-    /// Simulated seconds of the execution.
-    pub sim_s: f64,
-    /// The execution's details.
+    /// What the execution found (flattened into the JSON: `min_margin_m`,
+    /// `max_torque_ratio`, `torque_joint`, `touchdowns`, `violations`, `sim_s`, ...).
+    #[serde(flatten)]
     pub execution: Execution,
 }
 
@@ -206,22 +198,17 @@ pub fn climb(
         };
         let plan_s = t.elapsed().as_secs_f64();
         let execution = execute(&mut world, &model, &scene, &planned, &p.servo, &p.checks)?;
-        let to =
-            planned.stances.last().and_then(|s| s.step.map(|_| s)).map_or("floor".to_string(), |s| {
-                format!("step {}", true_step(&scene, s.right.translation.z))
-            });
+        let to = match planned.stances.last() {
+            Some(s) if s.step.is_some() => format!("step {}", true_step(&scene, s.right.translation.z)),
+            _ => "floor".to_string(),
+        };
         let c = CycleReport {
             cycle,
             to,
             pass: execution.pass(),
-            min_margin_m: execution.min_margin_m,
-            max_torque_ratio: execution.max_torque_ratio,
-            torque_joint: execution.torque_joint.clone(),
-            max_touchdown_error_m: execution.touchdowns.iter().map(|t| t.error_m).fold(0.0, f64::max),
             steps_seen: ahead.len(),
             perceive_s,
             plan_s,
-            sim_s: execution.sim_s,
             execution,
         };
         on_cycle(&c);

@@ -1,6 +1,6 @@
 //! Execution of a planned trajectory in MuJoCo with every check at every physics step: the
 //! robot's position servos track q(t) at the physics rate, on MuJoCo's own contacts and
-//! friction, and a [`Monitor`] checks, from what the simulator actually has, the CoM inside
+//! friction, and a `Monitor` checks, from what the simulator actually has, the CoM inside
 //! the static-stability polygon of the feet really in contact, each contact force inside the
 //! friction pyramid the plan assumed, each sole's centre of pressure inside the sole, joint
 //! torques (the servos' unclamped demand) and speeds within the model's limits, the feet at
@@ -12,13 +12,14 @@ use crate::geom2d::P2;
 use crate::planning::contact::Contact;
 use crate::planning::dd::DdParams;
 use crate::planning::footholds::Foot;
+use crate::planning::gait::Swing;
 use crate::planning::polygon::{by_double_description, margin};
 use crate::planning::Plan;
 use crate::robot::hrp4;
 use crate::robot::model::{RobotModel, Q_JOINTS, V_JOINTS};
 use crate::scene::mjcf::ROBOT_GEOM_GROUP;
 use crate::scene::Scene;
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Point3, Quaternion, UnitQuaternion, Vector3};
 
 /// Limits of the checks.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -134,6 +135,11 @@ impl Execution {
     pub fn pass(&self) -> bool {
         self.violations.is_empty() && !self.fell
     }
+
+    /// The largest touchdown position error, metres (0 without touchdowns).
+    pub fn max_touchdown_error_m(&self) -> f64 {
+        self.touchdowns.iter().map(|t| t.error_m).fold(0.0, f64::max)
+    }
 }
 
 /// The robot's identifiers in the world.
@@ -141,34 +147,22 @@ struct Ids {
     feet_bodies: [usize; 2],
     sole_sites: [usize; 2],
     root_body: usize,
-    kp: Vec<f64>,
-    kv: Vec<f64>,
 }
 
 impl Ids {
     fn of(world: &World, model: &RobotModel) -> Result<Self, SimError> {
-        let sole_sites = [world.site_id(hrp4::R_SOLE)?, world.site_id(hrp4::L_SOLE)?];
-        let foot_link =
-            |f: &str| model.frame_id(f).map(|i| model.links()[model.frames()[i].link].name.clone());
-        let feet_bodies = [
-            world.body_id(&foot_link(hrp4::R_SOLE).map_err(SimError::from)?)?,
-            world.body_id(&foot_link(hrp4::L_SOLE).map_err(SimError::from)?)?,
-        ];
-        let root_body = world.body_id(&model.root().name)?;
-        let m = world.model();
-        let nu = m.ffi().nu as usize;
-        let (gp, bp) = (m.actuator_gainprm(), m.actuator_biasprm());
+        let soles = hrp4::sole_frames(model)?;
+        let body_of = |frame: usize| world.body_id(&model.links()[model.frames()[frame].link].name);
         Ok(Self {
-            feet_bodies,
-            sole_sites,
-            root_body,
-            kp: (0..nu).map(|a| gp[a][0]).collect(),
-            kv: (0..nu).map(|a| -bp[a][2]).collect(),
+            feet_bodies: [body_of(soles[0])?, body_of(soles[1])?],
+            sole_sites: [world.site_id(hrp4::R_SOLE)?, world.site_id(hrp4::L_SOLE)?],
+            root_body: world.body_id(&model.root().name)?,
         })
     }
 }
 
 /// The polygon of the feet in contact, recomputed only when they change.
+#[derive(Default)]
 struct PolygonCache {
     key: Option<([bool; 2], [Isometry3<f64>; 2])>,
     polygon: Vec<P2>,
@@ -185,15 +179,245 @@ impl PolygonCache {
             None => true,
         };
         if stale {
-            let half = [hrp4::SOLE_SIZE_M[0] / 2.0, hrp4::SOLE_SIZE_M[1] / 2.0];
+            let [hx, hy] = hrp4::SOLE_HALF_M;
             let contacts: Vec<Contact> = (0..2)
                 .filter(|&k| down[k])
-                .filter_map(|k| Contact::new(soles[k], half[0], half[1], friction).ok())
+                .filter_map(|k| Contact::new(soles[k], hx, hy, friction).ok())
                 .collect();
             self.polygon = by_double_description(&contacts, &DdParams::default()).unwrap_or_default();
             self.key = Some((down, *soles));
         }
         &self.polygon
+    }
+}
+
+/// The position servos with the integral term of [`ServoParams`].
+struct Servos {
+    kp: Vec<f64>,
+    kv: Vec<f64>,
+    integral: Vec<f64>,
+    gain_per_s: f64,
+}
+
+impl Servos {
+    fn new(world: &World, p: &ServoParams) -> Self {
+        let (kp, kv) = world.servo_gains();
+        let integral = vec![0.0; kp.len()];
+        Self { kp, kv, integral, gain_per_s: p.integral_gain_per_s }
+    }
+
+    /// Sets the servos' set points toward the joint angles of `q_ref` (a configuration).
+    fn command(&mut self, world: &mut World, q_ref: &[f64], dt_s: f64) {
+        let d = world.data_mut();
+        for (a, i) in self.integral.iter_mut().enumerate() {
+            *i += (q_ref[Q_JOINTS + a] - d.qpos()[Q_JOINTS + a]) * dt_s;
+        }
+        for (a, c) in d.ctrl_mut().iter_mut().enumerate().take(self.integral.len()) {
+            *c = q_ref[Q_JOINTS + a] + self.gain_per_s * self.integral[a];
+        }
+    }
+
+    /// Actuator `a`'s unclamped torque demand, N m (MuJoCo clamps its output at the force
+    /// range, so checking the output would prove nothing).
+    fn demand_nm(&self, world: &World, a: usize) -> f64 {
+        let d = world.data();
+        self.kp[a] * (d.ctrl()[a] - d.qpos()[Q_JOINTS + a]) - self.kv[a] * d.qvel()[V_JOINTS + a]
+    }
+}
+
+/// What the feet's contacts carry at one instant.
+#[derive(Default)]
+struct FootLoads {
+    /// Sum of normal forces, newtons.
+    normal_n: [f64; 2],
+    /// Sum of contact points weighted by their normal force.
+    moment: [Vector3<f64>; 2],
+    /// Resultant force, world frame.
+    force: [Vector3<f64>; 2],
+}
+
+/// The checks, with what they found so far.
+struct Monitor<'a> {
+    ids: Ids,
+    p: &'a CheckParams,
+    scene: &'a Scene,
+    cache: PolygonCache,
+    last_report: Vec<(&'static str, f64)>,
+    ex: Execution,
+}
+
+impl Monitor<'_> {
+    /// Records a violation, the first of its kind per simulated second.
+    fn report(&mut self, t_s: f64, check: &'static str, detail: String) {
+        if let Some(e) = self.last_report.iter_mut().find(|(c, _)| *c == check) {
+            if t_s - e.1 < 1.0 {
+                return;
+            }
+            e.1 = t_s;
+        } else {
+            self.last_report.push((check, t_s));
+        }
+        self.ex.violations.push(Violation { t_s, check, detail });
+    }
+
+    /// Sums the feet's contact forces; reports other parts touching the world, robot parts
+    /// touching each other, and a swinging foot that strikes (`swing` with its planned sole).
+    fn contacts(&mut self, world: &World, now: f64, swing: Option<(&Swing, &Isometry3<f64>)>) -> FootLoads {
+        let mut loads = FootLoads::default();
+        let d = world.data();
+        let geom_body = world.model().geom_bodyid();
+        for (ci, c) in d.contact().iter().enumerate() {
+            let (g1, g2) = (c.geom1 as usize, c.geom2 as usize);
+            let (robot, other) =
+                match (world.geom_group(g1) == ROBOT_GEOM_GROUP, world.geom_group(g2) == ROBOT_GEOM_GROUP) {
+                    (true, false) => (g1, g2),
+                    (false, true) => (g2, g1),
+                    (true, true) => (g1, g2),
+                    _ => continue,
+                };
+            let foot = self.ids.feet_bodies.iter().position(|&b| b == geom_body[robot] as usize);
+            let Some(foot) = foot.filter(|_| world.geom_group(other) != ROBOT_GEOM_GROUP) else {
+                self.report(
+                    now,
+                    "collision",
+                    format!("{} touches {}", world.geom_name(robot), world.geom_name(other)),
+                );
+                continue;
+            };
+            let f = d.contact_force(ci);
+            // The contact frame's rows are its normal and two tangents (MuJoCo's layout).
+            let axis = |r: usize| Vector3::new(c.frame[3 * r], c.frame[3 * r + 1], c.frame[3 * r + 2]);
+            loads.force[foot] += axis(0) * f[0] + axis(1) * f[1] + axis(2) * f[2];
+            loads.normal_n[foot] += f[0].max(0.0);
+            loads.moment[foot] += Vector3::from(c.pos) * f[0].max(0.0);
+            if let Some((sw, planned)) = swing.filter(|(sw, _)| sw.foot.index() == foot) {
+                let above = |pose: &Isometry3<f64>| planned.translation.z - pose.translation.z;
+                if above(&sw.path[sw.path.len() - 1]) > self.p.strike_height_m
+                    && above(&sw.path[0]) > self.p.strike_height_m
+                {
+                    self.report(
+                        now,
+                        "strike",
+                        format!("the swinging {:?} foot hits {}", sw.foot, world.geom_name(other)),
+                    );
+                }
+            }
+        }
+        loads
+    }
+
+    /// Which feet carry load; each one's resultant inside its sole's friction pyramid (§6.2)
+    /// and its centre of pressure inside the sole.
+    fn feet(&mut self, now: f64, loads: &FootLoads, soles: &[Isometry3<f64>; 2]) -> [bool; 2] {
+        let down = loads.normal_n.map(|n| n > self.p.contact_force_n);
+        for (k, foot) in Foot::BOTH.into_iter().enumerate().filter(|(k, _)| down[*k]) {
+            let local = soles[k].rotation.inverse() * loads.force[k];
+            let normal = local.z.abs();
+            let mu = self.p.friction;
+            if local.x.abs() > mu * normal || local.y.abs() > mu * normal {
+                let detail = format!(
+                    "{foot:?} foot: tangential ({:.1}, {:.1}) N beyond {mu} x normal {normal:.1} N",
+                    local.x, local.y
+                );
+                self.report(now, "friction", detail);
+            }
+            let cop = soles[k].inverse_transform_point(&Point3::from(loads.moment[k] / loads.normal_n[k]));
+            let [hx, hy] = hrp4::SOLE_HALF_M;
+            if cop.x.abs() > hx + 1e-3 || cop.y.abs() > hy + 1e-3 {
+                self.report(
+                    now,
+                    "cop",
+                    format!("{foot:?} centre of pressure outside the sole at ({:.3}, {:.3})", cop.x, cop.y),
+                );
+            }
+        }
+        down
+    }
+
+    /// The CoM against the stability polygon of the feet in contact.
+    fn margin(&mut self, world: &World, now: f64, down: [bool; 2], soles: &[Isometry3<f64>; 2]) {
+        let com = world.data().subtree_com()[self.ids.root_body];
+        let poly = self.cache.polygon(down, soles, self.p.friction);
+        let m = if poly.len() >= 3 { margin(poly, &P2::new(com[0], com[1])) } else { f64::NEG_INFINITY };
+        self.ex.min_margin_m = self.ex.min_margin_m.min(m);
+        if m < self.p.min_margin_m {
+            let side = if m < 0.0 { "outside" } else { "inside (below the margin)" };
+            let detail = format!(
+                "CoM {:.1} mm {side} the stability polygon of the feet in contact ({down:?})",
+                m.abs() * 1e3
+            );
+            self.report(now, "margin", detail);
+        }
+    }
+
+    /// Joint torques (the servos' demand) and speeds against the model's limits.
+    fn joints(&mut self, world: &World, model: &RobotModel, servos: &Servos, now: f64) {
+        for (a, jt) in model.joints().iter().enumerate().take(servos.kp.len()) {
+            let demand = servos.demand_nm(world, a);
+            let r = demand.abs() / jt.effort_nm;
+            let s = world.data().qvel()[V_JOINTS + a].abs() / jt.velocity_rad_s;
+            if r > self.ex.max_torque_ratio {
+                self.ex.max_torque_ratio = r;
+                self.ex.torque_joint.clone_from(&jt.name);
+            }
+            if s > self.ex.max_speed_ratio {
+                self.ex.max_speed_ratio = s;
+                self.ex.speed_joint.clone_from(&jt.name);
+            }
+            if r > self.p.max_torque_ratio {
+                let detail = format!(
+                    "{} needs {:.0} % of its torque limit ({:.1} of {:.1} N m)",
+                    jt.name,
+                    r * 100.0,
+                    demand.abs(),
+                    jt.effort_nm
+                );
+                self.report(now, "torque", detail);
+            }
+            if s > self.p.max_speed_ratio {
+                self.report(now, "speed", format!("{} at {:.0} % of its speed limit", jt.name, s * 100.0));
+            }
+        }
+    }
+
+    /// Records a touchdown of `sw`'s foot and checks it against its target and its step.
+    fn touchdown(&mut self, now: f64, sw: &Swing, soles: &[Isometry3<f64>; 2]) {
+        let sole = &soles[sw.foot.index()];
+        let target = &sw.path[sw.path.len() - 1];
+        let err = (sole.translation.vector - target.translation.vector).norm();
+        let yaw = (sole.rotation.inverse() * target.rotation).euler_angles().2.abs();
+        self.ex.touchdowns.push(Touchdown { foot: sw.foot, error_m: err, yaw_error_rad: yaw });
+        if err > self.p.touchdown_tolerance_m || yaw > self.p.touchdown_yaw_tolerance_rad {
+            let detail = format!(
+                "{:?} foot lands {:.1} mm and {:.1} deg from its target",
+                sw.foot,
+                err * 1e3,
+                yaw.to_degrees()
+            );
+            self.report(now, "touchdown", detail);
+        }
+        if let Some(over) = off_step(self.scene, sole).filter(|o| *o > self.p.overhang_tolerance_m) {
+            self.report(
+                now,
+                "off_step",
+                format!("{:?} foot overhangs its step's edge by {:.1} mm", sw.foot, over * 1e3),
+            );
+        }
+    }
+
+    /// Whether the robot fell: the base too far below both its start and its plan, or tilted.
+    fn fell(&mut self, world: &World, now: f64, base_z_limit: f64) -> bool {
+        let qpos = world.data().qpos();
+        let base = UnitQuaternion::from_quaternion(Quaternion::new(qpos[3], qpos[4], qpos[5], qpos[6]));
+        let tilt = (base * Vector3::z()).angle(&Vector3::z());
+        let fell = qpos[2] < base_z_limit || tilt > self.p.fall_tilt_rad;
+        if fell {
+            let detail =
+                format!("the robot fell: base at {:.2} m, tilted {:.0} deg", qpos[2], tilt.to_degrees());
+            self.report(now, "fall", detail);
+            self.ex.fell = true;
+        }
+        fell
     }
 }
 
@@ -207,322 +431,82 @@ pub fn execute(
     servo: &ServoParams,
     p: &CheckParams,
 ) -> Result<Execution, SimError> {
-    let ids = Ids::of(world, model)?;
     let dt = world.model().opt().timestep;
-    let nu = ids.kp.len();
     let t_start = world.data().time();
     let base_z0 = world.data().qpos()[2];
     let traj = &plan.trajectory;
-    let steps = (traj.duration_s() / dt).round() as usize;
-    let mut q = vec![0.0; model.nq()];
-    let mut integral = vec![0.0; nu];
-    let mut cache = PolygonCache { key: None, polygon: Vec::new() };
-    let mut ex = Execution {
-        sim_s: 0.0,
-        min_margin_m: f64::INFINITY,
-        max_torque_ratio: 0.0,
-        torque_joint: String::new(),
-        max_speed_ratio: 0.0,
-        speed_joint: String::new(),
-        touchdowns: Vec::new(),
-        violations: Vec::new(),
-        fell: false,
-    };
-    let mut last_report: Vec<(&'static str, f64)> = Vec::new();
-    let mut report = |ex: &mut Execution, t_s: f64, check: &'static str, detail: String| {
-        // One violation of a kind per simulated second.
-        if let Some(e) = last_report.iter_mut().find(|(c, _)| *c == check) {
-            if t_s - e.1 < 1.0 {
-                return;
-            }
-            e.1 = t_s;
-        } else {
-            last_report.push((check, t_s));
-        }
-        ex.violations.push(Violation { t_s, check, detail });
+    let mut servos = Servos::new(world, servo);
+    let mut mon = Monitor {
+        ids: Ids::of(world, model)?,
+        p,
+        scene,
+        cache: PolygonCache::default(),
+        last_report: Vec::new(),
+        ex: Execution {
+            sim_s: 0.0,
+            min_margin_m: f64::INFINITY,
+            max_torque_ratio: 0.0,
+            torque_joint: String::new(),
+            max_speed_ratio: 0.0,
+            speed_joint: String::new(),
+            touchdowns: Vec::new(),
+            violations: Vec::new(),
+            fell: false,
+        },
     };
     // Segment end times, for the touchdowns.
-    let mut ends = Vec::new();
-    let mut acc = 0.0;
-    for s in &plan.segments {
-        acc += s.duration_s;
-        ends.push(acc);
-    }
+    let ends: Vec<f64> = plan
+        .segments
+        .iter()
+        .scan(0.0, |acc, s| {
+            *acc += s.duration_s;
+            Some(*acc)
+        })
+        .collect();
     let mut seg = 0usize;
     let mut landed = vec![false; plan.segments.len()];
-    for k in 1..=steps {
+    let mut q = vec![0.0; model.nq()];
+    for k in 1..=(traj.duration_s() / dt).round() as usize {
         let t = k as f64 * dt;
         traj.q_at(t, &mut q);
-        {
-            let d = world.data_mut();
-            for a in 0..nu {
-                integral[a] += (q[Q_JOINTS + a] - d.qpos()[Q_JOINTS + a]) * dt;
-            }
-            let ctrl = d.ctrl_mut();
-            for a in 0..nu {
-                ctrl[a] = q[Q_JOINTS + a] + servo.integral_gain_per_s * integral[a];
-            }
-            d.step();
-        }
+        servos.command(world, &q, dt);
+        world.data_mut().step();
         let now = world.data().time() - t_start;
-        let soles = [world.site_pose(ids.sole_sites[0]), world.site_pose(ids.sole_sites[1])];
+        let soles = mon.ids.sole_sites.map(|s| world.site_pose(s));
         // Touchdown: the moment a swing segment ends (or the trajectory does).
         while t > ends[seg] - dt / 2.0 && !landed[seg] {
             landed[seg] = true;
             if let Some(sw) = &plan.segments[seg].swing {
-                touchdown(&mut ex, &mut report, now, sw, &soles, scene, p);
+                mon.touchdown(now, sw, &soles);
             }
             if seg + 1 < plan.segments.len() {
                 seg += 1;
             }
         }
-        // Contacts: feet down, forces, CoP, strikes, other parts touching.
-        let mut force_n = [0.0f64; 2];
-        let mut cop = [Vector3::zeros(); 2];
-        let mut force_world = [Vector3::zeros(); 2];
-        let swing = plan.segments[seg].swing.as_ref();
-        let (contacts, model_geom_body) = {
-            let d = world.data();
-            (d.contact().to_vec(), world.model().geom_bodyid())
-        };
-        for (ci, c) in contacts.iter().enumerate() {
-            let (g1, g2) = (c.geom1 as usize, c.geom2 as usize);
-            let (robot, other) =
-                match (world.geom_group(g1) == ROBOT_GEOM_GROUP, world.geom_group(g2) == ROBOT_GEOM_GROUP) {
-                    (true, false) => (g1, g2),
-                    (false, true) => (g2, g1),
-                    (true, true) => {
-                        report(
-                            &mut ex,
-                            now,
-                            "collision",
-                            format!("{} touches {}", world.geom_name(g1), world.geom_name(g2)),
-                        );
-                        continue;
-                    }
-                    _ => continue,
-                };
-            let body = model_geom_body[robot] as usize;
-            let Some(foot) = ids.feet_bodies.iter().position(|&b| b == body) else {
-                report(
-                    &mut ex,
-                    now,
-                    "collision",
-                    format!("{} touches {}", world.geom_name(robot), world.geom_name(other)),
-                );
-                continue;
-            };
-            let f = world.data().contact_force(ci);
-            let fn_ = f[0];
-            // The contact frame's rows are its normal and two tangents (MuJoCo's layout).
-            let axis = |r: usize| Vector3::new(c.frame[3 * r], c.frame[3 * r + 1], c.frame[3 * r + 2]);
-            force_world[foot] += axis(0) * f[0] + axis(1) * f[1] + axis(2) * f[2];
-            force_n[foot] += fn_.max(0.0);
-            cop[foot] += Vector3::from(c.pos) * fn_.max(0.0);
-            if let Some(sw) = swing {
-                if usize::from(sw.foot == Foot::Left) == foot {
-                    let target_z = sw.path[sw.path.len() - 1].translation.z;
-                    let planned = plan.trajectory.samples
-                        [((t * traj.rate_hz) as usize).min(traj.samples.len() - 1)]
-                    .feet[foot];
-                    if planned.translation.z - target_z > p.strike_height_m
-                        && planned.translation.z - sw.path[0].translation.z > p.strike_height_m
-                    {
-                        report(
-                            &mut ex,
-                            now,
-                            "strike",
-                            format!("the swinging {:?} foot hits {}", sw.foot, world.geom_name(other)),
-                        );
-                    }
-                }
-            }
-        }
-        let down = [force_n[0] > p.contact_force_n, force_n[1] > p.contact_force_n];
-        // Each foot's resultant inside the four-sided friction pyramid of its sole (§6.2).
-        for k in 0..2 {
-            if down[k] {
-                let local = soles[k].rotation.inverse() * force_world[k];
-                let normal = local.z.abs();
-                if local.x.abs() > p.friction * normal || local.y.abs() > p.friction * normal {
-                    report(
-                        &mut ex,
-                        now,
-                        "friction",
-                        format!(
-                            "{} foot: tangential ({:.1}, {:.1}) N beyond {} x normal {normal:.1} N",
-                            ["right", "left"][k],
-                            local.x,
-                            local.y,
-                            p.friction
-                        ),
-                    );
-                }
-            }
-        }
-        for k in 0..2 {
-            if down[k] {
-                let c = soles[k].inverse_transform_point(&Point3::from(cop[k] / force_n[k]));
-                let (hx, hy) = (hrp4::SOLE_SIZE_M[0] / 2.0 + 1e-3, hrp4::SOLE_SIZE_M[1] / 2.0 + 1e-3);
-                if c.x.abs() > hx || c.y.abs() > hy {
-                    report(
-                        &mut ex,
-                        now,
-                        "cop",
-                        format!(
-                            "{} centre of pressure outside the sole at ({:.3}, {:.3})",
-                            ["right", "left"][k],
-                            c.x,
-                            c.y
-                        ),
-                    );
-                }
-            }
-        }
-        // CoM in the polygon of the real contacts.
-        let com = world.data().subtree_com()[ids.root_body];
-        let poly = cache.polygon(down, &soles, p.friction);
-        let m = if poly.len() >= 3 { margin(poly, &P2::new(com[0], com[1])) } else { f64::NEG_INFINITY };
-        ex.min_margin_m = ex.min_margin_m.min(m);
-        if m < p.min_margin_m {
-            report(
-                &mut ex,
-                now,
-                "margin",
-                format!(
-                    "CoM {:.1} mm {} the stability polygon of the feet in contact ({:?})",
-                    m.abs() * 1e3,
-                    if m < 0.0 { "outside" } else { "inside (below the margin)" },
-                    down
-                ),
-            );
-        }
-        // Torques (the servos' unclamped demand) and speeds.
-        {
-            let d = world.data();
-            for (a, jt) in model.joints().iter().enumerate().take(nu) {
-                let demand =
-                    ids.kp[a] * (d.ctrl()[a] - d.qpos()[Q_JOINTS + a]) - ids.kv[a] * d.qvel()[V_JOINTS + a];
-                let r = demand.abs() / jt.effort_nm;
-                if r > ex.max_torque_ratio {
-                    ex.max_torque_ratio = r;
-                    ex.torque_joint = jt.name.clone();
-                }
-                let s = d.qvel()[V_JOINTS + a].abs() / jt.velocity_rad_s;
-                if s > ex.max_speed_ratio {
-                    ex.max_speed_ratio = s;
-                    ex.speed_joint = jt.name.clone();
-                }
-                if r > p.max_torque_ratio {
-                    report(
-                        &mut ex,
-                        now,
-                        "torque",
-                        format!(
-                            "{} needs {:.0} % of its torque limit ({:.1} of {:.1} N m)",
-                            jt.name,
-                            r * 100.0,
-                            demand.abs(),
-                            jt.effort_nm
-                        ),
-                    );
-                }
-                if s > p.max_speed_ratio {
-                    report(
-                        &mut ex,
-                        now,
-                        "speed",
-                        format!("{} at {:.0} % of its speed limit", jt.name, s * 100.0),
-                    );
-                }
-            }
-        }
-        // Fall.
-        let d = world.data();
-        let base_tilt = {
-            let qw = d.qpos()[3..7].to_vec();
-            let r = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
-                qw[0], qw[1], qw[2], qw[3],
-            ));
-            (r * Vector3::z()).angle(&Vector3::z())
-        };
-        let planned_z = traj.samples[((t * traj.rate_hz) as usize).min(traj.samples.len() - 1)].q[2];
-        if d.qpos()[2] < planned_z.min(base_z0) - p.fall_drop_m || base_tilt > p.fall_tilt_rad {
-            report(
-                &mut ex,
-                now,
-                "fall",
-                format!(
-                    "the robot fell: base at {:.2} m, tilted {:.0} deg",
-                    d.qpos()[2],
-                    base_tilt.to_degrees()
-                ),
-            );
-            ex.fell = true;
-            ex.sim_s = now;
-            return Ok(ex);
+        let planned = traj.sample_at(t);
+        let swing = plan.segments[seg].swing.as_ref().map(|sw| (sw, &planned.feet[sw.foot.index()]));
+        let loads = mon.contacts(world, now, swing);
+        let down = mon.feet(now, &loads, &soles);
+        mon.margin(world, now, down, &soles);
+        mon.joints(world, model, &servos, now);
+        if mon.fell(world, now, planned.q[2].min(base_z0) - p.fall_drop_m) {
+            break;
         }
     }
-    ex.sim_s = world.data().time() - t_start;
-    Ok(ex)
+    mon.ex.sim_s = world.data().time() - t_start;
+    Ok(mon.ex)
 }
 
-/// Records a touchdown of `sw`'s foot and checks it against its target and its step.
-fn touchdown(
-    ex: &mut Execution,
-    report: &mut impl FnMut(&mut Execution, f64, &'static str, String),
-    now: f64,
-    sw: &crate::planning::gait::Swing,
-    soles: &[Isometry3<f64>; 2],
-    scene: &Scene,
-    p: &CheckParams,
-) {
-    let k = usize::from(sw.foot == Foot::Left);
-    let target = &sw.path[sw.path.len() - 1];
-    let err = (soles[k].translation.vector - target.translation.vector).norm();
-    let yaw = (soles[k].rotation.inverse() * target.rotation).euler_angles().2.abs();
-    ex.touchdowns.push(Touchdown { foot: sw.foot, error_m: err, yaw_error_rad: yaw });
-    if err > p.touchdown_tolerance_m || yaw > p.touchdown_yaw_tolerance_rad {
-        report(
-            ex,
-            now,
-            "touchdown",
-            format!(
-                "{:?} foot lands {:.1} mm and {:.1} deg from its target",
-                sw.foot,
-                err * 1e3,
-                yaw.to_degrees()
-            ),
-        );
-    }
-    if let Some(over) = off_step(scene, &soles[k]) {
-        if over > p.overhang_tolerance_m {
-            report(
-                ex,
-                now,
-                "off_step",
-                format!("{:?} foot overhangs its step's edge by {:.1} mm", sw.foot, over * 1e3),
-            );
-        }
-    }
-}
-
-/// How far the sole at `sole` overhangs the tread it stands on (the step top nearest below
-/// its centre, or the floor), `None` on the floor.
+/// How far the sole at `sole` overhangs the tread it stands on (the step whose height is
+/// within 2 cm of it), `None` on the floor.
 fn off_step(scene: &Scene, sole: &Isometry3<f64>) -> Option<f64> {
-    let c = sole.translation.vector;
-    let step = scene.steps().iter().find(|s| (s.height_m - c.z).abs() < 0.02)?;
-    let (hx, hy) = (hrp4::SOLE_SIZE_M[0] / 2.0, hrp4::SOLE_SIZE_M[1] / 2.0);
-    let o = step.corners[0];
-    let u = (step.corners[1] - o).normalize();
-    let v = (step.corners[3] - o).normalize();
-    let mut worst: f64 = 0.0;
-    for (sx, sy) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-        let corner = sole.transform_point(&Point3::new(sx * hx, sy * hy, 0.0));
-        let d = corner - o;
-        let (a, b) = (d.dot(&u), d.dot(&v));
-        let over = (-a).max(a - step.depth_m).max(-b).max(b - step.width_m);
-        worst = worst.max(over);
-    }
-    Some(worst)
+    let step = scene.steps().iter().find(|s| (s.height_m - sole.translation.z).abs() < 0.02)?;
+    let [hx, hy] = hrp4::SOLE_HALF_M;
+    let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)];
+    Some(
+        corners
+            .iter()
+            .map(|(sx, sy)| step.outside_m(&sole.transform_point(&Point3::new(sx * hx, sy * hy, 0.0))))
+            .fold(0.0, f64::max),
+    )
 }

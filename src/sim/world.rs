@@ -55,8 +55,7 @@ impl World {
     /// the robot.
     pub fn for_scene(scene: &Scene) -> Result<Self, SimError> {
         let model = hrp4::model()?;
-        let joints = hrp4::half_sitting_joints(&model)?;
-        let q = hrp4::standing_config(&model, &joints, &scene.robot_start())?;
+        let q = hrp4::half_sitting_at(&model, &scene.robot_start())?;
         Self::new(scene, &robot::mjcf::fragment(&model, &q, &[hrp4::R_SOLE, hrp4::L_SOLE])?)
     }
 
@@ -115,6 +114,15 @@ impl World {
         let m = self.data.site_xmat()[site];
         let r = Rotation3::from_matrix_unchecked(Matrix3::from_row_slice(&m));
         Isometry3::from_parts(Translation3::new(p[0], p[1], p[2]), UnitQuaternion::from_rotation_matrix(&r))
+    }
+
+    /// Each actuator's position gain kp and damping gain kv (MuJoCo's `position` servo:
+    /// force = kp (ctrl - q) - kv qd).
+    pub fn servo_gains(&self) -> (Vec<f64>, Vec<f64>) {
+        let m = &self.model;
+        let nu = m.ffi().nu as usize;
+        let (gp, bp) = (m.actuator_gainprm(), m.actuator_biasprm());
+        ((0..nu).map(|a| gp[a][0]).collect(), (0..nu).map(|a| -bp[a][2]).collect())
     }
 
     /// Geom group of geom `id`.

@@ -5,15 +5,14 @@ use super::machine;
 use anyhow::{Context, Result};
 use stairbench::planning::{plan, rectangles, Plan, PlanParams};
 use stairbench::robot::hrp4;
-use stairbench::scenario::Scenario;
 use stairbench::scene::Scene;
 use std::time::Instant;
 
 fn once(name: &str) -> Result<(Plan, f64)> {
-    let scenario = Scenario::load(std::path::Path::new(&format!("scenarios/{name}.toml")))?;
+    let scenario = crate::cli::load_scenario(Some(std::path::Path::new(name)))?;
     let scene = Scene::from_scenario(&scenario)?;
     let model = hrp4::model()?;
-    let q0 = hrp4::standing_config(&model, &hrp4::half_sitting_joints(&model)?, &scene.robot_start())?;
+    let q0 = hrp4::half_sitting_at(&model, &scene.robot_start())?;
     let rects = rectangles::from_step_tops(scene.steps());
     let t = Instant::now();
     let p = plan(&model, &q0, &rects, None, &PlanParams::default())
