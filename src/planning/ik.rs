@@ -75,65 +75,142 @@ pub fn solve(
     bounds: &[Bounds],
     damping: f64,
 ) -> Result<DVector<f64>, IkError> {
-    let mut h = DMatrix::<f64>::identity(nv, nv) * damping;
-    let mut c = DVector::<f64>::zeros(nv);
-    for t in tasks {
-        check(nv, t.jacobian.ncols())?;
-        // 0.5 x' P x + c' x with P = 2 w J'J, c = -2 w J'v.
-        h.gemm_tr(2.0 * t.weight, &t.jacobian, &t.jacobian, 1.0);
-        c.gemv_tr(-2.0 * t.weight, &t.jacobian, &t.velocity, 1.0);
+    Solver::new(nv, damping).solve(tasks, equalities, bounds)
+}
+
+/// The rows of a QP whose structure repeats from tick to tick: the equality rows, and each
+/// finite bound as (coordinate, +1 for an upper bound or -1 for a lower one).
+#[derive(Debug, Clone, PartialEq)]
+struct Shape {
+    equality_rows: usize,
+    bound_rows: Vec<(usize, f64)>,
+}
+
+/// [`solve`] for a stream of ticks: clarabel's solver (its KKT system and symbolic
+/// factorization) is built for the first QP of a shape, and later QPs of the same shape
+/// only update its data. The shape changes with the number of contacts.
+pub struct Solver {
+    nv: usize,
+    damping: f64,
+    qp: Option<(Shape, DefaultSolver<f64>)>,
+    h: DMatrix<f64>,
+    c: DVector<f64>,
+    p_values: Vec<f64>,
+    a_values: Vec<f64>,
+    b: Vec<f64>,
+}
+
+impl Solver {
+    /// A solver for `nv` velocities with `damping` on each.
+    pub fn new(nv: usize, damping: f64) -> Self {
+        Self {
+            nv,
+            damping,
+            qp: None,
+            h: DMatrix::zeros(nv, nv),
+            c: DVector::zeros(nv),
+            p_values: Vec::new(),
+            a_values: Vec::new(),
+            b: Vec::new(),
+        }
     }
-    let (mut rows, mut cols, mut vals) = (Vec::new(), Vec::new(), Vec::new());
-    let mut b = Vec::new();
-    for e in equalities {
-        check(nv, e.jacobian.ncols())?;
-        for r in 0..e.jacobian.nrows() {
-            for col in 0..nv {
-                let v = e.jacobian[(r, col)];
-                if v != 0.0 {
-                    rows.push(b.len());
-                    cols.push(col);
-                    vals.push(v);
+
+    /// One QP (see the module's documentation).
+    pub fn solve(
+        &mut self,
+        tasks: &[Task],
+        equalities: &[Equality],
+        bounds: &[Bounds],
+    ) -> Result<DVector<f64>, IkError> {
+        let nv = self.nv;
+        self.h.fill_with_identity();
+        self.h *= self.damping;
+        self.c.fill(0.0);
+        for t in tasks {
+            check(nv, t.jacobian.ncols())?;
+            // 0.5 x' P x + c' x with P = 2 w J'J, c = -2 w J'v.
+            self.h.gemm_tr(2.0 * t.weight, &t.jacobian, &t.jacobian, 1.0);
+            self.c.gemv_tr(-2.0 * t.weight, &t.jacobian, &t.velocity, 1.0);
+        }
+        self.b.clear();
+        for e in equalities {
+            check(nv, e.jacobian.ncols())?;
+            self.b.extend(e.velocity.iter());
+        }
+        let mut shape = Shape { equality_rows: self.b.len(), bound_rows: Vec::new() };
+        for bd in bounds {
+            check(nv, bd.lower.len())?;
+            check(nv, bd.upper.len())?;
+            for i in 0..nv {
+                let (lo, hi) = (bd.lower[i], bd.upper[i]);
+                if lo > hi {
+                    return Err(IkError::CrossedBounds(i));
+                }
+                if hi.is_finite() {
+                    shape.bound_rows.push((i, 1.0));
+                    self.b.push(hi);
+                }
+                if lo.is_finite() {
+                    shape.bound_rows.push((i, -1.0));
+                    self.b.push(-lo);
                 }
             }
-            b.push(e.velocity[r]);
+        }
+        // P's values, upper triangle column by column (every entry, so the pattern is fixed).
+        self.p_values.clear();
+        for j in 0..nv {
+            self.p_values.extend((0..=j).map(|i| self.h[(i, j)]));
+        }
+        // A's values column by column: the equality rows, then that column's bound rows.
+        self.a_values.clear();
+        for col in 0..nv {
+            for e in equalities {
+                self.a_values.extend(e.jacobian.column(col).iter());
+            }
+            self.a_values.extend(shape.bound_rows.iter().filter(|(i, _)| *i == col).map(|(_, coef)| coef));
+        }
+        let solver = match &mut self.qp {
+            Some((s, solver)) if *s == shape => {
+                let update = |e: clarabel::solver::DataUpdateError| IkError::Solver(e.to_string());
+                solver.update_P(&self.p_values).map_err(update)?;
+                solver.update_q(self.c.data.as_vec()).map_err(update)?;
+                solver.update_A(&self.a_values).map_err(update)?;
+                solver.update_b(&self.b).map_err(update)?;
+                solver
+            }
+            _ => {
+                let built = self.build(&shape)?;
+                &mut self.qp.insert((shape, built)).1
+            }
+        };
+        solver.solve();
+        match solver.solution.status {
+            SolverStatus::Solved | SolverStatus::AlmostSolved => {
+                Ok(DVector::from_column_slice(&solver.solution.x))
+            }
+            s => Err(IkError::Solver(format!("{s:?}"))),
         }
     }
-    let n_eq = b.len();
-    for bd in bounds {
-        check(nv, bd.lower.len())?;
-        check(nv, bd.upper.len())?;
-        for i in 0..nv {
-            let (lo, hi) = (bd.lower[i], bd.upper[i]);
-            if lo > hi {
-                return Err(IkError::CrossedBounds(i));
-            }
-            if hi.is_finite() {
-                rows.push(b.len());
-                cols.push(i);
-                vals.push(1.0);
-                b.push(hi);
-            }
-            if lo.is_finite() {
-                rows.push(b.len());
-                cols.push(i);
-                vals.push(-1.0);
-                b.push(-lo);
-            }
+
+    /// A clarabel solver for `shape` holding the current values.
+    fn build(&self, shape: &Shape) -> Result<DefaultSolver<f64>, IkError> {
+        let (nv, n_eq) = (self.nv, shape.equality_rows);
+        let p_colptr: Vec<usize> = (0..=nv).map(|j| j * (j + 1) / 2).collect();
+        let p_rows: Vec<usize> = (0..nv).flat_map(|j| 0..=j).collect();
+        let p = CscMatrix::new(nv, nv, p_colptr, p_rows, self.p_values.clone());
+        let (mut a_colptr, mut a_rows) = (vec![0], Vec::new());
+        for col in 0..nv {
+            a_rows.extend(0..n_eq);
+            a_rows.extend(
+                shape.bound_rows.iter().enumerate().filter(|(_, (i, _))| *i == col).map(|(k, _)| n_eq + k),
+            );
+            a_colptr.push(a_rows.len());
         }
-    }
-    let m = b.len();
-    let a = CscMatrix::new_from_triplets(m, nv, rows, cols, vals);
-    let p = upper_triangle(&h);
-    let cones = [SupportedConeT::ZeroConeT(n_eq), SupportedConeT::NonnegativeConeT(m - n_eq)];
-    let mut solver = DefaultSolver::new(&p, c.as_slice(), &a, &b, &cones, settings())
-        .map_err(|e| IkError::Solver(e.to_string()))?;
-    solver.solve();
-    match solver.solution.status {
-        SolverStatus::Solved | SolverStatus::AlmostSolved => {
-            Ok(DVector::from_column_slice(&solver.solution.x))
-        }
-        s => Err(IkError::Solver(format!("{s:?}"))),
+        let m = n_eq + shape.bound_rows.len();
+        let a = CscMatrix::new(m, nv, a_colptr, a_rows, self.a_values.clone());
+        let cones = [SupportedConeT::ZeroConeT(n_eq), SupportedConeT::NonnegativeConeT(m - n_eq)];
+        DefaultSolver::new(&p, self.c.as_slice(), &a, &self.b, &cones, settings())
+            .map_err(|e| IkError::Solver(e.to_string()))
     }
 }
 
@@ -147,29 +224,16 @@ fn check(want: usize, got: usize) -> Result<(), IkError> {
 
 fn settings() -> DefaultSettings<f64> {
     // Valid by construction (every field is within its range).
+    // No presolve and no dropped zeros: both would forbid the data updates of [`Solver`].
     DefaultSettingsBuilder::default()
         .verbose(false)
+        .presolve_enable(false)
+        .input_sparse_dropzeros(false)
         .tol_gap_abs(1e-7)
         .tol_gap_rel(1e-7)
         .tol_feas(1e-7)
         .build()
         .unwrap_or_default()
-}
-
-fn upper_triangle(h: &DMatrix<f64>) -> CscMatrix<f64> {
-    let n = h.nrows();
-    let (mut rows, mut cols, mut vals) = (Vec::new(), Vec::new(), Vec::new());
-    for j in 0..n {
-        for i in 0..=j {
-            let v = h[(i, j)];
-            if v != 0.0 {
-                rows.push(i);
-                cols.push(j);
-                vals.push(v);
-            }
-        }
-    }
-    CscMatrix::new_from_triplets(n, n, rows, cols, vals)
 }
 
 /// 6-vector from a pose error: position (target - current), then the rotation vector taking

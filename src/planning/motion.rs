@@ -194,6 +194,7 @@ pub fn track(
     let mut com_jac = kin.new_com_jacobian();
     let mut frame_jac = kin.new_frame_jacobian();
     let mut stats = Tracking::default();
+    let mut qp = ik::Solver::new(model.nv(), p.damping);
     let sample = |kin: &Kinematics, q: &[f64], t_s: f64, com_ref: Point3<f64>, segment: usize| Sample {
         t_s,
         q: q.to_vec(),
@@ -246,8 +247,11 @@ pub fn track(
                 })
                 .collect();
             let bounds = [ik::joint_limits(model, &q, p.max_joint_speed_rad_s, p.limit_gain_per_s)];
-            let qd = ik::solve(model.nv(), &tasks, &equalities, &bounds, p.damping)
-                .map_err(|error| PlanError::Ik { t_s: t, segment: si, error })?;
+            let qd = qp.solve(&tasks, &equalities, &bounds).map_err(|error| PlanError::Ik {
+                t_s: t,
+                segment: si,
+                error,
+            })?;
             ik::integrate(&mut q, qd.as_slice(), dt);
             kin.update(&q)?;
             stats.ik_time_s += started.elapsed().as_secs_f64();
