@@ -408,6 +408,36 @@ mod tests {
     }
 
     #[test]
+    fn a_kept_solver_gives_what_a_fresh_one_gives() {
+        let task = |v: [f64; 2], w: f64| Task {
+            jacobian: DMatrix::from_row_slice(2, 2, &[1.0, 0.5, 0.0, 2.0]),
+            velocity: DVector::from_vec(v.to_vec()),
+            weight: w,
+        };
+        let eq = |v: f64| Equality {
+            jacobian: DMatrix::from_row_slice(1, 2, &[1.0, -1.0]),
+            velocity: DVector::from_element(1, v),
+        };
+        let bounds = |hi: f64| Bounds {
+            lower: DVector::from_vec(vec![-1.0, -1.0]),
+            upper: DVector::from_vec(vec![hi, 1.0]),
+        };
+        let mut kept = Solver::new(2, 1e-9);
+        // The same shape with new data (updated in place), then a new shape (rebuilt).
+        let cases: [(Task, Vec<Equality>, f64); 3] = [
+            (task([3.0, 3.0], 1.0), vec![eq(1.0)], 0.25),
+            (task([-2.0, 0.5], 0.3), vec![eq(-0.2)], 0.8),
+            (task([1.0, -1.0], 2.0), vec![], 0.1),
+        ];
+        for (t, e, hi) in &cases {
+            let b = [bounds(*hi)];
+            let fresh = solve(2, std::slice::from_ref(t), e, &b, 1e-9).unwrap();
+            let got = kept.solve(std::slice::from_ref(t), e, &b).unwrap();
+            assert!((&fresh - &got).amax() < 1e-7, "kept {got} vs fresh {fresh}");
+        }
+    }
+
+    #[test]
     fn pose_error_is_the_rotation_vector() {
         let a = Isometry3::identity();
         let b = Isometry3::new(Vector3::new(0.1, 0.0, 0.0), Vector3::new(0.0, 0.0, 0.3));
