@@ -215,6 +215,10 @@ fn print_tables(p: &Plan, wall_s: f64) {
         t.max_touchdown_error_m * 1e3,
         t.max_contact_drift_m * 1e3
     );
+    match t.min_leg_clearance_m {
+        Some(d) => println!("legs: at least {:.1} mm from the steps", d * 1e3),
+        None => println!("legs: never near a step"),
+    }
     println!(
         "planning took {:.2} s: gait and polygons {:.1} ms, IK {} ticks at {:.3} ms each",
         wall_s,

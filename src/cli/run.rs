@@ -46,7 +46,7 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         scenario.name, scenario.staircase.steps
     );
     println!(
-        "{:>5}  {:<8} {:<5} {:>10} {:>14} {:<14} {:>12} {:>6} {:>10} {:>8} {:>7}",
+        "{:>5}  {:<8} {:<5} {:>10} {:>14} {:<14} {:>12} {:>8} {:>8} {:>6} {:>10} {:>8} {:>7}",
         "cycle",
         "to",
         "pass",
@@ -54,6 +54,8 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         "torque % lim",
         "joint",
         "touchdown mm",
+        "slip mm",
+        "friction",
         "seen",
         "perceive s",
         "plan s",
@@ -71,7 +73,7 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
 
 fn print_cycle(c: &CycleReport) {
     println!(
-        "{:>5}  {:<8} {:<5} {:>10.1} {:>14.0} {:<14} {:>12.2} {:>6} {:>10.3} {:>8.2} {:>7.1}",
+        "{:>5}  {:<8} {:<5} {:>10.1} {:>14.0} {:<14} {:>12.2} {:>8.2} {:>8.2} {:>6} {:>10.3} {:>8.2} {:>7.1}",
         c.cycle,
         c.to,
         if c.pass { "yes" } else { "NO" },
@@ -79,6 +81,8 @@ fn print_cycle(c: &CycleReport) {
         c.execution.max_torque_ratio * 100.0,
         c.execution.torque_joint,
         c.execution.max_touchdown_error_m() * 1e3,
+        c.execution.max_slip_m * 1e3,
+        c.execution.max_friction_ratio,
         c.steps_seen,
         c.perceive_s,
         c.plan_s,

@@ -1,15 +1,18 @@
 //! Velocity inverse kinematics as one quadratic programme per tick (§6.1), in the shape of
 //! Caron's pink library: a [`Task`] gives a Jacobian, a desired velocity and a weight; an
-//! [`Equality`] is a hard kinematic constraint (a contact held still); a [`Bounds`] is a box
-//! on the velocities (joint limits). [`solve`] stacks them into one QP for clarabel:
+//! [`Equality`] is a hard kinematic constraint (a contact held still); an [`Inequality`] a
+//! hard one-sided limit (a leg kept off a step); a [`Bounds`] is a box on the velocities
+//! (joint limits). [`solve`] stacks them into one QP for clarabel:
 //!
 //!   minimize   sum_k w_k ||J_k qd - v_k||^2 + damping ||qd||^2
-//!   subject to E qd = e,   lower <= qd <= upper.
+//!   subject to E qd = e,   G qd <= h,   lower <= qd <= upper.
 //!
 //! Constructors for the paper's terms ([`com_task`], [`frame_task`], [`posture_task`],
-//! [`contact`], [`joint_limits`]) turn the robot's state into these values, so a new term
-//! (a hand on a rail, say) is one more value in a list.
+//! [`contact`], [`joint_limits`]) and for the legs' clearance ([`clearance`]) turn the
+//! robot's state into these values, so a new term (a hand on a rail, say) is one more value
+//! in a list.
 
+use super::clearance::Nearest;
 use crate::robot::model::{RobotModel, Q_JOINTS, V_JOINTS};
 use crate::robot::Kinematics;
 use clarabel::algebra::CscMatrix;
@@ -36,6 +39,15 @@ pub struct Equality {
     pub jacobian: DMatrix<f64>,
     /// Right-hand side (rows).
     pub velocity: DVector<f64>,
+}
+
+/// A hard inequality: jacobian qd <= bound, row by row.
+#[derive(Debug, Clone)]
+pub struct Inequality {
+    /// rows x nv.
+    pub jacobian: DMatrix<f64>,
+    /// Right-hand side (rows).
+    pub bound: DVector<f64>,
 }
 
 /// A box on the generalized velocities, nv entries each; infinite for a free coordinate.
@@ -72,23 +84,27 @@ pub fn solve(
     nv: usize,
     tasks: &[Task],
     equalities: &[Equality],
+    inequalities: &[Inequality],
     bounds: &[Bounds],
     damping: f64,
 ) -> Result<DVector<f64>, IkError> {
-    Solver::new(nv, damping).solve(tasks, equalities, bounds)
+    Solver::new(nv, damping).solve(tasks, equalities, inequalities, bounds)
 }
 
-/// The rows of a QP whose structure repeats from tick to tick: the equality rows, and each
-/// finite bound as (coordinate, +1 for an upper bound or -1 for a lower one).
+/// The rows of a QP whose structure repeats from tick to tick: the equality rows, the
+/// inequality rows, and each finite bound as (coordinate, +1 for an upper bound or -1 for a
+/// lower one).
 #[derive(Debug, Clone, PartialEq)]
 struct Shape {
     equality_rows: usize,
+    inequality_rows: usize,
     bound_rows: Vec<(usize, f64)>,
 }
 
 /// [`solve`] for a stream of ticks: clarabel's solver (its KKT system and symbolic
 /// factorization) is built for the first QP of a shape, and later QPs of the same shape
-/// only update its data. The shape changes with the number of contacts.
+/// only update its data. The shape changes with the number of contacts (keep the number of
+/// inequality rows fixed, with rows of zeros when a limit is inactive, to keep it).
 pub struct Solver {
     nv: usize,
     damping: f64,
@@ -120,6 +136,7 @@ impl Solver {
         &mut self,
         tasks: &[Task],
         equalities: &[Equality],
+        inequalities: &[Inequality],
         bounds: &[Bounds],
     ) -> Result<DVector<f64>, IkError> {
         let nv = self.nv;
@@ -137,7 +154,13 @@ impl Solver {
             check(nv, e.jacobian.ncols())?;
             self.b.extend(e.velocity.iter());
         }
-        let mut shape = Shape { equality_rows: self.b.len(), bound_rows: Vec::new() };
+        let equality_rows = self.b.len();
+        for g in inequalities {
+            check(nv, g.jacobian.ncols())?;
+            self.b.extend(g.bound.iter());
+        }
+        let mut shape =
+            Shape { equality_rows, inequality_rows: self.b.len() - equality_rows, bound_rows: Vec::new() };
         for bd in bounds {
             check(nv, bd.lower.len())?;
             check(nv, bd.upper.len())?;
@@ -161,11 +184,15 @@ impl Solver {
         for j in 0..nv {
             self.p_values.extend((0..=j).map(|i| self.h[(i, j)]));
         }
-        // A's values column by column: the equality rows, then that column's bound rows.
+        // A's values column by column: the equality rows, the inequality rows, then that
+        // column's bound rows.
         self.a_values.clear();
         for col in 0..nv {
             for e in equalities {
                 self.a_values.extend(e.jacobian.column(col).iter());
+            }
+            for g in inequalities {
+                self.a_values.extend(g.jacobian.column(col).iter());
             }
             self.a_values.extend(shape.bound_rows.iter().filter(|(i, _)| *i == col).map(|(_, coef)| coef));
         }
@@ -195,18 +222,19 @@ impl Solver {
     /// A clarabel solver for `shape` holding the current values.
     fn build(&self, shape: &Shape) -> Result<DefaultSolver<f64>, IkError> {
         let (nv, n_eq) = (self.nv, shape.equality_rows);
+        let n_dense = n_eq + shape.inequality_rows;
         let p_colptr: Vec<usize> = (0..=nv).map(|j| j * (j + 1) / 2).collect();
         let p_rows: Vec<usize> = (0..nv).flat_map(|j| 0..=j).collect();
         let p = CscMatrix::new(nv, nv, p_colptr, p_rows, self.p_values.clone());
         let (mut a_colptr, mut a_rows) = (vec![0], Vec::new());
         for col in 0..nv {
-            a_rows.extend(0..n_eq);
+            a_rows.extend(0..n_dense);
             a_rows.extend(
-                shape.bound_rows.iter().enumerate().filter(|(_, (i, _))| *i == col).map(|(k, _)| n_eq + k),
+                shape.bound_rows.iter().enumerate().filter(|(_, (i, _))| *i == col).map(|(k, _)| n_dense + k),
             );
             a_colptr.push(a_rows.len());
         }
-        let m = n_eq + shape.bound_rows.len();
+        let m = n_dense + shape.bound_rows.len();
         let a = CscMatrix::new(m, nv, a_colptr, a_rows, self.a_values.clone());
         let cones = [SupportedConeT::ZeroConeT(n_eq), SupportedConeT::NonnegativeConeT(m - n_eq)];
         DefaultSolver::new(&p, self.c.as_slice(), &a, &self.b, &cones, settings())
@@ -336,6 +364,25 @@ pub fn base_orientation_task(
     }
 }
 
+/// A velocity damper keeping a leg off a step: the clearance `near.clearance_m` may shrink
+/// no faster than `gain` times its excess over `min_m` (so it never goes below `min_m`, and
+/// a clearance already below it must grow), i.e. -n' J_p qd <= gain (d - d_min), with J_p
+/// the Jacobian of the limb's nearest point and n the direction away from the step.
+pub fn clearance(
+    kin: &Kinematics,
+    jac: &mut Matrix6xX<f64>,
+    link: usize,
+    near: &Nearest,
+    min_m: f64,
+    gain: f64,
+) -> (DVector<f64>, f64) {
+    kin.point_jacobian_into(link, &near.point, jac);
+    let row = DVector::from_fn(jac.ncols(), |c, _| {
+        -(near.normal.x * jac[(0, c)] + near.normal.y * jac[(1, c)] + near.normal.z * jac[(2, c)])
+    });
+    (row, gain * (near.clearance_m - min_m))
+}
+
 /// §6.1's first-order velocity regulation: qd <= min(qd_max, K (q_max - q)) and
 /// qd >= max(-qd_max, K (q_min - q)) for every joint; the free-flyer is unbounded.
 pub fn joint_limits(model: &RobotModel, q: &[f64], max_speed_rad_s: f64, gain: f64) -> Bounds {
@@ -381,7 +428,7 @@ mod tests {
             Task { jacobian: j1, velocity: DVector::from_element(1, 4.0), weight: 1.0 },
             Task { jacobian: j2, velocity: DVector::from_element(1, -1.0), weight: 0.2 },
         ];
-        let x = solve(3, &t, &[], &[], 1e-9).unwrap();
+        let x = solve(3, &t, &[], &[], &[], 1e-9).unwrap();
         assert!((x[0] - 2.0).abs() < 1e-6 && (x[1] + 1.0).abs() < 1e-6 && x[2].abs() < 1e-6, "{x}");
     }
 
@@ -400,11 +447,28 @@ mod tests {
             lower: DVector::from_vec(vec![-10.0, -10.0]),
             upper: DVector::from_vec(vec![0.25, 10.0]),
         }];
-        let x = solve(2, &t, &e, &b, 0.0).unwrap();
+        let x = solve(2, &t, &e, &[], &b, 0.0).unwrap();
         assert!((x[0] - 0.25).abs() < 1e-6 && (x[1] - 0.75).abs() < 1e-6, "{x}");
         let bad =
             [Bounds { lower: DVector::from_vec(vec![1.0, 0.0]), upper: DVector::from_vec(vec![0.0, 1.0]) }];
-        assert_eq!(solve(2, &t, &[], &bad, 0.0), Err(IkError::CrossedBounds(0)));
+        assert_eq!(solve(2, &t, &[], &[], &bad, 0.0), Err(IkError::CrossedBounds(0)));
+    }
+
+    #[test]
+    fn inequalities_hold_and_bind_only_when_they_must() {
+        // Want x = (1, 2); x0 + x1 <= 1 binds, x0 - x1 <= 5 does not.
+        let t = [Task {
+            jacobian: DMatrix::identity(2, 2),
+            velocity: DVector::from_vec(vec![1.0, 2.0]),
+            weight: 1.0,
+        }];
+        let g = [Inequality {
+            jacobian: DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, -1.0]),
+            bound: DVector::from_vec(vec![1.0, 5.0]),
+        }];
+        let x = solve(2, &t, &[], &g, &[], 1e-12).unwrap();
+        // The projection of (1, 2) on x0 + x1 = 1 is (0, 1).
+        assert!((x[0]).abs() < 1e-6 && (x[1] - 1.0).abs() < 1e-6, "{x}");
     }
 
     #[test]
@@ -422,17 +486,23 @@ mod tests {
             lower: DVector::from_vec(vec![-1.0, -1.0]),
             upper: DVector::from_vec(vec![hi, 1.0]),
         };
+        let ineq = |h: f64| Inequality {
+            jacobian: DMatrix::from_row_slice(1, 2, &[0.0, 1.0]),
+            bound: DVector::from_element(1, h),
+        };
         let mut kept = Solver::new(2, 1e-9);
-        // The same shape with new data (updated in place), then a new shape (rebuilt).
-        let cases: [(Task, Vec<Equality>, f64); 3] = [
-            (task([3.0, 3.0], 1.0), vec![eq(1.0)], 0.25),
-            (task([-2.0, 0.5], 0.3), vec![eq(-0.2)], 0.8),
-            (task([1.0, -1.0], 2.0), vec![], 0.1),
+        // The same shape with new data (updated in place), then new shapes (rebuilt).
+        let cases: [(Task, Vec<Equality>, Vec<Inequality>, f64); 5] = [
+            (task([3.0, 3.0], 1.0), vec![eq(1.0)], vec![], 0.25),
+            (task([-2.0, 0.5], 0.3), vec![eq(-0.2)], vec![], 0.8),
+            (task([1.0, -1.0], 2.0), vec![], vec![], 0.1),
+            (task([1.0, 3.0], 2.0), vec![], vec![ineq(0.3)], 0.9),
+            (task([1.0, 2.0], 1.0), vec![], vec![ineq(-0.1)], 0.9),
         ];
-        for (t, e, hi) in &cases {
+        for (t, e, g, hi) in &cases {
             let b = [bounds(*hi)];
-            let fresh = solve(2, std::slice::from_ref(t), e, &b, 1e-9).unwrap();
-            let got = kept.solve(std::slice::from_ref(t), e, &b).unwrap();
+            let fresh = solve(2, std::slice::from_ref(t), e, g, &b, 1e-9).unwrap();
+            let got = kept.solve(std::slice::from_ref(t), e, g, &b).unwrap();
             assert!((&fresh - &got).amax() < 1e-7, "kept {got} vs fresh {fresh}");
         }
     }

@@ -2,6 +2,7 @@
 //! cones and static-stability polygons (double description, checked by Bretl and Lall's
 //! projection), and the QP IK that turns the gait into a whole-body trajectory.
 
+pub mod clearance;
 pub mod contact;
 pub mod dd;
 pub mod footholds;

@@ -2,12 +2,14 @@
 //! IK of [`super::ik`] at a fixed rate, giving q(t) sampled as a [`JointTrajectory`], with
 //! what it reached (CoM, feet) and how closely it tracked.
 
+use super::clearance::{self, Limb};
 use super::gait::{Segment, Swing};
 use super::ik::{self, Task};
 use super::PlanError;
 use crate::robot::hrp4;
 use crate::robot::model::{RobotModel, Q_JOINTS};
 use crate::robot::Kinematics;
+use crate::scene::SceneBox;
 use nalgebra::{Isometry3, Point3, Translation3, Vector6};
 use std::time::Instant;
 
@@ -40,6 +42,14 @@ pub struct IkParams {
     pub com_tolerance_m: f64,
     /// Largest free-foot error at touchdown accepted, metres.
     pub foot_tolerance_m: f64,
+    /// Least distance kept between a leg capsule (thigh, shank) and a step, metres (the
+    /// purpose §6.1 gives its posture term, held as a constraint; see `clearance`).
+    pub leg_clearance_m: f64,
+    /// Distance from a step below which a leg's clearance constraint is active, metres.
+    pub clearance_range_m: f64,
+    /// Gain of the clearance's velocity damper, 1/s: the clearance may shrink at most this
+    /// times its excess over `leg_clearance_m`.
+    pub clearance_gain_per_s: f64,
 }
 
 impl Default for IkParams {
@@ -57,6 +67,9 @@ impl Default for IkParams {
             damping: 1e-6,
             com_tolerance_m: 0.01,
             foot_tolerance_m: 0.005,
+            leg_clearance_m: 0.02,
+            clearance_range_m: 0.08,
+            clearance_gain_per_s: 5.0,
         }
     }
 }
@@ -127,6 +140,9 @@ pub struct Tracking {
     pub max_touchdown_error_m: f64,
     /// Largest displacement of a contact from where it was set, metres.
     pub max_contact_drift_m: f64,
+    /// Least distance between a leg capsule and a step over the trajectory, metres; `None`
+    /// when no step came within `clearance_range_m` of the legs.
+    pub min_leg_clearance_m: Option<f64>,
     /// QPs solved.
     pub ik_ticks: usize,
     /// Wall time in the IK (kinematics, QP build, solve), seconds.
@@ -176,11 +192,43 @@ pub fn upper_body_mask(model: &RobotModel, feet: &[usize]) -> Vec<bool> {
     mask
 }
 
-/// Tracks `segments` from configuration `q0`: one QP per sample at `p.rate_hz`.
+/// One clearance row per leg capsule (a fixed count keeps the QP's shape): the damper of
+/// its nearest step when one is within range, else a row of zeros. Also returns the least
+/// clearance and which capsule and step it is between.
+fn clearance_rows(
+    kin: &Kinematics,
+    jac: &mut nalgebra::Matrix6xX<f64>,
+    limbs: &[Limb],
+    blocks: &[SceneBox],
+    p: &IkParams,
+) -> (ik::Inequality, Option<(f64, usize, usize)>) {
+    let nv = jac.ncols();
+    let mut g = ik::Inequality {
+        jacobian: nalgebra::DMatrix::zeros(limbs.len(), nv),
+        bound: nalgebra::DVector::from_element(limbs.len(), 1.0),
+    };
+    let mut least: Option<(f64, usize, usize)> = None;
+    for (r, limb) in limbs.iter().enumerate() {
+        if let Some(near) = clearance::nearest(kin, limb, blocks, p.clearance_range_m) {
+            let (row, bound) =
+                ik::clearance(kin, jac, limb.link, &near, p.leg_clearance_m, p.clearance_gain_per_s);
+            g.jacobian.row_mut(r).copy_from(&row.transpose());
+            g.bound[r] = bound;
+            if least.is_none_or(|(d, _, _)| near.clearance_m < d) {
+                least = Some((near.clearance_m, r, near.block));
+            }
+        }
+    }
+    (g, least)
+}
+
+/// Tracks `segments` from configuration `q0`: one QP per sample at `p.rate_hz`, keeping the
+/// legs `p.leg_clearance_m` off the `blocks` (the steps, see [`clearance::step_blocks`]).
 pub fn track(
     model: &RobotModel,
     q0: &[f64],
     segments: &[Segment],
+    blocks: &[SceneBox],
     p: &IkParams,
 ) -> Result<(JointTrajectory, Tracking), PlanError> {
     let mut kin = Kinematics::new(model);
@@ -188,6 +236,7 @@ pub fn track(
     let feet = hrp4::sole_frames(model)?;
     let q_ref: Vec<f64> = q0[Q_JOINTS..].to_vec();
     let upper = upper_body_mask(model, &feet);
+    let limbs = clearance::limbs(model, &feet);
     let base_ref = kin.link_pose(0).rotation;
     let dt = 1.0 / p.rate_hz;
     let mut q = q0.to_vec();
@@ -204,6 +253,7 @@ pub fn track(
         segment,
     };
     let mut samples = vec![sample(&kin, &q, 0.0, kin.com(), 0)];
+    let (mut legs, _) = clearance_rows(&kin, &mut frame_jac, &limbs, blocks, p);
     let mut t0 = 0.0;
     let mut tick = 0usize;
     let mut worst_com_segment = 0;
@@ -247,16 +297,30 @@ pub fn track(
                 })
                 .collect();
             let bounds = [ik::joint_limits(model, &q, p.max_joint_speed_rad_s, p.limit_gain_per_s)];
-            let qd = qp.solve(&tasks, &equalities, &bounds).map_err(|error| PlanError::Ik {
-                t_s: t,
-                segment: si,
-                error,
-            })?;
+            let qd = qp
+                .solve(&tasks, &equalities, std::slice::from_ref(&legs), &bounds)
+                .map_err(|error| PlanError::Ik { t_s: t, segment: si, error })?;
             ik::integrate(&mut q, qd.as_slice(), dt);
             kin.update(&q)?;
             stats.ik_time_s += started.elapsed().as_secs_f64();
             stats.ik_ticks += 1;
             tick += 1;
+            let least;
+            (legs, least) = clearance_rows(&kin, &mut frame_jac, &limbs, blocks, p);
+            if let Some((d, limb, block)) = least {
+                stats.min_leg_clearance_m = Some(stats.min_leg_clearance_m.map_or(d, |m: f64| m.min(d)));
+                if d < 0.0 {
+                    return Err(PlanError::Tracking {
+                        segment: si,
+                        what: format!(
+                            "{} touches step {} ({:.1} mm deep) at t = {t:.2} s",
+                            limbs[limb].name,
+                            block + 1,
+                            -d * 1e3
+                        ),
+                    });
+                }
+            }
             let com_error = (kin.com() - com_ref).norm();
             if com_error > stats.max_com_error_m {
                 stats.max_com_error_m = com_error;

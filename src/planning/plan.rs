@@ -1,6 +1,7 @@
 //! The planner end to end: step rectangles and the robot's configuration in, footholds, the
 //! gait's segments with their polygons and margins, and the joint trajectory out (§6).
 
+use super::clearance::step_blocks;
 use super::footholds::{footholds, GaitParams, Stance};
 use super::gait::{segments, Body, Segment, StepParams};
 use super::motion::{track, IkParams, JointTrajectory, Tracking};
@@ -10,6 +11,10 @@ use crate::robot::hrp4;
 use crate::robot::model::RobotModel;
 use crate::robot::Kinematics;
 use std::time::Instant;
+
+/// How far below the feet the step solids of the clearance check reach, metres (the legs
+/// never go below the soles, so any depth that covers the risers will do).
+const BLOCK_DEPTH_M: f64 = 0.1;
 
 /// Every parameter of the planner.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -86,6 +91,9 @@ pub fn plan(
     let body = Body::measure(&kin, soles)?;
     let segs = segments(kin.com(), &start, &stances, &body, &p.step)?;
     let gait_time_s = started.elapsed().as_secs_f64();
-    let (trajectory, tracking) = track(model, q0, &segs, &p.ik)?;
+    // The steps as solids down to below the feet: what the legs must keep clear of.
+    let feet_z = start.right.translation.z.min(start.left.translation.z);
+    let blocks = step_blocks(rects, feet_z - BLOCK_DEPTH_M);
+    let (trajectory, tracking) = track(model, q0, &segs, &blocks, &p.ik)?;
     Ok(Plan { start, stances, segments: segs, trajectory, tracking, gait_time_s })
 }

@@ -18,9 +18,11 @@ pub const KV_OVER_KP: f64 = 0.01;
 pub const ARMATURE_KGM2: f64 = 0.02;
 /// Viscous friction of every joint, N m s/rad (estimate).
 pub const JOINT_DAMPING: f64 = 0.5;
-/// Sole friction coefficient against the world.
+/// Sole friction coefficient (against the world it is unused: the world's geoms have a
+/// higher priority, so a contact takes the surface's friction from the scenario).
 pub const SOLE_FRICTION: f64 = 1.0;
-/// Friction of the robot's other geoms (shins, arms) against the world.
+/// Friction of the robot's other geoms (shins, arms) among themselves (against the world,
+/// as for the soles, the surface's friction applies).
 pub const BODY_FRICTION: f64 = 0.5;
 
 fn fmt_pose(p: &Isometry3<f64>) -> String {

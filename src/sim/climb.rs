@@ -231,14 +231,25 @@ pub fn climb(
 
 /// The staircase as known after a scan: the new rectangles, plus the known ones no new
 /// rectangle matches (the paper re-estimates upper steps as the robot climbs; a step under
-/// the lidar's blind spot stays as last seen).
+/// the lidar's blind spot stays as last seen). Where a new rectangle matches a known one,
+/// the newer wins unless it is markedly smaller (by `PARTIAL_VIEW` of the area): close to a
+/// riser the head lidar sees only the far part of the next tread, and that partial view
+/// must not replace the whole one seen from farther back.
 fn merge(known: &[PlaneSegment], seen: Vec<PlaneSegment>, same_m: f64) -> Vec<PlaneSegment> {
+    const PARTIAL_VIEW: f64 = 0.8;
     let matches = |a: &PlaneSegment, b: &PlaneSegment| {
         (a.center() - b.center()).norm() < same_m && (a.height_m() - b.height_m()).abs() < same_m / 3.0
     };
     let kept: Vec<PlaneSegment> =
         known.iter().filter(|k| !seen.iter().any(|s| matches(k, s))).cloned().collect();
-    seen.into_iter().chain(kept).collect()
+    let updated: Vec<PlaneSegment> = seen
+        .into_iter()
+        .map(|s| match known.iter().find(|k| matches(k, &s)) {
+            Some(k) if s.area_m2() < PARTIAL_VIEW * k.area_m2() => k.clone(),
+            _ => s,
+        })
+        .collect();
+    updated.into_iter().chain(kept).collect()
 }
 
 /// The true step (1-based) at height `z`: the ground-truth step nearest it.
@@ -262,4 +273,32 @@ pub fn climbed(scene: &Scene, model: &RobotModel, q: &[f64]) -> usize {
         })
     };
     (0..scene.steps().len()).rev().find(|&i| on(i)).map_or(0, |i| i + 1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Point3, Vector3};
+
+    fn step(x: f64, z: f64, depth_m: f64) -> PlaneSegment {
+        PlaneSegment::new(Point3::new(x, 0.0, z), Vector3::x(), depth_m, 0.5, Vector3::z(), 10)
+            .expect("valid rectangle")
+    }
+
+    #[test]
+    fn a_partial_view_does_not_replace_a_whole_step_but_a_new_whole_one_does() {
+        let known = vec![step(0.735, 0.2, 0.27), step(1.005, 0.4, 0.27)];
+        // From close to the riser: step 2's far half only, step 1 unseen, step 3 new.
+        let seen = vec![step(1.08, 0.4, 0.12), step(1.275, 0.6, 0.27)];
+        let merged = merge(&known, seen, 0.15);
+        assert_eq!(merged.len(), 3);
+        let depth_at = |z: f64| merged.iter().find(|r| (r.height_m() - z).abs() < 1e-9).map(|r| r.depth_m());
+        assert_eq!(depth_at(0.2), Some(0.27), "step 1, unseen, is kept");
+        assert!((depth_at(0.4).unwrap() - 0.27).abs() < 1e-9, "the whole step 2 is kept");
+        assert!((depth_at(0.6).unwrap() - 0.27).abs() < 1e-9, "step 3 is added");
+        // A whole re-estimate (slightly moved) replaces the known one.
+        let merged = merge(&known, vec![step(1.01, 0.41, 0.26)], 0.15);
+        assert!(merged.iter().any(|r| (r.height_m() - 0.41).abs() < 1e-9));
+        assert!(!merged.iter().any(|r| (r.height_m() - 0.4).abs() < 1e-9));
+    }
 }

@@ -44,6 +44,13 @@ pub struct CheckParams {
     pub strike_height_m: f64,
     /// Normal force above which a foot counts as in contact, newtons.
     pub contact_force_n: f64,
+    /// Normal force from which a foot's resultant must lie in the friction pyramid, newtons.
+    /// A foot carrying less is being set down or lifted by position servos: its tangential
+    /// force is the closed chain's internal force, not the plan's, and what that does (the
+    /// sole sliding) is checked by `slip_tolerance_m` instead.
+    pub friction_load_n: f64,
+    /// How far a sole in contact may slide from where it came down, metres.
+    pub slip_tolerance_m: f64,
     /// A fall: the base this far below its start height, metres.
     pub fall_drop_m: f64,
     /// A fall: the base tilted more than this, radians.
@@ -62,6 +69,8 @@ impl Default for CheckParams {
             overhang_tolerance_m: 0.02,
             strike_height_m: 0.01,
             contact_force_n: 5.0,
+            friction_load_n: 40.0,
+            slip_tolerance_m: 0.005,
             fall_drop_m: 0.25,
             fall_tilt_rad: 30f64.to_radians(),
         }
@@ -124,6 +133,11 @@ pub struct Execution {
     pub speed_joint: String,
     /// Every touchdown.
     pub touchdowns: Vec<Touchdown>,
+    /// Largest horizontal slide of a sole in contact from where it came down, metres.
+    pub max_slip_m: f64,
+    /// Largest friction a loaded foot used: tangential over normal force, per sole axis
+    /// (the pyramid's measure; the check's limit is `CheckParams::friction`).
+    pub max_friction_ratio: f64,
     /// Violations (the first of each kind per second of simulation, to keep reports short).
     pub violations: Vec<Violation>,
     /// The robot fell (the execution stopped).
@@ -243,6 +257,8 @@ struct Monitor<'a> {
     scene: &'a Scene,
     cache: PolygonCache,
     last_report: Vec<(&'static str, f64)>,
+    /// Where each sole in contact came down (world), `None` while it is in the air.
+    landed: [Option<Vector3<f64>>; 2],
     ex: Execution,
 }
 
@@ -306,15 +322,32 @@ impl Monitor<'_> {
         loads
     }
 
-    /// Which feet carry load; each one's resultant inside its sole's friction pyramid (§6.2)
-    /// and its centre of pressure inside the sole.
+    /// Which feet carry load; each one's resultant inside its sole's friction pyramid (§6.2),
+    /// its centre of pressure inside the sole, and the sole not sliding.
     fn feet(&mut self, now: f64, loads: &FootLoads, soles: &[Isometry3<f64>; 2]) -> [bool; 2] {
         let down = loads.normal_n.map(|n| n > self.p.contact_force_n);
-        for (k, foot) in Foot::BOTH.into_iter().enumerate().filter(|(k, _)| down[*k]) {
+        for (k, foot) in Foot::BOTH.into_iter().enumerate() {
+            if !down[k] {
+                self.landed[k] = None;
+                continue;
+            }
+            let at = soles[k].translation.vector;
+            let from = *self.landed[k].get_or_insert(at);
+            let slip = (at - from).xy().norm();
+            self.ex.max_slip_m = self.ex.max_slip_m.max(slip);
+            if slip > self.p.slip_tolerance_m {
+                self.report(now, "slip", format!("{foot:?} foot slid {:.1} mm while in contact", slip * 1e3));
+                self.landed[k] = Some(at);
+            }
             let local = soles[k].rotation.inverse() * loads.force[k];
             let normal = local.z.abs();
             let mu = self.p.friction;
-            if local.x.abs() > mu * normal || local.y.abs() > mu * normal {
+            let loaded = normal >= self.p.friction_load_n;
+            if loaded {
+                let ratio = local.x.abs().max(local.y.abs()) / normal;
+                self.ex.max_friction_ratio = self.ex.max_friction_ratio.max(ratio);
+            }
+            if loaded && (local.x.abs() > mu * normal || local.y.abs() > mu * normal) {
                 let detail = format!(
                     "{foot:?} foot: tangential ({:.1}, {:.1}) N beyond {mu} x normal {normal:.1} N",
                     local.x, local.y
@@ -405,15 +438,22 @@ impl Monitor<'_> {
         }
     }
 
-    /// Whether the robot fell: the base too far below both its start and its plan, or tilted.
-    fn fell(&mut self, world: &World, now: f64, base_z_limit: f64) -> bool {
+    /// Whether the robot fell: the base too far below both its start and its plan, or tilted
+    /// away from the plan's base orientation (the plan leans the pelvis to keep the knees
+    /// off the steps; a lean it asked for is not a fall).
+    fn fell(&mut self, world: &World, now: f64, base_z_limit: f64, planned_q: &[f64]) -> bool {
+        let quat = |q: &[f64]| UnitQuaternion::from_quaternion(Quaternion::new(q[3], q[4], q[5], q[6]));
         let qpos = world.data().qpos();
-        let base = UnitQuaternion::from_quaternion(Quaternion::new(qpos[3], qpos[4], qpos[5], qpos[6]));
-        let tilt = (base * Vector3::z()).angle(&Vector3::z());
+        let up = quat(qpos) * Vector3::z();
+        let tilt = up.angle(&(quat(planned_q) * Vector3::z()));
         let fell = qpos[2] < base_z_limit || tilt > self.p.fall_tilt_rad;
         if fell {
-            let detail =
-                format!("the robot fell: base at {:.2} m, tilted {:.0} deg", qpos[2], tilt.to_degrees());
+            let detail = format!(
+                "the robot fell: base at {:.2} m, tilted {:.0} deg from the plan's ({:.0} deg from upright)",
+                qpos[2],
+                tilt.to_degrees(),
+                up.angle(&Vector3::z()).to_degrees()
+            );
             self.report(now, "fall", detail);
             self.ex.fell = true;
         }
@@ -442,7 +482,10 @@ pub fn execute(
         scene,
         cache: PolygonCache::default(),
         last_report: Vec::new(),
+        landed: [None, None],
         ex: Execution {
+            max_slip_m: 0.0,
+            max_friction_ratio: 0.0,
             sim_s: 0.0,
             min_margin_m: f64::INFINITY,
             max_torque_ratio: 0.0,
@@ -489,7 +532,7 @@ pub fn execute(
         let down = mon.feet(now, &loads, &soles);
         mon.margin(world, now, down, &soles);
         mon.joints(world, model, &servos, now);
-        if mon.fell(world, now, planned.q[2].min(base_z0) - p.fall_drop_m) {
+        if mon.fell(world, now, planned.q[2].min(base_z0) - p.fall_drop_m, &planned.q) {
             break;
         }
     }

@@ -57,19 +57,19 @@ fn qp_reuse(repeat: usize) -> Result<(f64, f64, f64)> {
         .map(|&f| ik::contact(&kin, &mut fj, f, &kin.frame_pose(f), p.contact_gain_per_s))
         .collect();
     let bounds = [ik::joint_limits(&model, &q, p.max_joint_speed_rad_s, p.limit_gain_per_s)];
-    let fresh = ik::solve(model.nv(), &tasks, &eqs, &bounds, p.damping)?;
+    let fresh = ik::solve(model.nv(), &tasks, &eqs, &[], &bounds, p.damping)?;
     let mut solver = Solver::new(model.nv(), p.damping);
-    let reused = solver.solve(&tasks, &eqs, &bounds)?;
-    let again = solver.solve(&tasks, &eqs, &bounds)?;
+    let reused = solver.solve(&tasks, &eqs, &[], &bounds)?;
+    let again = solver.solve(&tasks, &eqs, &[], &bounds)?;
     let diff = (&fresh - &reused).amax().max((&fresh - &again).amax());
     let fresh_s = median_s(repeat, || {
         for _ in 0..QPS {
-            let _ = std::hint::black_box(ik::solve(model.nv(), &tasks, &eqs, &bounds, p.damping));
+            let _ = std::hint::black_box(ik::solve(model.nv(), &tasks, &eqs, &[], &bounds, p.damping));
         }
     }) / QPS as f64;
     let reused_s = median_s(repeat, || {
         for _ in 0..QPS {
-            let _ = std::hint::black_box(solver.solve(&tasks, &eqs, &bounds));
+            let _ = std::hint::black_box(solver.solve(&tasks, &eqs, &[], &bounds));
         }
     }) / QPS as f64;
     Ok((fresh_s, reused_s, diff))
