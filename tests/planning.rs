@@ -1,7 +1,7 @@
 //! The planner end to end (issue 5, §6): footholds, the five segments per step, the CoM
 //! checked against each segment's stability polygon (recomputed here by Bretl and Lall's
 //! projection, the independent method), the IK trajectory tracking its feet and holding its
-//! contacts, the swing clearing the steps, and the refusals.
+//! contacts, the swing clearing the steps, the legs kept off the true steps, and the refusals.
 
 mod common;
 
@@ -10,7 +10,7 @@ use stairbench::geom2d::P2;
 use stairbench::perception::PlaneSegment;
 use stairbench::planning::gait::Phase;
 use stairbench::planning::polygon::{by_bretl, margin};
-use stairbench::planning::{plan, rectangles, Contact, Plan, PlanError, PlanParams};
+use stairbench::planning::{clearance, plan, rectangles, Contact, Plan, PlanError, PlanParams};
 use stairbench::robot::model::Q_JOINTS;
 use stairbench::robot::{hrp4, Kinematics, RobotModel};
 use stairbench::scenario::Scenario;
@@ -64,6 +64,9 @@ fn check(plan: &Plan, scene: Option<&Scene>) {
         .flat_map(|&sx| [-1.0, 1.0].map(move |sy| (sx, sy)))
         .flat_map(|(sx, sy)| [0.0, 0.02].map(move |z| Point3::new(0.12 * sx, 0.065 * sy, z)))
         .collect();
+    let limbs = clearance::limbs(&model, &hrp4::sole_frames(&model).unwrap());
+    assert_eq!(limbs.len(), 4, "thigh and shank of each leg");
+    let mut least_leg = f64::INFINITY;
     for (i, smp) in plan.trajectory.samples.iter().enumerate().skip(1) {
         let seg = &plan.segments[smp.segment];
         kin.update(&smp.q).unwrap();
@@ -84,6 +87,24 @@ fn check(plan: &Plan, scene: Option<&Scene>) {
                 "sample {i}: {} at {v} outside its limits",
                 jt.name
             );
+        }
+        if let Some(scene) = scene {
+            // The legs' capsules against the true steps (the scene's boxes, not the
+            // rectangles the planner kept them from), at 21 points along each axis.
+            for limb in &limbs {
+                let (a, b) = limb.axis_world(&kin);
+                for k in 0..=20 {
+                    let d = scene.signed_distance(&a.lerp(&b, k as f64 / 20.0)) - limb.radius_m;
+                    assert!(
+                        d > p.ik.leg_clearance_m - 5e-3,
+                        "sample {i} (t = {:.3} s): {} is {:.1} mm from a step",
+                        smp.t_s,
+                        limb.name,
+                        d * 1e3
+                    );
+                    least_leg = least_leg.min(d);
+                }
+            }
         }
         if let (Some(sw), Some(scene)) = (&seg.swing, scene) {
             let sole = &smp.feet[sw.foot.index()];
@@ -106,11 +127,12 @@ fn check(plan: &Plan, scene: Option<&Scene>) {
         [Phase::ShiftToLeft, Phase::SwingRight, Phase::ShiftToRight, Phase::LiftSwingLeft, Phase::Centre];
     assert!(plan.segments.iter().enumerate().all(|(i, s)| s.phase == order[i % 5]));
     println!(
-        "waypoint margin >= {:.1} mm, CoM margin at every sample >= {:.1} mm, contacts still within {:.3} mm, touchdown within {:.3} mm, {} samples, motion {:.1} s",
+        "waypoint margin >= {:.1} mm, CoM margin at every sample >= {:.1} mm, contacts still within {:.3} mm, touchdown within {:.3} mm, legs >= {:.1} mm from the true steps, {} samples, motion {:.1} s",
         worst.0 * 1e3,
         worst.1 * 1e3,
         worst.2 * 1e3,
         worst.3 * 1e3,
+        least_leg * 1e3,
         plan.trajectory.samples.len(),
         plan.duration_s()
     );

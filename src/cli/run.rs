@@ -3,7 +3,9 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
+use stairbench::scenario::Scenario;
 use stairbench::sim::climb::{climb, ClimbParams, ClimbReport, CycleReport};
+use stairbench::sim::speed_margin::speed_margin;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -17,9 +19,18 @@ pub struct RunArgs {
     #[arg(long)]
     params: Option<PathBuf>,
     /// Speed the planned motion up by this factor (CoM and foot speeds, shortest
-    /// segment and swing piece), to find how far from quasi-static the plan runs.
+    /// segment and swing piece, the IK's joint speed bound), to see how far from
+    /// quasi-static the plan runs.
     #[arg(long, default_value_t = 1.0)]
     speedup: f64,
+    /// Instead of one climb, find the speed margin: the largest speed-up of the planned
+    /// timing at which the climb still passes every check (factors doubled up to
+    /// --max-speedup, then bisected to 10 %; each try is a whole climb).
+    #[arg(long)]
+    speed_margin: bool,
+    /// Largest factor --speed-margin tries.
+    #[arg(long, default_value_t = 8.0)]
+    max_speedup: f64,
     /// Also write the report as JSON to this file.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -40,7 +51,10 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         "--speedup must be a positive number, got {}",
         a.speedup
     );
-    params.plan.step = params.plan.step.faster(a.speedup);
+    params.plan = params.plan.faster(a.speedup);
+    if a.speed_margin {
+        return run_speed_margin(&scenario, &params, &a);
+    }
     println!(
         "climbing {} ({} steps): scan, perceive, plan, execute, scan again",
         scenario.name, scenario.staircase.steps
@@ -69,6 +83,33 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         println!("report written to {}", path.display());
     }
     Ok(if report.success { ExitCode::SUCCESS } else { ExitCode::from(1) })
+}
+
+/// `--speed-margin`: the search, a line per climb, the result.
+fn run_speed_margin(scenario: &Scenario, params: &ClimbParams, a: &RunArgs) -> Result<ExitCode> {
+    anyhow::ensure!(a.max_speedup >= 1.0, "--max-speedup must be at least 1, got {}", a.max_speedup);
+    println!("speed margin of {}: whole climbs with the planned timing sped up", scenario.name);
+    let m = speed_margin(scenario, params, a.max_speedup, 0.1, &mut |t| {
+        println!(
+            "  x {:.2}: {} ({:.1} s simulated in {:.1} s){}",
+            t.factor,
+            if t.success { "passes" } else { "FAILS" },
+            t.sim_s,
+            t.wall_s,
+            t.why.as_ref().map(|w| format!("\n      {w}")).unwrap_or_default()
+        );
+    })?;
+    match (m.passes_at, m.fails_at) {
+        (Some(p), Some(f)) => println!("speed margin: passes at x {p:.2}, fails at x {f:.2}"),
+        (Some(p), None) => println!("speed margin: passes at every factor tried, up to x {p:.2}"),
+        _ => println!("speed margin: none, the planned timing itself fails"),
+    }
+    if let Some(path) = &a.json {
+        std::fs::write(path, serde_json::to_string_pretty(&m)?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        println!("report written to {}", path.display());
+    }
+    Ok(if m.passes_at.is_some() { ExitCode::SUCCESS } else { ExitCode::from(1) })
 }
 
 fn print_cycle(c: &CycleReport) {

@@ -26,6 +26,14 @@ pub struct Limb {
     pub radius_m: f64,
 }
 
+impl Limb {
+    /// The ends of the capsule's axis, world frame, at the configuration `kin` holds.
+    pub fn axis_world(&self, kin: &Kinematics) -> (Point3<f64>, Point3<f64>) {
+        let pose = kin.link_pose(self.link);
+        (pose * self.a, pose * self.b)
+    }
+}
+
 /// The capsules (cylinder collisions, capsules in the simulator) of the links on the chains
 /// from the root to `feet` (frames), root excluded.
 pub fn limbs(model: &RobotModel, feet: &[usize]) -> Vec<Limb> {
@@ -95,8 +103,7 @@ pub struct Nearest {
 /// The block nearest to `limb` at the configuration `kin` holds; `None` when no block is
 /// within `range_m` of the capsule (or there are no blocks).
 pub fn nearest(kin: &Kinematics, limb: &Limb, blocks: &[SceneBox], range_m: f64) -> Option<Nearest> {
-    let pose = kin.link_pose(limb.link);
-    let (a, b) = (pose * limb.a, pose * limb.b);
+    let (a, b) = limb.axis_world(kin);
     let half_length = (b - a).norm() / 2.0;
     let middle = Point3::from((a.coords + b.coords) / 2.0);
     let mut best: Option<Nearest> = None;

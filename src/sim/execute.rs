@@ -96,10 +96,10 @@ impl Default for ServoParams {
 /// One violated check, with the instant.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Violation {
-    /// Simulation time, seconds.
+    /// Time from the start of the execution (the plan's clock), seconds.
     pub t_s: f64,
     /// Which check (`margin`, `friction`, `cop`, `torque`, `speed`, `touchdown`,
-    /// `off_step`, `strike`, `collision`, `fall`).
+    /// `slip`, `off_step`, `strike`, `collision`, `fall`).
     pub check: &'static str,
     /// What exactly.
     pub detail: String,

@@ -2,6 +2,7 @@
 
 pub mod climb;
 pub mod execute;
+pub mod speed_margin;
 pub mod world;
 
 pub use world::{RayHit, SimError, World};
