@@ -84,10 +84,14 @@ pub struct CycleReport {
     pub pass: bool,
     /// Steps perception found ahead.
     pub steps_seen: usize,
+    /// Wall time of the simulated lidar sweep (ray casting), seconds.
+    pub scan_s: f64,
     /// Perception wall time, seconds.
     pub perceive_s: f64,
     /// Planning wall time, seconds.
     pub plan_s: f64,
+    /// Wall time of the execution in MuJoCo with its checks, seconds.
+    pub execute_s: f64,
     /// What the execution found (flattened into the JSON: `min_margin_m`,
     /// `max_torque_ratio`, `torque_joint`, `touchdowns`, `violations`, `sim_s`, ...).
     #[serde(flatten)]
@@ -129,17 +133,21 @@ fn measured_q(world: &World, model: &RobotModel) -> Vec<f64> {
 }
 
 /// Scans from the robot's current pose and perceives.
-fn look(
-    world: &World,
-    scenario: &Scenario,
-    cycle: usize,
-    p: &PerceptionParams,
-) -> Result<(Result<Vec<PlaneSegment>, PerceptionError>, f64), ClimbError> {
+fn look(world: &World, scenario: &Scenario, cycle: usize, p: &PerceptionParams) -> Result<Look, ClimbError> {
+    let t = Instant::now();
     let lidar = SimLidar::new(world, &scenario.lidar, scenario.seed.wrapping_add(cycle as u64))?;
     let cloud = lidar.sweep_with_progress(&mut |_, _| {}).assemble(&AssembleParams::default())?;
+    let scan_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let r = perceive(&cloud, p).map(|r| r.segments);
-    Ok((r, t.elapsed().as_secs_f64()))
+    let seen = perceive(&cloud, p).map(|r| r.segments);
+    Ok(Look { seen, scan_s, perceive_s: t.elapsed().as_secs_f64() })
+}
+
+/// What one look found, and its wall times.
+struct Look {
+    seen: Result<Vec<PlaneSegment>, PerceptionError>,
+    scan_s: f64,
+    perceive_s: f64,
 }
 
 /// Runs the closed loop on `scenario`; `on_cycle` sees each cycle as it ends.
@@ -167,7 +175,7 @@ pub fn climb(
     for cycle in 1..=p.run.max_cycles {
         settle(&mut world, p.run.settle_s);
         let q = measured_q(&world, &model);
-        let (seen, perceive_s) = look(&world, scenario, cycle, &p.perception)?;
+        let Look { seen, scan_s, perceive_s } = look(&world, scenario, cycle, &p.perception)?;
         let feet_z = stance_at(&model, &q)
             .map(|s| s.right.translation.z.max(s.left.translation.z))
             .unwrap_or(f64::NEG_INFINITY);
@@ -197,7 +205,9 @@ pub fn climb(
             }
         };
         let plan_s = t.elapsed().as_secs_f64();
+        let t = Instant::now();
         let execution = execute(&mut world, &model, &scene, &planned, &p.servo, &p.checks)?;
+        let execute_s = t.elapsed().as_secs_f64();
         let to = match planned.stances.last() {
             Some(s) if s.step.is_some() => format!("step {}", true_step(&scene, s.right.translation.z)),
             _ => "floor".to_string(),
@@ -207,8 +217,10 @@ pub fn climb(
             to,
             pass: execution.pass(),
             steps_seen: ahead.len(),
+            scan_s,
             perceive_s,
             plan_s,
+            execute_s,
             execution,
         };
         on_cycle(&c);
