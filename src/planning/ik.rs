@@ -108,6 +108,7 @@ struct Shape {
 pub struct Solver {
     nv: usize,
     damping: f64,
+    tolerance: f64,
     qp: Option<(Shape, DefaultSolver<f64>)>,
     h: DMatrix<f64>,
     c: DVector<f64>,
@@ -119,9 +120,17 @@ pub struct Solver {
 impl Solver {
     /// A solver for `nv` velocities with `damping` on each.
     pub fn new(nv: usize, damping: f64) -> Self {
+        Self::with_tolerance(nv, damping, 1e-7)
+    }
+
+    /// A solver stopping at `tolerance` on the duality gap and the feasibility (clarabel's
+    /// absolute and relative tolerances): the IK runs at 1e-4 rad/s, where its task gains
+    /// absorb the difference and each QP takes fewer iterations.
+    pub fn with_tolerance(nv: usize, damping: f64, tolerance: f64) -> Self {
         Self {
             nv,
             damping,
+            tolerance,
             qp: None,
             h: DMatrix::zeros(nv, nv),
             c: DVector::zeros(nv),
@@ -237,7 +246,7 @@ impl Solver {
         let m = n_dense + shape.bound_rows.len();
         let a = CscMatrix::new(m, nv, a_colptr, a_rows, self.a_values.clone());
         let cones = [SupportedConeT::ZeroConeT(n_eq), SupportedConeT::NonnegativeConeT(m - n_eq)];
-        DefaultSolver::new(&p, self.c.as_slice(), &a, &self.b, &cones, settings())
+        DefaultSolver::new(&p, self.c.as_slice(), &a, &self.b, &cones, settings(self.tolerance))
             .map_err(|e| IkError::Solver(e.to_string()))
     }
 }
@@ -250,16 +259,16 @@ fn check(want: usize, got: usize) -> Result<(), IkError> {
     }
 }
 
-fn settings() -> DefaultSettings<f64> {
+fn settings(tolerance: f64) -> DefaultSettings<f64> {
     // Valid by construction (every field is within its range).
     // No presolve and no dropped zeros: both would forbid the data updates of [`Solver`].
     DefaultSettingsBuilder::default()
         .verbose(false)
         .presolve_enable(false)
         .input_sparse_dropzeros(false)
-        .tol_gap_abs(1e-7)
-        .tol_gap_rel(1e-7)
-        .tol_feas(1e-7)
+        .tol_gap_abs(tolerance)
+        .tol_gap_rel(tolerance)
+        .tol_feas(tolerance)
         .build()
         .unwrap_or_default()
 }

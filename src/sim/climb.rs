@@ -243,12 +243,11 @@ pub fn climb(
 
 /// The staircase as known after a scan: the new rectangles, plus the known ones no new
 /// rectangle matches (the paper re-estimates upper steps as the robot climbs; a step under
-/// the lidar's blind spot stays as last seen). Where a new rectangle matches a known one,
-/// the newer wins unless it is markedly smaller (by `PARTIAL_VIEW` of the area): close to a
-/// riser the head lidar sees only the far part of the next tread, and that partial view
-/// must not replace the whole one seen from farther back.
+/// the lidar's blind spot stays as last seen). Where a new rectangle matches a known one, the
+/// new one is taken with its front edge (the nose) moved forward to the known one's if that
+/// was nearer ([`extend_front`]): close to a riser the head lidar no longer sees the near part
+/// of the next tread, and that partial view must not move the nose back.
 fn merge(known: &[PlaneSegment], seen: Vec<PlaneSegment>, same_m: f64) -> Vec<PlaneSegment> {
-    const PARTIAL_VIEW: f64 = 0.8;
     let matches = |a: &PlaneSegment, b: &PlaneSegment| {
         (a.center() - b.center()).norm() < same_m && (a.height_m() - b.height_m()).abs() < same_m / 3.0
     };
@@ -257,11 +256,35 @@ fn merge(known: &[PlaneSegment], seen: Vec<PlaneSegment>, same_m: f64) -> Vec<Pl
     let updated: Vec<PlaneSegment> = seen
         .into_iter()
         .map(|s| match known.iter().find(|k| matches(k, &s)) {
-            Some(k) if s.area_m2() < PARTIAL_VIEW * k.area_m2() => k.clone(),
-            _ => s,
+            Some(k) => extend_front(&s, k),
+            None => s,
         })
         .collect();
     updated.into_iter().chain(kept).collect()
+}
+
+/// `a` with its front edge (toward the robot, along `a`'s direction of ascent) moved to
+/// `b`'s front edge when `b`'s is nearer; its back edge, sides, height and plane stay `a`'s.
+fn extend_front(a: &PlaneSegment, b: &PlaneSegment) -> PlaneSegment {
+    let along = a.along();
+    let c = a.center();
+    let front =
+        |r: &PlaneSegment| r.corners().iter().map(|p| (p - c).dot(&along)).fold(f64::INFINITY, f64::min);
+    let (front_a, front_b) = (front(a), front(b));
+    if front_b >= front_a {
+        return a.clone();
+    }
+    let back = a.depth_m() / 2.0;
+    let centre = c + along * ((front_b + back) / 2.0);
+    PlaneSegment::new(
+        centre,
+        along,
+        back - front_b,
+        a.width_m(),
+        a.normal().into_inner(),
+        a.voxel_count().max(b.voxel_count()),
+    )
+    .unwrap_or_else(|| a.clone())
 }
 
 /// The true step (1-based) at height `z`: the ground-truth step nearest it.
@@ -298,19 +321,22 @@ mod tests {
     }
 
     #[test]
-    fn a_partial_view_does_not_replace_a_whole_step_but_a_new_whole_one_does() {
+    fn a_partial_view_does_not_shrink_a_step_and_a_new_one_is_added() {
         let known = vec![step(0.735, 0.2, 0.27), step(1.005, 0.4, 0.27)];
         // From close to the riser: step 2's far half only, step 1 unseen, step 3 new.
         let seen = vec![step(1.08, 0.4, 0.12), step(1.275, 0.6, 0.27)];
         let merged = merge(&known, seen, 0.15);
         assert_eq!(merged.len(), 3);
-        let depth_at = |z: f64| merged.iter().find(|r| (r.height_m() - z).abs() < 1e-9).map(|r| r.depth_m());
-        assert_eq!(depth_at(0.2), Some(0.27), "step 1, unseen, is kept");
-        assert!((depth_at(0.4).unwrap() - 0.27).abs() < 1e-9, "the whole step 2 is kept");
-        assert!((depth_at(0.6).unwrap() - 0.27).abs() < 1e-9, "step 3 is added");
-        // A whole re-estimate (slightly moved) replaces the known one.
+        let at = |z: f64| merged.iter().find(|r| (r.height_m() - z).abs() < 1e-9).expect("step at z");
+        assert_eq!(at(0.2).depth_m(), 0.27, "step 1, unseen, is kept");
+        assert!((at(0.4).depth_m() - 0.27).abs() < 1e-9, "step 2 keeps its whole tread");
+        assert!((at(0.4).center().x - 1.005).abs() < 1e-9);
+        assert!((at(0.6).depth_m() - 0.27).abs() < 1e-9, "step 3 is added");
+        // A re-estimate takes the new height, its own back edge, and the nearer nose.
         let merged = merge(&known, vec![step(1.01, 0.41, 0.26)], 0.15);
-        assert!(merged.iter().any(|r| (r.height_m() - 0.41).abs() < 1e-9));
+        let s2 = merged.iter().find(|r| (r.height_m() - 0.41).abs() < 1e-9).expect("re-estimated");
         assert!(!merged.iter().any(|r| (r.height_m() - 0.4).abs() < 1e-9));
+        let (front, back) = (s2.center().x - s2.depth_m() / 2.0, s2.center().x + s2.depth_m() / 2.0);
+        assert!((front - 0.87).abs() < 1e-9 && (back - 1.14).abs() < 1e-9, "{front} {back}");
     }
 }

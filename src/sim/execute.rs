@@ -311,10 +311,19 @@ impl Monitor<'_> {
                 if above(&sw.path[sw.path.len() - 1]) > self.p.strike_height_m
                     && above(&sw.path[0]) > self.p.strike_height_m
                 {
+                    let at = planned.inverse_transform_point(&Point3::from(c.pos));
                     self.report(
                         now,
                         "strike",
-                        format!("the swinging {:?} foot hits {}", sw.foot, world.geom_name(other)),
+                        format!(
+                            "the swinging {:?} foot hits {} at ({:.3}, {:.3}, {:.3}) m in its planned sole frame, {:.1} mm above its target",
+                            sw.foot,
+                            world.geom_name(other),
+                            at.x,
+                            at.y,
+                            at.z,
+                            above(&sw.path[sw.path.len() - 1]) * 1e3
+                        ),
                     );
                 }
             }

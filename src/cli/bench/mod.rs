@@ -1,6 +1,7 @@
 //! `stairbench bench`: speed measurements, each as a ratio against a baseline run in the same
 //! process, printed as a Markdown table and optionally written into BENCHMARKS.md.
 
+mod climb;
 mod lidar;
 mod perceive;
 mod plan;
@@ -48,6 +49,8 @@ pub enum BenchWhat {
     Polygon,
     /// The planner: one IK tick, and the Exp. 1 and Exp. 2 plans against their motion.
     Plan,
+    /// The closed-loop climb of Exp. 1 and of the 24 cm step: wall time against simulated time.
+    Climb,
     /// The robot's kinematics (FK, Jacobians, CoM) against MuJoCo's, and simulation speed.
     Robot,
 }
@@ -60,6 +63,7 @@ pub fn run(a: BenchArgs) -> Result<ExitCode> {
         BenchWhat::Robot => ("robot", robot::run(repeat)?),
         BenchWhat::Polygon => ("polygon", polygon::run(repeat)?),
         BenchWhat::Plan => ("plan", plan::run(repeat)?),
+        BenchWhat::Climb => ("climb", climb::run(repeat)?),
         BenchWhat::Perceive => {
             let plot =
                 a.plot.clone().or_else(|| a.write.as_ref().map(|w| w.with_file_name("fig5-perception.png")));

@@ -1,0 +1,47 @@
+//! `bench climb`: the closed loop on Exp. 1 and on the paper's 24 cm step. The simulated time
+//! is the baseline: the whole loop's and the execution's speed as multiples of real time, and
+//! the perception plus planning each cycle waits for (issue 6's goals: the simulation faster
+//! than 10 x real time, perception and planning under 1 s).
+
+use super::machine;
+use anyhow::Result;
+use stairbench::sim::climb::{climb, ClimbParams, ClimbReport};
+
+/// Returns the Markdown table.
+pub fn run(repeat: usize) -> Result<String> {
+    let mut t = format!(
+        "Closed-loop climbs (scan, perceive, plan one stance, execute with every check at 1 kHz), default parameters, median of {repeat} runs by wall time; machine: {}.\n\n",
+        machine()
+    );
+    t += "| scenario | result | cycles | simulated | wall | loop / real time | execution / real time | perceive + plan, worst cycle | perceive, mean | plan, mean | lidar ray casting, mean |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+    for name in ["exp1", "hrp4_step"] {
+        let scenario = crate::cli::load_scenario(Some(std::path::Path::new(name)))?;
+        let mut runs: Vec<ClimbReport> = (0..repeat)
+            .map(|_| climb(&scenario, &ClimbParams::default(), &mut |_| {}))
+            .collect::<Result<_, _>>()?;
+        runs.sort_by(|a, b| a.wall_s.total_cmp(&b.wall_s));
+        let r = &runs[runs.len() / 2];
+        let n = r.cycles.len().max(1) as f64;
+        let sum = |f: fn(&stairbench::sim::climb::CycleReport) -> f64| r.cycles.iter().map(f).sum::<f64>();
+        let executed_s = sum(|c| c.execute_s);
+        let sim_s = sum(|c| c.execution.sim_s);
+        let worst = r.cycles.iter().map(|c| c.perceive_s + c.plan_s).fold(0.0, f64::max);
+        t += &format!(
+            "| {name} | {} {}/{} steps | {} | {:.1} s | {:.2} s | {:.1} x | {:.1} x | {:.2} s | {:.0} ms | {:.2} s | {:.0} ms |\n",
+            if r.success { "climbed" } else { "FAILED" },
+            r.steps_climbed,
+            r.steps_total,
+            r.cycles.len(),
+            r.sim_s,
+            r.wall_s,
+            r.sim_s / r.wall_s,
+            sim_s / executed_s.max(1e-9),
+            worst,
+            1e3 * sum(|c| c.perceive_s) / n,
+            sum(|c| c.plan_s) / n,
+            1e3 * sum(|c| c.scan_s) / n,
+        );
+    }
+    t += "\nLoop / real time counts everything (ray casting, perception, planning, execution); execution / real time is MuJoCo with the servos and every check alone. Planning is nearly all IK ticks (see bench plan).\n";
+    Ok(t)
+}
