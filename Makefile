@@ -13,6 +13,7 @@ all: build
 
 setup:
 	@./scripts/setup-mujoco.sh
+	@./scripts/setup-pytools.sh
 	@mkdir -p out
 
 build: setup

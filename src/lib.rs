@@ -11,6 +11,7 @@ pub mod cloud;
 pub mod geom2d;
 pub mod perception;
 pub mod planning;
+pub mod record;
 pub mod robot;
 pub mod scenario;
 pub mod scene;

@@ -30,6 +30,8 @@ enum Command {
     /// The closed-loop climb in MuJoCo: scan, perceive, plan, execute with every check, scan
     /// again, to the top; a report per cycle and a non-zero exit code when the climb fails.
     Run(cli::run::RunArgs),
+    /// Rerun perception on a recording's lidar rows and compare with what it recorded.
+    Replay(cli::replay::ReplayArgs),
     /// Build a scenario's world: print its ground truth, optionally write the MJCF.
     Scene(cli::scene::SceneArgs),
     /// Measure speed (rays per second of the simulated lidar, ...).
@@ -45,6 +47,7 @@ fn main() -> ExitCode {
         Command::Polygon(a) => cli::polygon::run(a),
         Command::Plan(a) => cli::plan::run(a),
         Command::Run(a) => cli::run::run(a),
+        Command::Replay(a) => cli::replay::run(a),
         Command::Bench(a) => cli::bench::run(a),
     };
     match result {

@@ -13,6 +13,7 @@ use stairbench::scenario::Scenario;
 use stairbench::scene::Scene;
 use stairbench::sim::climb::{climb, ClimbParams, ClimbReport};
 use stairbench::sim::execute::{execute, CheckParams, Execution, ServoParams};
+use stairbench::sim::observe::Nobody;
 use stairbench::sim::speed_margin::speed_margin;
 use stairbench::sim::World;
 
@@ -98,8 +99,16 @@ fn a_floor_stance_executes_in_mujoco_with_the_checks_holding() {
     let q0 = world.data().qpos()[..model.nq()].to_vec();
     let rects = rectangles::from_step_tops(scene.steps());
     let p = plan(&model, &q0, &rects, Some(1), &PlanParams::default()).unwrap();
-    let ex =
-        execute(&mut world, &model, &scene, &p, &ServoParams::default(), &CheckParams::default()).unwrap();
+    let ex = execute(
+        &mut world,
+        &model,
+        &scene,
+        &p,
+        &ServoParams::default(),
+        &CheckParams::default(),
+        &mut Nobody,
+    )
+    .unwrap();
     println!(
         "margin {:.1} mm, torque {:.0} % ({}), speed {:.0} % ({}), touchdowns {:?}",
         ex.min_margin_m * 1e3,
@@ -163,8 +172,16 @@ fn a_broken_plan_lifting_the_support_foot_is_caught_with_its_instant() {
     let (trajectory, tracking) = track(&model, &q0, &segments, &blocks, &params.ik).unwrap();
     let broken = Plan { segments, trajectory, tracking, ..good };
     let from_s = broken.segments[0].duration_s;
-    let ex = execute(&mut world, &model, &scene, &broken, &ServoParams::default(), &CheckParams::default())
-        .unwrap();
+    let ex = execute(
+        &mut world,
+        &model,
+        &scene,
+        &broken,
+        &ServoParams::default(),
+        &CheckParams::default(),
+        &mut Nobody,
+    )
+    .unwrap();
     print_violations(&ex);
     let first = ex.violations.iter().find(|v| v.check == "margin" || v.check == "fall").expect("caught");
     assert_eq!(first.check, "margin", "the margin check sees it before the fall");
@@ -195,8 +212,16 @@ fn a_foot_placed_5_cm_off_its_steps_edge_is_reported() {
         .collect();
     let p = plan(&model, &q0, &rects, Some(3), &PlanParams::default()).unwrap();
     assert_eq!(p.stances.last().unwrap().step, Some(0), "the third stance is on step 1");
-    let ex =
-        execute(&mut world, &model, &scene, &p, &ServoParams::default(), &CheckParams::default()).unwrap();
+    let ex = execute(
+        &mut world,
+        &model,
+        &scene,
+        &p,
+        &ServoParams::default(),
+        &CheckParams::default(),
+        &mut Nobody,
+    )
+    .unwrap();
     print_violations(&ex);
     let off: Vec<_> = ex.violations.iter().filter(|v| v.check == "off_step").collect();
     assert!(!off.is_empty(), "the overhang is reported");

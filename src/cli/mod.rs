@@ -1,9 +1,11 @@
-//! Subcommands of the binary and the helpers they share (scenario lookup, progress bars).
+//! Subcommands of the binary and the helpers they share (scenario lookup, progress bars,
+//! recordings).
 
 pub mod bench;
 pub mod perceive;
 pub mod plan;
 pub mod polygon;
+pub mod replay;
 pub mod run;
 pub mod scan;
 pub mod scene;
@@ -68,4 +70,25 @@ pub fn ensure_parent(path: &Path) -> Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
     Ok(())
+}
+
+/// Opens a recording for `command` on `scenario` with `params` (attached as TOML).
+pub fn start_recording(
+    path: &Path,
+    command: &str,
+    scenario: &Scenario,
+    params: &impl serde::Serialize,
+) -> Result<stairbench::record::Recorder> {
+    ensure_parent(path)?;
+    let model = stairbench::robot::hrp4::model()?;
+    let mut rec = stairbench::record::Recorder::create(path, &model)?;
+    let meta = [
+        ("command".to_string(), command.to_string()),
+        ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
+        ("scenario".to_string(), scenario.name.clone()),
+    ];
+    rec.metadata("stairbench", meta.into_iter().collect());
+    rec.attach("scenario.toml", "application/toml", toml::to_string(scenario)?.as_bytes());
+    rec.attach("params.toml", "application/toml", toml::to_string(params)?.as_bytes());
+    Ok(rec)
 }

@@ -4,7 +4,7 @@
 use anyhow::{Context, Result};
 use clap::Args;
 use stairbench::scenario::Scenario;
-use stairbench::sim::climb::{climb, ClimbParams, ClimbReport, CycleReport};
+use stairbench::sim::climb::{climb, climb_observed, ClimbParams, ClimbReport, CycleReport};
 use stairbench::sim::speed_margin::speed_margin;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -34,6 +34,10 @@ pub struct RunArgs {
     /// Also write the report as JSON to this file.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Record every stage (lidar rows, cloud, perception, plans, robot state, checks) to
+    /// this MCAP file; `stairbench replay` reads it back, Foxglove opens it.
+    #[arg(long, value_name = "FILE.mcap")]
+    record: Option<PathBuf>,
 }
 
 /// Runs `stairbench run`; exit code 0 when the climb succeeded, 1 when it failed.
@@ -75,7 +79,16 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         "plan s",
         "sim s"
     );
-    let report = climb(&scenario, &params, &mut print_cycle)?;
+    let report = match &a.record {
+        None => climb(&scenario, &params, &mut print_cycle)?,
+        Some(path) => {
+            let mut rec = super::start_recording(path, "run", &scenario, &params)?;
+            let report = climb_observed(&scenario, &params, &mut print_cycle, &mut rec)?;
+            let n = rec.finish().with_context(|| format!("recording {} failed", path.display()))?;
+            println!("recorded {n} messages to {}", path.display());
+            report
+        }
+    };
     print_summary(&report);
     if let Some(path) = &a.json {
         std::fs::write(path, serde_json::to_string_pretty(&report)?)

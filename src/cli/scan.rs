@@ -4,6 +4,8 @@ use anyhow::{Context, Result};
 use clap::Args;
 use stairbench::cloud::io::{write_cloud, CloudFormat};
 use stairbench::sensor::{scan_scenario, AssembleParams, ScenarioScan};
+use stairbench::sim::climb::ClimbParams;
+use stairbench::sim::observe::Observer;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -25,6 +27,9 @@ pub struct ScanArgs {
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
+    /// Also record the sweep (raw rows, the cloud) to this MCAP file.
+    #[arg(long, value_name = "FILE.mcap")]
+    record: Option<PathBuf>,
 }
 
 /// Runs `stairbench scan`.
@@ -47,6 +52,14 @@ pub fn run(a: ScanArgs) -> Result<ExitCode> {
     let scan_s = t0.elapsed().as_secs_f64();
     bar.finish_and_clear();
     let cloud = sweep.assemble(&AssembleParams::default())?;
+    if let Some(path) = &a.record {
+        let mut rec = super::start_recording(path, "scan", &scenario, &ClimbParams::default())?;
+        let stamp_s = sweep.rows.last().map_or(0.0, |r| r.stamp_s);
+        rec.sweep(stamp_s, &sweep);
+        rec.cloud(stamp_s, &cloud);
+        let n = rec.finish().with_context(|| format!("recording {} failed", path.display()))?;
+        println!("recorded {n} messages to {}", path.display());
+    }
     super::ensure_parent(&a.output)?;
     write_cloud(&cloud, &a.output, format)?;
 

@@ -35,7 +35,8 @@ pub struct PerceptionParams {
     /// n_t (§4.1 Algorithm 1, Table 1: 5): Filter 2 keeps a voxel when its adjacency size
     /// (occupied cells of its 3 x 3 x 3 block, itself included) exceeds n_t.
     pub min_adjacent_voxels: usize,
-    /// k (§5: 10): neighbours in the normal estimation.
+    /// k (§5: 10): neighbours in the normal estimation (`k` in a parameters file too).
+    #[serde(alias = "k")]
     pub normal_neighbours: usize,
     /// How the k neighbours are found.
     pub neighbour_search: NeighbourSearch,

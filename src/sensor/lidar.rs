@@ -26,6 +26,7 @@ pub struct LidarModel {
     pub mount_in_head: Isometry3<f64>,
     /// Optical centre from the tilt axis, in the tilted frame, metres.
     pub axis_to_optical_m: Vector3<f64>,
+    spec: LidarSpec,
 }
 
 impl LidarModel {
@@ -48,7 +49,13 @@ impl LidarModel {
                 UnitQuaternion::from_euler_angles(r, p, y),
             ),
             axis_to_optical_m: Vector3::from(s.axis_to_optical_m),
+            spec: s.clone(),
         }
+    }
+
+    /// The spec the model was built from (recorded with a sweep, so a replay rebuilds it).
+    pub fn spec(&self) -> &LidarSpec {
+        &self.spec
     }
 
     /// Beams in a row (1081 for the UTM-30LX-EW).

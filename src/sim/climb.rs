@@ -3,6 +3,7 @@
 //! the top. The upper steps are reconstructed after stepping on the lower ones, as in the paper.
 
 use super::execute::{execute, CheckParams, Execution, ServoParams};
+use super::observe::{Nobody, Observer};
 use super::world::{SimError, World};
 use crate::perception::{perceive, PerceptionError, PerceptionParams, PlaneSegment};
 use crate::planning::plan::stance_at;
@@ -133,14 +134,29 @@ fn measured_q(world: &World, model: &RobotModel) -> Vec<f64> {
 }
 
 /// Scans from the robot's current pose and perceives.
-fn look(world: &World, scenario: &Scenario, cycle: usize, p: &PerceptionParams) -> Result<Look, ClimbError> {
+fn look(
+    world: &World,
+    scenario: &Scenario,
+    cycle: usize,
+    p: &PerceptionParams,
+    observer: &mut dyn Observer,
+) -> Result<Look, ClimbError> {
     let t = Instant::now();
+    let stamp_s = world.data().time();
     let lidar = SimLidar::new(world, &scenario.lidar, scenario.seed.wrapping_add(cycle as u64))?;
-    let cloud = lidar.sweep_with_progress(&mut |_, _| {}).assemble(&AssembleParams::default())?;
+    let sweep = lidar.sweep_with_progress(&mut |_, _| {});
+    let cloud = sweep.assemble(&AssembleParams::default())?;
     let scan_s = t.elapsed().as_secs_f64();
+    observer.sweep(stamp_s, &sweep);
+    observer.cloud(stamp_s, &cloud);
     let t = Instant::now();
-    let seen = perceive(&cloud, p).map(|r| r.segments);
-    Ok(Look { seen, scan_s, perceive_s: t.elapsed().as_secs_f64() })
+    let result = perceive(&cloud, p);
+    let perceive_s = t.elapsed().as_secs_f64();
+    match &result {
+        Ok(r) => observer.perception(stamp_s, r),
+        Err(e) => observer.perception_failed(stamp_s, &e.to_string()),
+    }
+    Ok(Look { seen: result.map(|r| r.segments), scan_s, perceive_s })
 }
 
 /// What one look found, and its wall times.
@@ -155,6 +171,16 @@ pub fn climb(
     scenario: &Scenario,
     p: &ClimbParams,
     on_cycle: &mut dyn FnMut(&CycleReport),
+) -> Result<ClimbReport, ClimbError> {
+    climb_observed(scenario, p, on_cycle, &mut Nobody)
+}
+
+/// [`climb`], with `observer` seeing every stage's data (to record or show it).
+pub fn climb_observed(
+    scenario: &Scenario,
+    p: &ClimbParams,
+    on_cycle: &mut dyn FnMut(&CycleReport),
+    observer: &mut dyn Observer,
 ) -> Result<ClimbReport, ClimbError> {
     let started = Instant::now();
     let scene = Scene::from_scenario(scenario)?;
@@ -175,7 +201,7 @@ pub fn climb(
     for cycle in 1..=p.run.max_cycles {
         settle(&mut world, p.run.settle_s);
         let q = measured_q(&world, &model);
-        let Look { seen, scan_s, perceive_s } = look(&world, scenario, cycle, &p.perception)?;
+        let Look { seen, scan_s, perceive_s } = look(&world, scenario, cycle, &p.perception, observer)?;
         let feet_z = stance_at(&model, &q)
             .map(|s| s.right.translation.z.max(s.left.translation.z))
             .unwrap_or(f64::NEG_INFINITY);
@@ -206,7 +232,8 @@ pub fn climb(
         };
         let plan_s = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let execution = execute(&mut world, &model, &scene, &planned, &p.servo, &p.checks)?;
+        observer.plan(world.data().time(), &planned);
+        let execution = execute(&mut world, &model, &scene, &planned, &p.servo, &p.checks, observer)?;
         let execute_s = t.elapsed().as_secs_f64();
         let to = match planned.stances.last() {
             Some(s) if s.step.is_some() => format!("step {}", true_step(&scene, s.right.translation.z)),
@@ -224,6 +251,7 @@ pub fn climb(
             execution,
         };
         on_cycle(&c);
+        observer.cycle(world.data().time(), &c);
         let fell = c.execution.fell;
         report.cycles.push(c);
         if fell {

@@ -7,6 +7,7 @@
 //! their targets at touchdown and on their step, no foot strike during a swing, no part other
 //! than the soles touching the world, and no fall.
 
+use super::observe::Observer;
 use super::world::{SimError, World};
 use crate::geom2d::P2;
 use crate::planning::contact::Contact;
@@ -471,7 +472,8 @@ impl Monitor<'_> {
 }
 
 /// Runs `plan` in `world` (whose robot stands where the plan starts) and checks it.
-/// `scene` gives the true step tops for the on-the-step check.
+/// `scene` gives the true step tops for the on-the-step check; `observer` sees the robot's
+/// state after every physics step and the violations at the end.
 pub fn execute(
     world: &mut World,
     model: &RobotModel,
@@ -479,6 +481,7 @@ pub fn execute(
     plan: &Plan,
     servo: &ServoParams,
     p: &CheckParams,
+    observer: &mut dyn Observer,
 ) -> Result<Execution, SimError> {
     let dt = world.model().opt().timestep;
     let t_start = world.data().time();
@@ -541,11 +544,15 @@ pub fn execute(
         let down = mon.feet(now, &loads, &soles);
         mon.margin(world, now, down, &soles);
         mon.joints(world, model, &servos, now);
+        observer.state(world.data().time(), &world.data().qpos()[..model.nq()], &loads.force);
         if mon.fell(world, now, planned.q[2].min(base_z0) - p.fall_drop_m, &planned.q) {
             break;
         }
     }
     mon.ex.sim_s = world.data().time() - t_start;
+    for v in &mon.ex.violations {
+        observer.violation(t_start + v.t_s, v);
+    }
     Ok(mon.ex)
 }
 

@@ -2,6 +2,7 @@
 
 pub mod climb;
 pub mod execute;
+pub mod observe;
 pub mod speed_margin;
 pub mod world;
 

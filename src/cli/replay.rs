@@ -1,0 +1,156 @@
+//! `stairbench replay FILE.mcap`: reruns perception on the recorded lidar rows (not the
+//! recorded cloud) of every sweep and compares its rectangles with those recorded at the time.
+//! With the recorded parameters they must be equal (exit 1 otherwise); `--set` or `--params`
+//! reruns with other parameters and prints the difference.
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use serde_json::Value;
+use stairbench::perception::{perceive, PlaneSegment};
+use stairbench::record::replay::{read, RecordedSweep};
+use stairbench::sensor::AssembleParams;
+use stairbench::sim::climb::ClimbParams;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Arguments of `stairbench replay`.
+#[derive(Debug, Args)]
+pub struct ReplayArgs {
+    /// The recording (from `run --record` or `scan --record`).
+    file: PathBuf,
+    /// Parameters as TOML (as for `run --params`), instead of the recorded ones.
+    #[arg(long)]
+    params: Option<PathBuf>,
+    /// Change one parameter, e.g. `--set perception.k=15` (repeatable; applied after
+    /// --params or the recorded parameters).
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    set: Vec<String>,
+}
+
+/// Corners of the recorded segments, metres.
+fn recorded_corners(v: &Value) -> Option<Vec<[[f64; 3]; 4]>> {
+    let segs = v.get("segments")?.as_array()?;
+    segs.iter()
+        .map(|s| {
+            let c = s.get("corners")?.as_array()?;
+            let mut out = [[0.0; 3]; 4];
+            for (k, p) in c.iter().enumerate().take(4) {
+                let p = p.as_array()?;
+                for (j, x) in p.iter().enumerate().take(3) {
+                    out[k][j] = x.as_f64()?;
+                }
+            }
+            Some(out)
+        })
+        .collect()
+}
+
+fn corners_of(s: &PlaneSegment) -> [[f64; 3]; 4] {
+    s.corners().map(|p| [p.x, p.y, p.z])
+}
+
+/// The largest corner distance between two lists of rectangles, metres (`None` when their
+/// counts differ).
+fn difference_m(a: &[[[f64; 3]; 4]], b: &[[[f64; 3]; 4]]) -> Option<f64> {
+    (a.len() == b.len()).then(|| {
+        a.iter()
+            .zip(b)
+            .flat_map(|(x, y)| x.iter().zip(y))
+            .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
+            .fold(0.0, f64::max)
+    })
+}
+
+/// The parameters to replay with: the file's `--params`, else the recorded ones, else the
+/// defaults; then every `--set`.
+fn parameters(a: &ReplayArgs, recorded: Option<&[u8]>) -> Result<ClimbParams> {
+    let text = match (&a.params, recorded) {
+        (Some(p), _) => std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?,
+        (None, Some(bytes)) => String::from_utf8_lossy(bytes).into_owned(),
+        (None, None) => toml::to_string(&ClimbParams::default())?,
+    };
+    let mut doc: toml_edit::DocumentMut = text.parse().context("the parameters are not TOML")?;
+    for s in &a.set {
+        let Some((path, value)) = s.split_once('=') else { bail!("--set {s}: expected PATH=VALUE") };
+        let value: toml_edit::Value =
+            value.trim().parse().with_context(|| format!("--set {s}: `{value}` is not a TOML value"))?;
+        // The paper's symbols for the fields that have one (Table 1's k, say).
+        let path = match path.trim() {
+            "perception.k" => "perception.normal_neighbours",
+            p => p,
+        };
+        let keys: Vec<&str> = path.split('.').collect();
+        let (last, tables) = keys.split_last().context("empty --set path")?;
+        let mut item = doc.as_item_mut();
+        for k in tables {
+            item = &mut item[*k];
+            if item.is_none() {
+                *item = toml_edit::table();
+            }
+        }
+        item[*last] = toml_edit::value(value);
+    }
+    toml::from_str(&doc.to_string()).context("the parameters do not fit (unknown field or wrong type)")
+}
+
+/// Runs `stairbench replay`.
+pub fn run(a: ReplayArgs) -> Result<ExitCode> {
+    let rec = read(&a.file)?;
+    let counts: Vec<String> = rec.counts.iter().map(|(t, n)| format!("{t} {n}")).collect();
+    println!("{}: {}", a.file.display(), counts.join(", "));
+    if let Some(d) = &rec.damage {
+        println!("warning: {d}; replaying the {} complete sweeps before it", rec.sweeps.len());
+    }
+    if rec.sweeps.is_empty() {
+        bail!("{}: no complete lidar sweep to replay", a.file.display());
+    }
+    let changed = a.params.is_some() || !a.set.is_empty();
+    let params = parameters(&a, rec.attachments.get("params.toml").map(Vec::as_slice))?;
+    let mut differ = 0;
+    for (i, RecordedSweep { stamp_s, sweep, perception, .. }) in rec.sweeps.iter().enumerate() {
+        let cloud = sweep.assemble(&AssembleParams::default())?;
+        let now = perceive(&cloud, &params.perception);
+        let found: Vec<[[f64; 3]; 4]> =
+            now.as_ref().map(|r| r.segments.iter().map(corners_of).collect()).unwrap_or_default();
+        let then = perception.as_ref().and_then(recorded_corners);
+        let recorded_error = perception.as_ref().and_then(|v| v.get("error")).and_then(Value::as_str);
+        let verdict = match (&then, &now) {
+            (None, _) => "no recorded perception to compare".to_string(),
+            (Some(_), Err(e)) if recorded_error.is_some() => {
+                format!("same: no staircase, then and now ({e})")
+            }
+            (Some(t), Ok(_)) => match difference_m(t, &found) {
+                Some(0.0) => "same rectangles".to_string(),
+                Some(d) => {
+                    differ += 1;
+                    format!("DIFFERENT: corners move by up to {:.1} mm", d * 1e3)
+                }
+                None => {
+                    differ += 1;
+                    format!("DIFFERENT: {} rectangles, recorded {}", found.len(), t.len())
+                }
+            },
+            (Some(t), Err(e)) => {
+                differ += 1;
+                format!("DIFFERENT: {e} (recorded {} rectangles)", t.len())
+            }
+        };
+        println!(
+            "sweep {} at t = {stamp_s:.2} s: {} rows, {} points -> {} rectangles: {verdict}",
+            i + 1,
+            sweep.rows.len(),
+            cloud.len(),
+            found.len()
+        );
+    }
+    if changed {
+        println!("{differ} of {} sweeps differ with the changed parameters", rec.sweeps.len());
+        return Ok(ExitCode::SUCCESS);
+    }
+    if differ > 0 || rec.damage.is_some() {
+        println!("replay differs from the recording or the file is damaged");
+        return Ok(ExitCode::from(1));
+    }
+    println!("replay equals the recording");
+    Ok(ExitCode::SUCCESS)
+}
