@@ -1,11 +1,12 @@
 //! `bench climb`: the closed loop on Exp. 1 and on the paper's 24 cm step. The simulated time
 //! is the baseline: the whole loop's and the execution's speed as multiples of real time, and
 //! the perception plus planning each cycle waits for (issue 6's goals: the simulation faster
-//! than 10 x real time, perception and planning under 1 s).
+//! than 10 x real time, perception and planning under 1 s); and the cost of recording the
+//! climb to MCAP, against the same climb unrecorded (issue 7's goal: under 10 %).
 
 use super::machine;
 use anyhow::Result;
-use stairbench::sim::climb::{climb, ClimbParams, ClimbReport};
+use stairbench::sim::climb::{climb, climb_observed, ClimbParams, ClimbReport};
 
 /// Returns the Markdown table.
 pub fn run(repeat: usize) -> Result<String> {
@@ -42,6 +43,32 @@ pub fn run(repeat: usize) -> Result<String> {
             1e3 * sum(|c| c.scan_s) / n,
         );
     }
+    // Recording's cost: the same climb with and without --record, alternated, same process.
+    let scenario = crate::cli::load_scenario(None)?;
+    let params = ClimbParams::default();
+    let path = std::env::temp_dir().join(format!("stairbench-bench-{}.mcap", std::process::id()));
+    let (mut plain, mut recorded, mut bytes) = (Vec::new(), Vec::new(), 0);
+    for _ in 0..repeat {
+        plain.push(climb(&scenario, &params, &mut |_| {})?.wall_s);
+        let started = std::time::Instant::now();
+        let mut rec = crate::cli::start_recording(&path, "bench climb", &scenario, &params)?;
+        climb_observed(&scenario, &params, &mut |_| {}, &mut rec)?;
+        rec.finish()?;
+        recorded.push(started.elapsed().as_secs_f64());
+        bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+    }
+    let _ = std::fs::remove_file(&path);
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (a, b) = (median(&mut plain), median(&mut recorded));
+    t += &format!(
+        "\nRecording (`run --record`, every stage to MCAP, LZ4 chunks from a writer thread), exp1, same process, median of {repeat} alternated runs: {a:.2} s without, {b:.2} s with (file closed), ratio {:.3} ({:+.1} %); the file is {:.0} MB.\n",
+        b / a,
+        100.0 * (b / a - 1.0),
+        bytes as f64 / 1e6
+    );
     t += "\nLoop / real time counts everything (ray casting, perception, planning, execution); execution / real time is MuJoCo with the servos and every check alone. Planning is nearly all IK ticks (see bench plan).\n";
     Ok(t)
 }
