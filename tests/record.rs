@@ -1,16 +1,17 @@
 //! Recording and replay (issue 7): a recorded run reads back in an independent reader (the
 //! `mcap` package from PyPI), its raw lidar rows rebuild the recorded cloud bit for bit, the
-//! replayed perception equals the recorded one, and a damaged file gives a clear error and
+//! replayed perception and planning equal the recorded ones, and a damaged file gives a clear error and
 //! every complete sweep before the damage.
 
 use serde_json::Value;
 use stairbench::perception::perceive;
 use stairbench::record::replay::{read, read_bytes};
-use stairbench::record::Recorder;
+use stairbench::planning::plan;
+use stairbench::record::{plan_json, Recorder};
 use stairbench::robot::hrp4;
 use stairbench::scenario::Scenario;
 use stairbench::sensor::AssembleParams;
-use stairbench::sim::climb::{climb_observed, ClimbParams};
+use stairbench::sim::climb::{climb_observed, feet_height_m, ClimbParams, Staircase};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -51,6 +52,18 @@ fn a_recorded_run_replays_equal_and_reads_in_the_independent_reader() {
     assert!(now.segments.len() >= 3, "the three steps");
     for (a, b) in now.segments.iter().zip(&then) {
         assert_eq!(serde_json::to_value(a).unwrap(), *b);
+    }
+    // Planning on them, from the recorded configuration, gives the recorded plan.
+    let then = s.plan.as_ref().expect("plan recorded");
+    let q0: Vec<f64> = then["q0"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    let mut stairs = Staircase::default();
+    stairs.update(now.segments, params.run.same_step_m);
+    let model = hrp4::model().unwrap();
+    let ahead = stairs.ahead(feet_height_m(&model, &q0), params.run.ahead_margin_m);
+    let again = plan(&model, &q0, &ahead, Some(params.run.stances_per_scan), &params.plan).unwrap();
+    let now_json = plan_json(0.0, &ahead, &again);
+    for k in ["steps", "stances", "segments", "duration_s"] {
+        assert_eq!(now_json[k], then[k], "{k}");
     }
     // The independent reader: same channels, schemas and counts; every message is JSON.
     let python = Path::new(env!("CARGO_MANIFEST_DIR")).join("third_party/venv/bin/python");

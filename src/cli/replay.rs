@@ -1,15 +1,19 @@
 //! `stairbench replay FILE.mcap`: reruns perception on the recorded lidar rows (not the
-//! recorded cloud) of every sweep and compares its rectangles with those recorded at the time.
-//! With the recorded parameters they must be equal (exit 1 otherwise); `--set` or `--params`
-//! reruns with other parameters and prints the difference.
+//! recorded cloud) of every sweep, merges the steps as the closed loop does, replans from the
+//! recorded configuration, and compares the rectangles and the plan with those recorded at
+//! the time. With the recorded parameters they must be equal (exit 1 otherwise); `--set` or
+//! `--params` reruns with other parameters and prints the difference.
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use serde_json::Value;
+use stairbench::perception::PerceptionError;
 use stairbench::perception::{perceive, PlaneSegment};
+use stairbench::planning::plan;
+use stairbench::record::plan_json;
 use stairbench::record::replay::{read, RecordedSweep};
 use stairbench::sensor::AssembleParams;
-use stairbench::sim::climb::ClimbParams;
+use stairbench::sim::climb::{feet_height_m, ClimbParams, Staircase};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -106,8 +110,11 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
     }
     let changed = a.params.is_some() || !a.set.is_empty();
     let params = parameters(&a, rec.attachments.get("params.toml").map(Vec::as_slice))?;
+    let model = stairbench::robot::hrp4::model()?;
+    let mut stairs = Staircase::default();
     let mut differ = 0;
-    for (i, RecordedSweep { stamp_s, sweep, perception, .. }) in rec.sweeps.iter().enumerate() {
+    for (i, RecordedSweep { stamp_s, sweep, perception, plan: planned, .. }) in rec.sweeps.iter().enumerate()
+    {
         let cloud = sweep.assemble(&AssembleParams::default())?;
         let now = perceive(&cloud, &params.perception);
         let found: Vec<[[f64; 3]; 4]> =
@@ -142,9 +149,46 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
             cloud.len(),
             found.len()
         );
+        // The loop's next steps: merge, keep what is ahead, plan from the recorded pose.
+        let seen = match now {
+            Ok(r) => r.segments,
+            Err(PerceptionError::NoStaircase(_)) => Vec::new(),
+            Err(_) => continue,
+        };
+        stairs.update(seen, params.run.same_step_m);
+        let Some(then) = planned else { continue };
+        let q0: Vec<f64> =
+            then["q0"].as_array().map(|a| a.iter().filter_map(Value::as_f64).collect()).unwrap_or_default();
+        if q0.len() != model.nq() {
+            differ += 1;
+            println!("  plan: DIFFERENT: the recorded plan has no usable start configuration");
+            continue;
+        }
+        let ahead = stairs.ahead(feet_height_m(&model, &q0), params.run.ahead_margin_m);
+        let verdict = match plan(&model, &q0, &ahead, Some(params.run.stances_per_scan), &params.plan) {
+            Err(e) => {
+                differ += 1;
+                format!("DIFFERENT: refused now ({e})")
+            }
+            Ok(p) => {
+                let now = plan_json(0.0, &ahead, &p);
+                let same = |k: &str| now[k] == then[k];
+                match ["steps", "stances", "segments", "duration_s"].into_iter().find(|k| !same(k)) {
+                    None => {
+                        format!("same plan: {} stances, {:.1} s of motion", p.stances.len(), p.duration_s())
+                    }
+                    Some(k) => {
+                        differ += 1;
+                        let d = |v: &Value| v["duration_s"].as_f64().unwrap_or(f64::NAN);
+                        format!("DIFFERENT {k}: {:.1} s of motion now, {:.1} s recorded", d(&now), d(then))
+                    }
+                }
+            }
+        };
+        println!("  plan: {verdict}");
     }
     if changed {
-        println!("{differ} of {} sweeps differ with the changed parameters", rec.sweeps.len());
+        println!("{differ} differences over {} sweeps with the changed parameters", rec.sweeps.len());
         return Ok(ExitCode::SUCCESS);
     }
     if differ > 0 || rec.damage.is_some() {

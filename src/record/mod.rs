@@ -13,7 +13,7 @@
 //! | `/perception/supervoxels` | `foxglove.PointCloud` | perception: voxels after Filter 2 with `supervoxel` and `cluster` (uint32, 4294967295 = none) |
 //! | `/perception/rectangles` | `foxglove.SceneUpdate` | perception: one outline per step rectangle |
 //! | `/perception/result` | `stairbench.Perception` | perception: `segments` (`corners` [[x, y, z] x 4] m, `normal`, `height_m`, `voxel_count`), `timings_ms`, `counts`; or `segments` [] and `error` when it found nothing |
-//! | `/plan` | `stairbench.Plan` | plan: `stances` (`right`, `left`: sole `position` m and `yaw_rad`), `segments` (`phase`, `stance`, `duration_s`, `com_start`, `com_end`, `polygon` [[x, y]], `margin_m`, `swing`), `duration_s`, `tracking` |
+//! | `/plan` | `stairbench.Plan` | plan: its inputs `q0` (qpos) and `steps` (the known steps ahead, as in `/perception/result`), `stances` (`right`, `left`: sole `position` m and `yaw_rad`), `segments` (`phase`, `stance`, `duration_s`, `com_start`, `com_end`, `polygon` [[x, y]], `margin_m`, `swing`), `duration_s`, `tracking` |
 //! | `/plan/scene` | `foxglove.SceneUpdate` | plan: stability polygons, CoM path, foot targets |
 //! | `/robot/joints` | `stairbench.JointState` | 100 Hz: `names`, `positions_rad`, base `position` and `orientation` [w, x, y, z], `foot_forces_n` [[x, y, z] right, left] |
 //! | `/tf` | `foxglove.FrameTransform` | 100 Hz: world to the robot's base |
@@ -31,7 +31,7 @@ pub mod foxglove;
 pub mod replay;
 
 use crate::cloud::PointCloud;
-use crate::perception::Perception;
+use crate::perception::{Perception, PlaneSegment};
 use crate::planning::Plan;
 use crate::robot::model::{RobotModel, Q_JOINTS};
 use crate::sensor::{ScanRow, Sweep};
@@ -267,6 +267,43 @@ fn isometry(p: &Isometry3<f64>) -> Value {
     json!({ "translation": [t.x, t.y, t.z], "rotation": [q.w, q.i, q.j, q.k] })
 }
 
+/// The `/plan` message of `plan`, made on `steps` from `stamp_s` (replay compares these).
+pub fn plan_json(stamp_s: f64, steps: &[PlaneSegment], plan: &Plan) -> Value {
+    let foot = |p: &Isometry3<f64>| json!({ "position": xyz(&Point3::from(p.translation.vector)), "yaw_rad": p.rotation.euler_angles().2 });
+    let stances: Vec<Value> = plan
+        .stances
+        .iter()
+        .map(|s| json!({ "right": foot(&s.right), "left": foot(&s.left), "step": s.step }))
+        .collect();
+    let segments: Vec<Value> = plan
+        .segments
+        .iter()
+        .map(|s| {
+            json!({
+                "phase": s.phase,
+                "stance": s.stance,
+                "duration_s": s.duration_s,
+                "com_start": xyz(&s.com_start),
+                "com_end": xyz(&s.com_end),
+                "polygon": s.polygon.iter().map(|p| [p.x, p.y]).collect::<Vec<_>>(),
+                "margin_m": s.margin_m,
+                "swing": s.swing.as_ref().map(|w| format!("{:?}", w.foot)),
+            })
+        })
+        .collect();
+    let q0 = plan.trajectory.samples.first().map(|s| s.q.clone()).unwrap_or_default();
+    let msg = json!({
+        "start_s": stamp_s,
+        "q0": q0,
+        "steps": steps,
+        "stances": stances,
+        "segments": segments,
+        "duration_s": plan.duration_s(),
+        "tracking": plan.tracking,
+    });
+    msg
+}
+
 impl Drop for Recorder {
     /// Without [`Recorder::finish`] (a panic unwinding, say), the file still gets its summary.
     fn drop(&mut self) {
@@ -334,36 +371,8 @@ impl Observer for Recorder {
         self.log("/perception/result", stamp_s, &json!({ "segments": [], "error": why }));
     }
 
-    fn plan(&mut self, stamp_s: f64, plan: &Plan) {
-        let foot = |p: &Isometry3<f64>| json!({ "position": xyz(&Point3::from(p.translation.vector)), "yaw_rad": p.rotation.euler_angles().2 });
-        let stances: Vec<Value> = plan
-            .stances
-            .iter()
-            .map(|s| json!({ "right": foot(&s.right), "left": foot(&s.left), "step": s.step }))
-            .collect();
-        let segments: Vec<Value> = plan
-            .segments
-            .iter()
-            .map(|s| {
-                json!({
-                    "phase": s.phase,
-                    "stance": s.stance,
-                    "duration_s": s.duration_s,
-                    "com_start": xyz(&s.com_start),
-                    "com_end": xyz(&s.com_end),
-                    "polygon": s.polygon.iter().map(|p| [p.x, p.y]).collect::<Vec<_>>(),
-                    "margin_m": s.margin_m,
-                    "swing": s.swing.as_ref().map(|w| format!("{:?}", w.foot)),
-                })
-            })
-            .collect();
-        let msg = json!({
-            "start_s": stamp_s,
-            "stances": stances,
-            "segments": segments,
-            "duration_s": plan.duration_s(),
-            "tracking": plan.tracking,
-        });
+    fn plan(&mut self, stamp_s: f64, steps: &[PlaneSegment], plan: &Plan) {
+        let msg = plan_json(stamp_s, steps, plan);
         self.log("/plan", stamp_s, &msg);
         let mut entities = Vec::new();
         let mut t = stamp_s;

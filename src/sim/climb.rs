@@ -197,14 +197,12 @@ pub fn climb_observed(
         sim_s: 0.0,
         wall_s: 0.0,
     };
-    let mut known: Vec<PlaneSegment> = Vec::new();
+    let mut stairs = Staircase::default();
     for cycle in 1..=p.run.max_cycles {
         settle(&mut world, p.run.settle_s);
         let q = measured_q(&world, &model);
         let Look { seen, scan_s, perceive_s } = look(&world, scenario, cycle, &p.perception, observer)?;
-        let feet_z = stance_at(&model, &q)
-            .map(|s| s.right.translation.z.max(s.left.translation.z))
-            .unwrap_or(f64::NEG_INFINITY);
+        let feet_z = feet_height_m(&model, &q);
         let seen = match seen {
             Ok(segs) => segs,
             Err(PerceptionError::NoStaircase(_)) => Vec::new(),
@@ -213,9 +211,8 @@ pub fn climb_observed(
                 break;
             }
         };
-        known = merge(&known, seen, p.run.same_step_m);
-        let ahead: Vec<PlaneSegment> =
-            known.iter().filter(|s| s.height_m() > feet_z + p.run.ahead_margin_m).cloned().collect();
+        stairs.update(seen, p.run.same_step_m);
+        let ahead = stairs.ahead(feet_z, p.run.ahead_margin_m);
         if ahead.is_empty() {
             if climbed(&scene, &model, &q) < scene.steps().len() {
                 report.stopped = Some("no staircase found ahead before the top".into());
@@ -232,7 +229,7 @@ pub fn climb_observed(
         };
         let plan_s = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        observer.plan(world.data().time(), &planned);
+        observer.plan(world.data().time(), &ahead, &planned);
         let execution = execute(&mut world, &model, &scene, &planned, &p.servo, &p.checks, observer)?;
         let execute_s = t.elapsed().as_secs_f64();
         let to = match planned.stances.last() {
@@ -267,6 +264,31 @@ pub fn climb_observed(
         && report.steps_climbed == report.steps_total
         && report.cycles.iter().all(|c| c.pass);
     Ok(report)
+}
+
+/// The steps known so far, updated by each scan ([`merge`]); what the planner gets is the
+/// part above the feet ([`Staircase::ahead`]). `replay` reruns the same updates.
+#[derive(Debug, Clone, Default)]
+pub struct Staircase {
+    /// Every step seen so far.
+    pub known: Vec<PlaneSegment>,
+}
+
+impl Staircase {
+    /// Merges a scan's rectangles (see [`merge`]).
+    pub fn update(&mut self, seen: Vec<PlaneSegment>, same_m: f64) {
+        self.known = merge(&self.known, seen, same_m);
+    }
+
+    /// The steps higher than `feet_z` plus `margin_m` (the ones still to climb).
+    pub fn ahead(&self, feet_z: f64, margin_m: f64) -> Vec<PlaneSegment> {
+        self.known.iter().filter(|s| s.height_m() > feet_z + margin_m).cloned().collect()
+    }
+}
+
+/// The higher sole's height at configuration `q`, metres (`-inf` if `q` is unusable).
+pub fn feet_height_m(model: &RobotModel, q: &[f64]) -> f64 {
+    stance_at(model, q).map(|s| s.right.translation.z.max(s.left.translation.z)).unwrap_or(f64::NEG_INFINITY)
 }
 
 /// The staircase as known after a scan: the new rectangles, plus the known ones no new

@@ -6,7 +6,7 @@
 use super::climb::CycleReport;
 use super::execute::Violation;
 use crate::cloud::PointCloud;
-use crate::perception::Perception;
+use crate::perception::{Perception, PlaneSegment};
 use crate::planning::Plan;
 use crate::sensor::Sweep;
 use nalgebra::Vector3;
@@ -21,8 +21,8 @@ pub trait Observer {
     fn perception(&mut self, _stamp_s: f64, _result: &Perception) {}
     /// Perception found nothing on that cloud (or failed), and why.
     fn perception_failed(&mut self, _stamp_s: f64, _why: &str) {}
-    /// A plan, about to be executed from `stamp_s`.
-    fn plan(&mut self, _stamp_s: f64, _plan: &Plan) {}
+    /// A plan made on `steps` (the known steps ahead), about to be executed from `stamp_s`.
+    fn plan(&mut self, _stamp_s: f64, _steps: &[PlaneSegment], _plan: &Plan) {}
     /// The robot after a physics step: configuration (MuJoCo's qpos layout) and each
     /// foot's resultant contact force, world frame, newtons (right, left).
     fn state(&mut self, _stamp_s: f64, _q: &[f64], _foot_forces_n: &[Vector3<f64>; 2]) {}
