@@ -5,8 +5,8 @@
 
 use serde_json::Value;
 use stairbench::perception::perceive;
-use stairbench::record::replay::{read, read_bytes};
 use stairbench::planning::plan;
+use stairbench::record::replay::{read, read_bytes};
 use stairbench::record::{plan_json, Recorder};
 use stairbench::robot::hrp4;
 use stairbench::scenario::Scenario;
@@ -78,6 +78,7 @@ fn a_recorded_run_replays_equal_and_reads_in_the_independent_reader() {
     println!("{summary}");
     let topics = summary["topics"].as_object().unwrap();
     let expect = [
+        ("/world", "foxglove.SceneUpdate"),
         ("/lidar/sweep", "stairbench.Sweep"),
         ("/lidar/scan", "foxglove.LaserScan"),
         ("/cloud", "foxglove.PointCloud"),

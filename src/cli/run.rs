@@ -3,8 +3,10 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
+use stairbench::record::viewer::{RerunLogger, Sink};
 use stairbench::scenario::Scenario;
-use stairbench::sim::climb::{climb, climb_observed, ClimbParams, ClimbReport, CycleReport};
+use stairbench::sim::climb::{climb_observed, ClimbParams, ClimbReport, CycleReport};
+use stairbench::sim::observe::{Each, Observer};
 use stairbench::sim::speed_margin::speed_margin;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -38,6 +40,14 @@ pub struct RunArgs {
     /// this MCAP file; `stairbench replay` reads it back, Foxglove opens it.
     #[arg(long, value_name = "FILE.mcap")]
     record: Option<PathBuf>,
+    /// Show every stage in Rerun: alone, spawns a viewer (`rerun` on the PATH, from
+    /// `pip install rerun-sdk==0.36.3`); with a URL, streams to that viewer
+    /// (e.g. rerun+http://127.0.0.1:9876/proxy).
+    #[arg(long, value_name = "URL", num_args = 0..=1, default_missing_value = "spawn", conflicts_with = "rrd")]
+    rerun: Option<String>,
+    /// Save what --rerun would show to this .rrd file (open it with `rerun FILE.rrd`).
+    #[arg(long, value_name = "FILE.rrd")]
+    rrd: Option<PathBuf>,
 }
 
 /// Runs `stairbench run`; exit code 0 when the climb succeeded, 1 when it failed.
@@ -79,16 +89,37 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         "plan s",
         "sim s"
     );
-    let report = match &a.record {
-        None => climb(&scenario, &params, &mut print_cycle)?,
-        Some(path) => {
-            let mut rec = super::start_recording(path, "run", &scenario, &params)?;
-            let report = climb_observed(&scenario, &params, &mut print_cycle, &mut rec)?;
-            let n = rec.finish().with_context(|| format!("recording {} failed", path.display()))?;
-            println!("recorded {n} messages to {}", path.display());
-            report
+    let model = stairbench::robot::hrp4::model()?;
+    let mut recorder =
+        a.record.as_ref().map(|p| super::start_recording(p, "run", &scenario, &params)).transpose()?;
+    let sink = match (&a.rerun, &a.rrd) {
+        (Some(url), _) if url == "spawn" => Some(Sink::Spawn),
+        (Some(url), _) => Some(Sink::Connect(url.clone())),
+        (None, Some(path)) => {
+            super::ensure_parent(path)?;
+            Some(Sink::Save(path.clone()))
         }
+        (None, None) => None,
     };
+    let mut viewer = sink.as_ref().map(|s| RerunLogger::new(s, &model)).transpose()?;
+    let mut observers: Vec<&mut dyn Observer> = Vec::new();
+    if let Some(r) = recorder.as_mut() {
+        observers.push(r);
+    }
+    if let Some(v) = viewer.as_mut() {
+        observers.push(v);
+    }
+    let report = climb_observed(&scenario, &params, &mut print_cycle, &mut Each(observers))?;
+    if let (Some(rec), Some(path)) = (recorder, &a.record) {
+        let n = rec.finish().with_context(|| format!("recording {} failed", path.display()))?;
+        println!("recorded {n} messages to {}", path.display());
+    }
+    if let Some(v) = viewer {
+        v.finish()?;
+        if let Some(path) = &a.rrd {
+            println!("Rerun recording saved to {}", path.display());
+        }
+    }
     print_summary(&report);
     if let Some(path) = &a.json {
         std::fs::write(path, serde_json::to_string_pretty(&report)?)

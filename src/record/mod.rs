@@ -7,6 +7,7 @@
 //!
 //! | topic | schema | one message per |
 //! |---|---|---|
+//! | `/world` | `foxglove.SceneUpdate` | run: the world's boxes (floor, steps, walls, clutter) |
 //! | `/lidar/sweep` | `stairbench.Sweep` | sweep: `stamp_s`, `rows`, `lidar` (the scenario's lidar table), `mount_to_world` (`translation` [x, y, z] m, `rotation` [w, x, y, z]) |
 //! | `/lidar/scan` | `foxglove.LaserScan` | row, with the raw reading as extra fields: `stairbench_stamp_s`, `stairbench_tilt_rad` (servo), `stairbench_gravity_mount` [x, y, z] (IMU) |
 //! | `/cloud` | `foxglove.PointCloud` | assembled sweep (x, y, z float32, world frame) |
@@ -15,7 +16,7 @@
 //! | `/perception/result` | `stairbench.Perception` | perception: `segments` (`corners` [[x, y, z] x 4] m, `normal`, `height_m`, `voxel_count`), `timings_ms`, `counts`; or `segments` [] and `error` when it found nothing |
 //! | `/plan` | `stairbench.Plan` | plan: its inputs `q0` (qpos) and `steps` (the known steps ahead, as in `/perception/result`), `stances` (`right`, `left`: sole `position` m and `yaw_rad`), `segments` (`phase`, `stance`, `duration_s`, `com_start`, `com_end`, `polygon` [[x, y]], `margin_m`, `swing`), `duration_s`, `tracking` |
 //! | `/plan/scene` | `foxglove.SceneUpdate` | plan: stability polygons, CoM path, foot targets |
-//! | `/robot/joints` | `stairbench.JointState` | 100 Hz: `names`, `positions_rad`, base `position` and `orientation` [w, x, y, z], `foot_forces_n` [[x, y, z] right, left] |
+//! | `/robot/joints` | `stairbench.JointState` | 100 Hz: `names`, `positions_rad`, base `position` and `orientation` [w, x, y, z], `foot_forces_n` [[x, y, z] right, left], `margin_m` (CoM in the polygon of the real contacts; null without one), `max_torque_ratio` |
 //! | `/tf` | `foxglove.FrameTransform` | 100 Hz: world to the robot's base |
 //! | `/checks` | `stairbench.Violation` | violation: `t_s` (plan clock), `check`, `detail` |
 //! | `/run/cycle` | `stairbench.Cycle` | cycle of `run`: its report (as `run --json` writes it) |
@@ -29,17 +30,19 @@
 
 pub mod foxglove;
 pub mod replay;
+pub mod viewer;
 
 use crate::cloud::PointCloud;
 use crate::perception::{Perception, PlaneSegment};
 use crate::planning::Plan;
 use crate::robot::model::{RobotModel, Q_JOINTS};
+use crate::scene::{Scene, SurfaceRole};
 use crate::sensor::{ScanRow, Sweep};
 use crate::sim::climb::CycleReport;
 use crate::sim::execute::Violation;
-use crate::sim::observe::Observer;
+use crate::sim::observe::{Observer, RobotState};
 use mcap::records::MessageHeader;
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Point3};
 use serde_json::{json, Value};
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
@@ -100,6 +103,7 @@ fn topics() -> Vec<(&'static str, String, String)> {
     };
     let fox = |name: &str, schema: String| (name.to_string(), schema);
     let list = [
+        ("/world", fox("foxglove.SceneUpdate", foxglove::scene_update_schema())),
         (
             "/lidar/sweep",
             own(
@@ -315,6 +319,23 @@ impl Drop for Recorder {
 }
 
 impl Observer for Recorder {
+    fn scene(&mut self, scene: &Scene) {
+        let cubes: Vec<Value> = scene
+            .boxes()
+            .iter()
+            .map(|b| {
+                let h = b.half_extents_m();
+                let rgba = match b.role() {
+                    SurfaceRole::Step(_) => [0.65, 0.45, 0.3, 1.0],
+                    SurfaceRole::Floor => [0.55, 0.55, 0.5, 1.0],
+                    _ => [0.8, 0.8, 0.78, 0.2],
+                };
+                foxglove::cube(b.pose(), [2.0 * h.x, 2.0 * h.y, 2.0 * h.z], rgba)
+            })
+            .collect();
+        self.log("/world", 0.0, &foxglove::scene_update(vec![foxglove::entity(0.0, "world", vec![], cubes)]));
+    }
+
     fn sweep(&mut self, stamp_s: f64, sweep: &Sweep) {
         let msg = json!({
             "stamp_s": stamp_s,
@@ -398,7 +419,8 @@ impl Observer for Recorder {
         self.flush();
     }
 
-    fn state(&mut self, stamp_s: f64, q: &[f64], foot_forces_n: &[Vector3<f64>; 2]) {
+    fn state(&mut self, stamp_s: f64, state: &RobotState) {
+        let q = state.q;
         if stamp_s - self.last_state_s < STATE_PERIOD_S - 1e-9 || q.len() < Q_JOINTS {
             return;
         }
@@ -408,7 +430,9 @@ impl Observer for Recorder {
             "positions_rad": &q[Q_JOINTS..],
             "position": [q[0], q[1], q[2]],
             "orientation": [q[3], q[4], q[5], q[6]],
-            "foot_forces_n": foot_forces_n.iter().map(|f| [f.x, f.y, f.z]).collect::<Vec<_>>(),
+            "foot_forces_n": state.foot_forces_n.iter().map(|f| [f.x, f.y, f.z]).collect::<Vec<_>>(),
+            "margin_m": state.margin_m.is_finite().then_some(state.margin_m),
+            "max_torque_ratio": state.max_torque_ratio,
         });
         self.log("/robot/joints", stamp_s, &msg);
         let base = Isometry3::from_parts(

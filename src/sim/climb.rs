@@ -197,6 +197,7 @@ pub fn climb_observed(
         sim_s: 0.0,
         wall_s: 0.0,
     };
+    observer.scene(&scene);
     let mut stairs = Staircase::default();
     for cycle in 1..=p.run.max_cycles {
         settle(&mut world, p.run.settle_s);

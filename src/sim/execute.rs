@@ -7,7 +7,7 @@
 //! their targets at touchdown and on their step, no foot strike during a swing, no part other
 //! than the soles touching the world, and no fall.
 
-use super::observe::Observer;
+use super::observe::{Observer, RobotState};
 use super::world::{SimError, World};
 use crate::geom2d::P2;
 use crate::planning::contact::Contact;
@@ -378,7 +378,8 @@ impl Monitor<'_> {
     }
 
     /// The CoM against the stability polygon of the feet in contact.
-    fn margin(&mut self, world: &World, now: f64, down: [bool; 2], soles: &[Isometry3<f64>; 2]) {
+    /// Returns this instant's margin, metres (negative outside, -inf without a polygon).
+    fn margin(&mut self, world: &World, now: f64, down: [bool; 2], soles: &[Isometry3<f64>; 2]) -> f64 {
         let com = world.data().subtree_com()[self.ids.root_body];
         let poly = self.cache.polygon(down, soles, self.p.friction);
         let m = if poly.len() >= 3 { margin(poly, &P2::new(com[0], com[1])) } else { f64::NEG_INFINITY };
@@ -391,13 +392,17 @@ impl Monitor<'_> {
             );
             self.report(now, "margin", detail);
         }
+        m
     }
 
-    /// Joint torques (the servos' demand) and speeds against the model's limits.
-    fn joints(&mut self, world: &World, model: &RobotModel, servos: &Servos, now: f64) {
+    /// Joint torques (the servos' demand) and speeds against the model's limits; returns
+    /// this instant's largest torque ratio.
+    fn joints(&mut self, world: &World, model: &RobotModel, servos: &Servos, now: f64) -> f64 {
+        let mut now_max = 0.0_f64;
         for (a, jt) in model.joints().iter().enumerate().take(servos.kp.len()) {
             let demand = servos.demand_nm(world, a);
             let r = demand.abs() / jt.effort_nm;
+            now_max = now_max.max(r);
             let s = world.data().qvel()[V_JOINTS + a].abs() / jt.velocity_rad_s;
             if r > self.ex.max_torque_ratio {
                 self.ex.max_torque_ratio = r;
@@ -421,6 +426,7 @@ impl Monitor<'_> {
                 self.report(now, "speed", format!("{} at {:.0} % of its speed limit", jt.name, s * 100.0));
             }
         }
+        now_max
     }
 
     /// Records a touchdown of `sw`'s foot and checks it against its target and its step.
@@ -542,9 +548,15 @@ pub fn execute(
         let swing = plan.segments[seg].swing.as_ref().map(|sw| (sw, &planned.feet[sw.foot.index()]));
         let loads = mon.contacts(world, now, swing);
         let down = mon.feet(now, &loads, &soles);
-        mon.margin(world, now, down, &soles);
-        mon.joints(world, model, &servos, now);
-        observer.state(world.data().time(), &world.data().qpos()[..model.nq()], &loads.force);
+        let margin_m = mon.margin(world, now, down, &soles);
+        let max_torque_ratio = mon.joints(world, model, &servos, now);
+        let state = RobotState {
+            q: &world.data().qpos()[..model.nq()],
+            foot_forces_n: loads.force,
+            margin_m,
+            max_torque_ratio,
+        };
+        observer.state(world.data().time(), &state);
         if mon.fell(world, now, planned.q[2].min(base_z0) - p.fall_drop_m, &planned.q) {
             break;
         }
