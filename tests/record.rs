@@ -65,6 +65,9 @@ fn a_recorded_run_replays_equal_and_reads_in_the_independent_reader() {
     for k in ["steps", "stances", "segments", "duration_s"] {
         assert_eq!(now_json[k], then[k], "{k}");
     }
+    let q_then = &s.trajectory.as_ref().expect("trajectory recorded")["q"];
+    let q_now: Vec<&Vec<f64>> = again.trajectory.samples.iter().map(|x| &x.q).collect();
+    assert_eq!(serde_json::to_value(q_now).unwrap(), *q_then, "the same q(t), bit for bit");
     // The independent reader: same channels, schemas and counts; every message is JSON.
     let python = Path::new(env!("CARGO_MANIFEST_DIR")).join("third_party/venv/bin/python");
     assert!(python.exists(), "run `make setup` first: it creates third_party/venv with the mcap package");
@@ -87,6 +90,7 @@ fn a_recorded_run_replays_equal_and_reads_in_the_independent_reader() {
         ("/perception/result", "stairbench.Perception"),
         ("/plan", "stairbench.Plan"),
         ("/plan/scene", "foxglove.SceneUpdate"),
+        ("/plan/trajectory", "stairbench.JointTrajectory"),
         ("/robot/joints", "stairbench.JointState"),
         ("/tf", "foxglove.FrameTransform"),
         ("/checks", "stairbench.Violation"),
@@ -104,6 +108,7 @@ fn a_recorded_run_replays_equal_and_reads_in_the_independent_reader() {
     }
     assert_eq!(topics["/lidar/scan"]["iterated"], 240);
     assert_eq!(topics["/plan"]["iterated"], 1);
+    assert_eq!(topics["/plan/trajectory"]["iterated"], 1);
     assert!(topics["/robot/joints"]["iterated"].as_u64().unwrap() > 1000, "100 Hz over the cycle");
     assert_eq!(summary["attachments"], serde_json::json!(["params.toml"]));
 }

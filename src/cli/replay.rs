@@ -113,7 +113,8 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
     let model = stairbench::robot::hrp4::model()?;
     let mut stairs = Staircase::default();
     let mut differ = 0;
-    for (i, RecordedSweep { stamp_s, sweep, perception, plan: planned, .. }) in rec.sweeps.iter().enumerate()
+    for (i, RecordedSweep { stamp_s, sweep, perception, plan: planned, trajectory, .. }) in
+        rec.sweeps.iter().enumerate()
     {
         let cloud = sweep.assemble(&AssembleParams::default())?;
         let now = perceive(&cloud, &params.perception);
@@ -173,10 +174,22 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
             Ok(p) => {
                 let now = plan_json(0.0, &ahead, &p);
                 let same = |k: &str| now[k] == then[k];
+                let q_now: Vec<&Vec<f64>> = p.trajectory.samples.iter().map(|s| &s.q).collect();
+                let same_q = trajectory
+                    .as_ref()
+                    .is_none_or(|t| serde_json::to_value(&q_now).is_ok_and(|v| v == t["q"]));
                 match ["steps", "stances", "segments", "duration_s"].into_iter().find(|k| !same(k)) {
-                    None => {
-                        format!("same plan: {} stances, {:.1} s of motion", p.stances.len(), p.duration_s())
+                    None if !same_q => {
+                        differ += 1;
+                        "DIFFERENT q(t): the same footholds and segments, another joint trajectory"
+                            .to_string()
                     }
+                    None => format!(
+                        "same plan: {} stances, {:.1} s of motion, q(t){}",
+                        p.stances.len(),
+                        p.duration_s(),
+                        if trajectory.is_some() { " equal" } else { " not recorded" }
+                    ),
                     Some(k) => {
                         differ += 1;
                         let d = |v: &Value| v["duration_s"].as_f64().unwrap_or(f64::NAN);

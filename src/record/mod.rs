@@ -16,6 +16,7 @@
 //! | `/perception/result` | `stairbench.Perception` | perception: `segments` (`corners` [[x, y, z] x 4] m, `normal`, `height_m`, `voxel_count`), `timings_ms`, `counts`; or `segments` [] and `error` when it found nothing |
 //! | `/plan` | `stairbench.Plan` | plan: its inputs `q0` (qpos) and `steps` (the known steps ahead, as in `/perception/result`), `stances` (`right`, `left`: sole `position` m and `yaw_rad`), `segments` (`phase`, `stance`, `duration_s`, `com_start`, `com_end`, `polygon` [[x, y]], `margin_m`, `swing`), `duration_s`, `tracking` |
 //! | `/plan/scene` | `foxglove.SceneUpdate` | plan: stability polygons, CoM path, foot targets |
+//! | `/plan/trajectory` | `stairbench.JointTrajectory` | plan: q(t) as planned, `rate_hz`, `names` (joints), `t_s` [..] (from the plan's start), `q` [[qpos]..] (base position, quaternion w x y z, joints), `com` [[x, y, z]..] planned CoM |
 //! | `/robot/joints` | `stairbench.JointState` | 100 Hz: `names`, `positions_rad`, base `position` and `orientation` [w, x, y, z], `foot_forces_n` [[x, y, z] right, left], `margin_m` (CoM in the polygon of the real contacts; null without one), `max_torque_ratio` |
 //! | `/tf` | `foxglove.FrameTransform` | 100 Hz: world to the robot's base |
 //! | `/checks` | `stairbench.Violation` | violation: `t_s` (plan clock), `check`, `detail` |
@@ -121,6 +122,7 @@ fn topics() -> Vec<(&'static str, String, String)> {
         ),
         ("/plan", own("stairbench.Plan", "Footholds, segments with polygons and CoM waypoints, tracking")),
         ("/plan/scene", fox("foxglove.SceneUpdate", foxglove::scene_update_schema())),
+        ("/plan/trajectory", own("stairbench.JointTrajectory", "The planned q(t) and CoM at the IK's rate")),
         ("/robot/joints", own("stairbench.JointState", "Joint positions, base pose and foot forces")),
         ("/tf", fox("foxglove.FrameTransform", foxglove::frame_transform_schema())),
         ("/checks", own("stairbench.Violation", "A violated check of the execution")),
@@ -395,6 +397,15 @@ impl Observer for Recorder {
     fn plan(&mut self, stamp_s: f64, steps: &[PlaneSegment], plan: &Plan) {
         let msg = plan_json(stamp_s, steps, plan);
         self.log("/plan", stamp_s, &msg);
+        let samples = &plan.trajectory.samples;
+        let trajectory = json!({
+            "rate_hz": plan.trajectory.rate_hz,
+            "names": self.joint_names,
+            "t_s": samples.iter().map(|s| s.t_s).collect::<Vec<_>>(),
+            "q": samples.iter().map(|s| &s.q).collect::<Vec<_>>(),
+            "com": samples.iter().map(|s| xyz(&s.com)).collect::<Vec<_>>(),
+        });
+        self.log("/plan/trajectory", stamp_s, &trajectory);
         let mut entities = Vec::new();
         let mut t = stamp_s;
         for (i, s) in plan.segments.iter().enumerate() {

@@ -24,6 +24,8 @@ pub struct RecordedSweep {
     pub cloud: Option<Vec<nalgebra::Point3<f32>>>,
     /// The plan made after this sweep (`/plan`), if recorded.
     pub plan: Option<Value>,
+    /// Its planned q(t) (`/plan/trajectory`), if recorded.
+    pub trajectory: Option<Value>,
 }
 
 /// What a recording holds.
@@ -134,6 +136,11 @@ pub fn read_bytes(bytes: &[u8]) -> Result<Recording, String> {
                             s.plan = Some(v);
                         }
                     }
+                    "/plan/trajectory" => {
+                        if let Some((s, _)) = open.as_mut() {
+                            s.trajectory = Some(v);
+                        }
+                    }
                     "/cloud" => {
                         if let Some((s, _)) = open.as_mut() {
                             s.cloud = super::foxglove::point_cloud_xyz(&v);
@@ -184,7 +191,7 @@ fn sweep_of(v: &Value, stamp_s: f64) -> Result<(RecordedSweep, usize), String> {
     };
     let mount_to_world = Isometry3::from_parts(Translation3::new(t[0], t[1], t[2]), rotation);
     let sweep = Sweep { rows: Vec::with_capacity(rows), lidar: LidarModel::from_spec(&spec), mount_to_world };
-    Ok((RecordedSweep { stamp_s, sweep, perception: None, cloud: None, plan: None }, rows))
+    Ok((RecordedSweep { stamp_s, sweep, perception: None, cloud: None, plan: None, trajectory: None }, rows))
 }
 
 fn row_of(v: &Value) -> Result<ScanRow, String> {
