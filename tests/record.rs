@@ -139,3 +139,33 @@ fn a_damaged_file_gives_an_error_and_every_complete_sweep_before_it() {
     assert!(read_bytes(b"definitely not an mcap file").is_err());
     assert!(read_bytes(&[]).is_err());
 }
+
+#[test]
+fn ctrl_c_ends_a_recorded_run_with_a_complete_file() {
+    let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("interrupted.mcap");
+    let _ = std::fs::remove_file(&path);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_stairbench"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["run", "exp1", "--record"])
+        .arg(&path)
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // Interrupt once the first sweep is on disk (the run is well inside its first cycle).
+    let started = std::time::Instant::now();
+    while std::fs::metadata(&path).map_or(0, |m| m.len()) < 1_000_000 {
+        assert!(started.elapsed().as_secs() < 60, "the run did not start recording");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(kill.success());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "interrupted, reported as such");
+    assert!(started.elapsed().as_secs() < 30, "it stopped promptly");
+    let bytes = std::fs::read(&path).unwrap();
+    assert!(bytes.ends_with(mcap::MAGIC), "the summary and footer were written");
+    let rec = read_bytes(&bytes).unwrap();
+    assert!(rec.damage.is_none(), "{:?}", rec.damage);
+    assert_eq!(rec.sweeps.len(), 1);
+    assert!(mcap::Summary::read(&bytes).unwrap().is_some(), "indexed");
+}

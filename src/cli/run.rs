@@ -89,6 +89,18 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         "plan s",
         "sim s"
     );
+    // Ctrl-C ends the climb at the next physics step, so the report and the recordings are
+    // completed; a second Ctrl-C quits at once.
+    let handler = ctrlc::set_handler(|| {
+        if stairbench::sim::stop::requested() {
+            std::process::exit(130);
+        }
+        eprintln!("\nstopping after this physics step (Ctrl-C again to quit now)");
+        stairbench::sim::stop::request();
+    });
+    if let Err(e) = handler {
+        eprintln!("warning: Ctrl-C will not stop the climb cleanly: {e}");
+    }
     let model = stairbench::robot::hrp4::model()?;
     let mut recorder =
         a.record.as_ref().map(|p| super::start_recording(p, "run", &scenario, &params)).transpose()?;
@@ -126,7 +138,11 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
             .with_context(|| format!("cannot write {}", path.display()))?;
         println!("report written to {}", path.display());
     }
-    Ok(if report.success { ExitCode::SUCCESS } else { ExitCode::from(1) })
+    Ok(match (report.success, stairbench::sim::stop::requested()) {
+        (_, true) => ExitCode::from(130),
+        (true, false) => ExitCode::SUCCESS,
+        (false, false) => ExitCode::from(1),
+    })
 }
 
 /// `--speed-margin`: the search, a line per climb, the result.

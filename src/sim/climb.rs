@@ -256,6 +256,10 @@ pub fn climb_observed(
             report.stopped = Some("the robot fell".into());
             break;
         }
+        if super::stop::requested() {
+            report.stopped = Some("stopped by the user".into());
+            break;
+        }
     }
     let q = measured_q(&world, &model);
     report.steps_climbed = climbed(&scene, &model, &q);

@@ -557,7 +557,9 @@ pub fn execute(
             max_torque_ratio,
         };
         observer.state(world.data().time(), &state);
-        if mon.fell(world, now, planned.q[2].min(base_z0) - p.fall_drop_m, &planned.q) {
+        if mon.fell(world, now, planned.q[2].min(base_z0) - p.fall_drop_m, &planned.q)
+            || super::stop::requested()
+        {
             break;
         }
     }

@@ -4,6 +4,7 @@ pub mod climb;
 pub mod execute;
 pub mod observe;
 pub mod speed_margin;
+pub mod stop;
 pub mod world;
 
 pub use world::{RayHit, SimError, World};
