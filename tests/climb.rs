@@ -89,26 +89,10 @@ fn a_40_cm_rise_is_refused_before_anything_moves() {
 
 #[test]
 fn a_floor_stance_executes_in_mujoco_with_the_checks_holding() {
-    let s = Scenario::default();
-    let scene = Scene::from_scenario(&s).unwrap();
-    let model = hrp4::model().unwrap();
-    let mut world = World::for_scene(&scene).unwrap();
-    for _ in 0..300 {
-        world.data_mut().step();
-    }
-    let q0 = world.data().qpos()[..model.nq()].to_vec();
+    let (scene, model, mut world, q0) = settled_exp1();
     let rects = rectangles::from_step_tops(scene.steps());
     let p = plan(&model, &q0, &rects, Some(1), &PlanParams::default()).unwrap();
-    let ex = execute(
-        &mut world,
-        &model,
-        &scene,
-        &p,
-        &ServoParams::default(),
-        &CheckParams::default(),
-        &mut Nobody,
-    )
-    .unwrap();
+    let ex = execute_checked(&mut world, &model, &scene, &p);
     println!(
         "margin {:.1} mm, torque {:.0} % ({}), speed {:.0} % ({}), touchdowns {:?}",
         ex.min_margin_m * 1e3,
@@ -118,9 +102,6 @@ fn a_floor_stance_executes_in_mujoco_with_the_checks_holding() {
         ex.speed_joint,
         ex.touchdowns
     );
-    for v in &ex.violations {
-        println!("t = {:.3} s {}: {}", v.t_s, v.check, v.detail);
-    }
     assert!(!ex.fell);
     assert!(ex.min_margin_m > 0.02, "CoM margin {}", ex.min_margin_m);
     assert!(ex.max_torque_ratio < 1.0);
@@ -142,10 +123,15 @@ fn settled_exp1() -> (Scene, RobotModel, World, Vec<f64>) {
     (scene, model, world, q0)
 }
 
-fn print_violations(ex: &Execution) {
+/// `plan` executed in `world` with the default servos and checks; its violations printed.
+fn execute_checked(world: &mut World, model: &RobotModel, scene: &Scene, plan: &Plan) -> Execution {
+    let ex =
+        execute(world, model, scene, plan, &ServoParams::default(), &CheckParams::default(), &mut Nobody)
+            .expect("the world runs");
     for v in &ex.violations {
         println!("t = {:.3} s {}: {}", v.t_s, v.check, v.detail);
     }
+    ex
 }
 
 #[test]
@@ -172,17 +158,7 @@ fn a_broken_plan_lifting_the_support_foot_is_caught_with_its_instant() {
     let (trajectory, tracking) = track(&model, &q0, &segments, &blocks, &params.ik).unwrap();
     let broken = Plan { segments, trajectory, tracking, ..good };
     let from_s = broken.segments[0].duration_s;
-    let ex = execute(
-        &mut world,
-        &model,
-        &scene,
-        &broken,
-        &ServoParams::default(),
-        &CheckParams::default(),
-        &mut Nobody,
-    )
-    .unwrap();
-    print_violations(&ex);
+    let ex = execute_checked(&mut world, &model, &scene, &broken);
     let first = ex.violations.iter().find(|v| v.check == "margin" || v.check == "fall").expect("caught");
     assert_eq!(first.check, "margin", "the margin check sees it before the fall");
     assert!(first.detail.contains("outside"), "{}", first.detail);
@@ -212,17 +188,7 @@ fn a_foot_placed_5_cm_off_its_steps_edge_is_reported() {
         .collect();
     let p = plan(&model, &q0, &rects, Some(3), &PlanParams::default()).unwrap();
     assert_eq!(p.stances.last().unwrap().step, Some(0), "the third stance is on step 1");
-    let ex = execute(
-        &mut world,
-        &model,
-        &scene,
-        &p,
-        &ServoParams::default(),
-        &CheckParams::default(),
-        &mut Nobody,
-    )
-    .unwrap();
-    print_violations(&ex);
+    let ex = execute_checked(&mut world, &model, &scene, &p);
     let off: Vec<_> = ex.violations.iter().filter(|v| v.check == "off_step").collect();
     assert!(!off.is_empty(), "the overhang is reported");
     let mm: f64 = off[0]
