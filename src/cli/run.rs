@@ -207,13 +207,11 @@ fn print_summary(r: &ClimbReport) {
     if let Some(why) = &r.stopped {
         println!("stopped: {why}");
     }
-    let executed_s: f64 = r.cycles.iter().map(|c| c.execute_s).sum();
-    let sim_s: f64 = r.cycles.iter().map(|c| c.execution.sim_s).sum();
-    let think_s = r.cycles.iter().map(|c| c.perceive_s + c.plan_s).fold(0.0, f64::max);
     if !r.cycles.is_empty() {
         println!(
-            "speed: the simulation with its checks ran {:.1} x real time ({sim_s:.1} s in {executed_s:.2} s); perception + planning took at most {think_s:.2} s per cycle",
-            sim_s / executed_s.max(1e-9)
+            "speed: the simulation with its checks ran {:.1} x real time; perception + planning took at most {:.2} s per cycle",
+            r.execution_speed(),
+            r.worst_think_s()
         );
     }
 }

@@ -18,8 +18,7 @@ use crate::scene::{Scene, SurfaceRole};
 use crate::sensor::{assemble, AssembleParams, Sweep};
 use crate::sim::execute::Violation;
 use crate::sim::observe::{Observer, RobotState};
-use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
-use std::path::Path;
+use nalgebra::{Isometry3, Point3, UnitQuaternion};
 
 /// Where the recording goes.
 #[derive(Debug, Clone)]
@@ -114,14 +113,6 @@ impl<'m> RerunLogger<'m> {
             [c[0], c[1], c[2], c[3], c[0]].iter().map(p3).collect::<Vec<_>>()
         }))
     }
-}
-
-/// Saves the .rrd of nothing but `model`'s robot standing at `q` (for tests of the sink).
-pub fn save_pose(path: &Path, model: &RobotModel, q: &[f64]) -> Result<(), RerunError> {
-    let mut logger = RerunLogger::new(&Sink::Save(path.to_path_buf()), model)?;
-    let state = RobotState { q, foot_forces_n: [Vector3::zeros(); 2], margin_m: 0.0, max_torque_ratio: 0.0 };
-    logger.state(0.0, &state);
-    logger.finish()
 }
 
 impl Observer for RerunLogger<'_> {

@@ -120,6 +120,26 @@ pub struct ClimbReport {
     pub wall_s: f64,
 }
 
+impl ClimbReport {
+    /// How many times faster than real time the execution ran (MuJoCo with the servos and
+    /// every check, without scanning, perception or planning).
+    pub fn execution_speed(&self) -> f64 {
+        let sim_s: f64 = self.cycles.iter().map(|c| c.execution.sim_s).sum();
+        let wall_s: f64 = self.cycles.iter().map(|c| c.execute_s).sum();
+        sim_s / wall_s.max(1e-9)
+    }
+
+    /// The longest a cycle waited for perception and planning, seconds.
+    pub fn worst_think_s(&self) -> f64 {
+        self.cycles.iter().map(|c| c.perceive_s + c.plan_s).fold(0.0, f64::max)
+    }
+
+    /// The mean over the cycles of `f`, 0 without cycles.
+    pub fn mean_per_cycle(&self, f: impl Fn(&CycleReport) -> f64) -> f64 {
+        self.cycles.iter().map(f).sum::<f64>() / self.cycles.len().max(1) as f64
+    }
+}
+
 /// Holds the robot at its commanded posture for `seconds`.
 fn settle(world: &mut World, seconds: f64) {
     let n = (seconds / world.model().opt().timestep).round() as usize;

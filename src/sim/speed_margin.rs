@@ -18,7 +18,7 @@ pub struct Try {
     pub success: bool,
     /// Why it failed: the first violated check with its instant, or why the loop stopped.
     pub why: Option<String>,
-    /// Simulated and wall time of the climb, seconds.
+    /// Simulated time of the climb, seconds.
     pub sim_s: f64,
     /// Wall time, seconds.
     pub wall_s: f64,

@@ -22,11 +22,6 @@ pub fn run(repeat: usize) -> Result<String> {
             .collect::<Result<_, _>>()?;
         runs.sort_by(|a, b| a.wall_s.total_cmp(&b.wall_s));
         let r = &runs[runs.len() / 2];
-        let n = r.cycles.len().max(1) as f64;
-        let sum = |f: fn(&stairbench::sim::climb::CycleReport) -> f64| r.cycles.iter().map(f).sum::<f64>();
-        let executed_s = sum(|c| c.execute_s);
-        let sim_s = sum(|c| c.execution.sim_s);
-        let worst = r.cycles.iter().map(|c| c.perceive_s + c.plan_s).fold(0.0, f64::max);
         t += &format!(
             "| {name} | {} {}/{} steps | {} | {:.1} s | {:.2} s | {:.1} x | {:.1} x | {:.2} s | {:.0} ms | {:.2} s | {:.0} ms |\n",
             if r.success { "climbed" } else { "FAILED" },
@@ -36,11 +31,11 @@ pub fn run(repeat: usize) -> Result<String> {
             r.sim_s,
             r.wall_s,
             r.sim_s / r.wall_s,
-            sim_s / executed_s.max(1e-9),
-            worst,
-            1e3 * sum(|c| c.perceive_s) / n,
-            sum(|c| c.plan_s) / n,
-            1e3 * sum(|c| c.scan_s) / n,
+            r.execution_speed(),
+            r.worst_think_s(),
+            1e3 * r.mean_per_cycle(|c| c.perceive_s),
+            r.mean_per_cycle(|c| c.plan_s),
+            1e3 * r.mean_per_cycle(|c| c.scan_s),
         );
     }
     // Recording's cost: the same climb with and without --record, alternated, same process.
