@@ -83,6 +83,21 @@ pub struct Segment {
     pub margin_m: f64,
 }
 
+impl Segment {
+    /// The stability polygon as a closed ring in 3-D, drawn at the lowest supporting sole
+    /// (the polygon itself is a prism's base in the transverse plane; this is where viewers
+    /// show it).
+    pub fn polygon_ring(&self) -> Vec<Point3<f64>> {
+        let z = self.support.iter().map(|(_, p)| p.translation.z).fold(f64::INFINITY, f64::min);
+        let z = if z.is_finite() { z } else { 0.0 };
+        let mut ring: Vec<Point3<f64>> = self.polygon.iter().map(|p| Point3::new(p.x, p.y, z)).collect();
+        if let Some(first) = ring.first().copied() {
+            ring.push(first);
+        }
+        ring
+    }
+}
+
 /// Timing and clearances of the motion. Lengths in metres.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -408,6 +423,19 @@ mod tests {
 
     fn square(x0: f64, y0: f64, s: f64) -> Vec<P2> {
         vec![P2::new(x0, y0), P2::new(x0 + s, y0), P2::new(x0 + s, y0 + s), P2::new(x0, y0 + s)]
+    }
+
+    #[test]
+    fn the_polygon_ring_closes_at_the_lowest_supporting_sole() {
+        let mut s = seg(Point3::origin(), Point3::origin(), square(0.0, 0.0, 1.0));
+        s.support = vec![
+            (Foot::Right, Isometry3::translation(0.0, -0.1, 0.2)),
+            (Foot::Left, Isometry3::translation(0.0, 0.1, 0.0)),
+        ];
+        let ring = s.polygon_ring();
+        assert_eq!(ring.len(), 5);
+        assert_eq!(ring[0], ring[4]);
+        assert!(ring.iter().all(|p| p.z == 0.0));
     }
 
     fn seg(a: Point3<f64>, b: Point3<f64>, polygon: Vec<P2>) -> Segment {

@@ -409,11 +409,8 @@ impl Observer for Recorder {
         let mut entities = Vec::new();
         let mut t = stamp_s;
         for (i, s) in plan.segments.iter().enumerate() {
-            let z = s.com_start.z.min(s.com_end.z) - 0.7;
-            let poly: Vec<Point3<f64>> =
-                s.polygon.iter().map(|p| Point3::new(p.x, p.y, z.max(0.0))).collect();
             let lines = vec![
-                foxglove::line_loop(&poly, [0.2, 0.4, 1.0, 1.0], 0.005),
+                foxglove::line_strip(&s.polygon_ring(), [0.2, 0.4, 1.0, 1.0], 0.005),
                 foxglove::line_strip(&[s.com_start, s.com_end], [1.0, 0.2, 0.2, 1.0], 0.008),
             ];
             entities.push(foxglove::entity(t, &format!("segment_{i}"), lines, vec![]));

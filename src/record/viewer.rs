@@ -178,14 +178,9 @@ impl Observer for RerunLogger<'_> {
 
     fn plan(&mut self, stamp_s: f64, _steps: &[PlaneSegment], plan: &Plan) {
         self.at(stamp_s);
-        let floor = plan.start.right.translation.z.min(plan.start.left.translation.z) as f32;
-        let polygons = rerun::LineStrips3D::new(plan.segments.iter().map(|s| {
-            let mut ring: Vec<[f32; 3]> = s.polygon.iter().map(|p| [p.x as f32, p.y as f32, floor]).collect();
-            if let Some(first) = ring.first().copied() {
-                ring.push(first);
-            }
-            ring
-        }))
+        let polygons = rerun::LineStrips3D::new(
+            plan.segments.iter().map(|s| s.polygon_ring().iter().map(p3).collect::<Vec<_>>()),
+        )
         .with_colors([rerun::Color::from_rgb(51, 102, 255)]);
         self.log("plan/polygons", &polygons);
         let mut path: Vec<[f32; 3]> =
