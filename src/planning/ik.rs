@@ -19,7 +19,10 @@ use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettings, DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
 };
-use nalgebra::{DMatrix, DVector, Isometry3, Matrix3xX, Matrix6xX, Point3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{
+    DMatrix, DVector, Dyn, Isometry3, Matrix3xX, Matrix6xX, MatrixViewMut, Point3, UnitQuaternion, Vector3,
+    Vector6, U1,
+};
 
 /// A soft objective: weight * ||jacobian qd - velocity||^2.
 #[derive(Debug, Clone)]
@@ -373,10 +376,11 @@ pub fn base_orientation_task(
     }
 }
 
-/// A velocity damper keeping a leg off a step: the clearance `near.clearance_m` may shrink
-/// no faster than `gain` times its excess over `min_m` (so it never goes below `min_m`, and
-/// a clearance already below it must grow), i.e. -n' J_p qd <= gain (d - d_min), with J_p
-/// the Jacobian of the limb's nearest point and n the direction away from the step.
+/// A velocity damper keeping a leg off a step: writes its Jacobian row into `row` and
+/// returns its bound. The clearance `near.clearance_m` may shrink no faster than `gain`
+/// times its excess over `min_m` (so it never goes below `min_m`, and a clearance already
+/// below it must grow), i.e. -n' J_p qd <= gain (d - d_min), with J_p the Jacobian of the
+/// limb's nearest point and n the direction away from the step.
 pub fn clearance(
     kin: &Kinematics,
     jac: &mut Matrix6xX<f64>,
@@ -384,12 +388,13 @@ pub fn clearance(
     near: &Nearest,
     min_m: f64,
     gain: f64,
-) -> (DVector<f64>, f64) {
+    mut row: MatrixViewMut<f64, U1, Dyn, U1, Dyn>,
+) -> f64 {
     kin.point_jacobian_into(link, &near.point, jac);
-    let row = DVector::from_fn(jac.ncols(), |c, _| {
-        -(near.normal.x * jac[(0, c)] + near.normal.y * jac[(1, c)] + near.normal.z * jac[(2, c)])
-    });
-    (row, gain * (near.clearance_m - min_m))
+    for c in 0..jac.ncols() {
+        row[c] = -(near.normal.x * jac[(0, c)] + near.normal.y * jac[(1, c)] + near.normal.z * jac[(2, c)]);
+    }
+    gain * (near.clearance_m - min_m)
 }
 
 /// §6.1's first-order velocity regulation: qd <= min(qd_max, K (q_max - q)) and

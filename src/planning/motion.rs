@@ -200,34 +200,37 @@ pub fn upper_body_mask(model: &RobotModel, feet: &[usize]) -> Vec<bool> {
     mask
 }
 
-/// One clearance row per leg capsule (a fixed count keeps the QP's shape): the damper of
-/// its nearest step when one is within range, else a row of zeros. Also returns the least
-/// clearance and which capsule and step it is between.
+/// One clearance row per leg capsule (a fixed count keeps the QP's shape), written into
+/// `g` (sized limbs x nv): the damper of its nearest step when one is within range, else a
+/// row of zeros. Returns the least clearance and which capsule and step it is between.
 fn clearance_rows(
     kin: &Kinematics,
     jac: &mut nalgebra::Matrix6xX<f64>,
     limbs: &[Limb],
     blocks: &[SceneBox],
     p: &IkParams,
-) -> (ik::Inequality, Option<(f64, usize, usize)>) {
-    let nv = jac.ncols();
-    let mut g = ik::Inequality {
-        jacobian: nalgebra::DMatrix::zeros(limbs.len(), nv),
-        bound: nalgebra::DVector::from_element(limbs.len(), 1.0),
-    };
+    g: &mut ik::Inequality,
+) -> Option<(f64, usize, usize)> {
+    g.jacobian.fill(0.0);
+    g.bound.fill(1.0);
     let mut least: Option<(f64, usize, usize)> = None;
     for (r, limb) in limbs.iter().enumerate() {
         if let Some(near) = clearance::nearest(kin, limb, blocks, p.clearance_range_m) {
-            let (row, bound) =
-                ik::clearance(kin, jac, limb.link, &near, p.leg_clearance_m, p.clearance_gain_per_s);
-            g.jacobian.row_mut(r).copy_from(&row.transpose());
-            g.bound[r] = bound;
+            g.bound[r] = ik::clearance(
+                kin,
+                jac,
+                limb.link,
+                &near,
+                p.leg_clearance_m,
+                p.clearance_gain_per_s,
+                g.jacobian.row_mut(r),
+            );
             if least.is_none_or(|(d, _, _)| near.clearance_m < d) {
                 least = Some((near.clearance_m, r, near.block));
             }
         }
     }
-    (g, least)
+    least
 }
 
 /// Tracks `segments` from configuration `q0`: one QP per sample at `p.rate_hz`, keeping the
@@ -261,7 +264,11 @@ pub fn track(
         segment,
     };
     let mut samples = vec![sample(&kin, &q, 0.0, kin.com(), 0)];
-    let (mut legs, _) = clearance_rows(&kin, &mut frame_jac, &limbs, blocks, p);
+    let mut legs = ik::Inequality {
+        jacobian: nalgebra::DMatrix::zeros(limbs.len(), model.nv()),
+        bound: nalgebra::DVector::zeros(limbs.len()),
+    };
+    clearance_rows(&kin, &mut frame_jac, &limbs, blocks, p, &mut legs);
     let mut t0 = 0.0;
     let mut tick = 0usize;
     let mut worst_com_segment = 0;
@@ -313,8 +320,7 @@ pub fn track(
             stats.ik_time_s += started.elapsed().as_secs_f64();
             stats.ik_ticks += 1;
             tick += 1;
-            let least;
-            (legs, least) = clearance_rows(&kin, &mut frame_jac, &limbs, blocks, p);
+            let least = clearance_rows(&kin, &mut frame_jac, &limbs, blocks, p, &mut legs);
             if let Some((d, limb, block)) = least {
                 stats.min_leg_clearance_m = Some(stats.min_leg_clearance_m.map_or(d, |m: f64| m.min(d)));
                 if d < 0.0 {
