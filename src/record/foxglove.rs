@@ -22,12 +22,15 @@ pub fn vector3(x: f64, y: f64, z: f64) -> Value {
 
 /// `foxglove.Pose` of an isometry.
 pub fn pose(p: &Isometry3<f64>) -> Value {
+    let [position, orientation] = parts(p);
+    json!({ "position": position, "orientation": orientation })
+}
+
+/// An isometry's translation (`foxglove.Vector3`) and rotation (`foxglove.Quaternion`).
+fn parts(p: &Isometry3<f64>) -> [Value; 2] {
     let t = p.translation.vector;
     let q = p.rotation;
-    json!({
-        "position": vector3(t.x, t.y, t.z),
-        "orientation": { "x": q.i, "y": q.j, "z": q.k, "w": q.w },
-    })
+    [vector3(t.x, t.y, t.z), json!({ "x": q.i, "y": q.j, "z": q.k, "w": q.w })]
 }
 
 /// `foxglove.Color`.
@@ -178,14 +181,13 @@ pub fn frame_transform_schema() -> String {
 
 /// A `foxglove.FrameTransform` from `parent` to `child`.
 pub fn frame_transform(stamp_s: f64, parent: &str, child: &str, p: &Isometry3<f64>) -> Value {
-    let t = p.translation.vector;
-    let q = p.rotation;
+    let [translation, rotation] = parts(p);
     json!({
         "timestamp": time(stamp_s),
         "parent_frame_id": parent,
         "child_frame_id": child,
-        "translation": vector3(t.x, t.y, t.z),
-        "rotation": { "x": q.i, "y": q.j, "z": q.k, "w": q.w },
+        "translation": translation,
+        "rotation": rotation,
     })
 }
 
