@@ -185,11 +185,18 @@ fn normal_from_offsets(
         return NO_NORMAL;
     }
     let mean = offsets.clone().sum::<Vector3<f32>>() / n as f32;
-    let mut c = Matrix3::<f32>::zeros();
+    // The six distinct entries of the symmetric sum of e e^T.
+    let (mut xx, mut xy, mut xz, mut yy, mut yz, mut zz) = (0f32, 0f32, 0f32, 0f32, 0f32, 0f32);
     for d in offsets {
         let e = d - mean;
-        c += e * e.transpose();
+        xx += e.x * e.x;
+        xy += e.x * e.y;
+        xz += e.x * e.z;
+        yy += e.y * e.y;
+        yz += e.y * e.z;
+        zz += e.z * e.z;
     }
+    let c = Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
     match smallest_eigenvector(&(c / n as f32)) {
         Some(v) => {
             let v = if v.dot(to_viewpoint) < 0.0 { -v } else { v };

@@ -2,15 +2,15 @@
 //!
 //! A hashed grid rather than an octree: the points are sorted by (x, y, z) cell, so each
 //! (x, y) column of cells is a contiguous run, and a dense 2-D table of column runs answers
-//! "which voxels are in the 3 x 3 x 3 block around this one" with nine short scans and no
-//! hashing. Each voxel is represented by its point closest to the voxel's mean (GET_CENTER)
+//! "how many voxels are in the 3 x 3 x 3 block around this one" with nine short scans and
+//! no hashing. Each voxel is represented by its point closest to the voxel's mean (GET_CENTER)
 //! and carries the mean of its points' normals.
 
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
-/// Voxels of a cloud, with their 26-neighbourhood. Index-aligned arrays.
+/// Voxels of a cloud, with their adjacency sizes. Index-aligned arrays.
 #[derive(Debug, Clone, Default)]
 pub struct VoxelCloud {
     /// Edge of a voxel, metres.
@@ -23,10 +23,9 @@ pub struct VoxelCloud {
     pub normals: Vec<Vector3<f32>>,
     /// Points in each voxel.
     pub counts: Vec<u32>,
-    /// Neighbours (26-adjacency) of voxel i: `adjacent[adj_start[i]..adj_start[i + 1]]`.
-    pub adj_start: Vec<u32>,
-    /// Concatenated neighbour lists.
-    pub adjacent: Vec<u32>,
+    /// Adjacency size of each voxel as Algorithm 1 counts it: occupied cells of its
+    /// 3 x 3 x 3 block, itself included, among the voxels it was voxelized with.
+    pub adjacency: Vec<u8>,
 }
 
 impl VoxelCloud {
@@ -38,17 +37,6 @@ impl VoxelCloud {
     /// Whether there is no voxel.
     pub fn is_empty(&self) -> bool {
         self.positions.is_empty()
-    }
-
-    /// The neighbours of voxel `i`.
-    pub fn neighbours(&self, i: usize) -> &[u32] {
-        &self.adjacent[self.adj_start[i] as usize..self.adj_start[i + 1] as usize]
-    }
-
-    /// Adjacency size of voxel `i` as Algorithm 1 counts it: occupied cells of its
-    /// 3 x 3 x 3 block, itself included.
-    pub fn adjacency_size(&self, i: usize) -> usize {
-        self.neighbours(i).len() + 1
     }
 }
 
@@ -105,73 +93,22 @@ pub fn voxelize(
         vc.normals.push(normal);
         vc.counts.push(members.len() as u32);
     }
-    let (adj_start, adjacent) = adjacency(&vc.keys);
-    vc.adj_start = adj_start;
-    vc.adjacent = adjacent;
+    vc.adjacency = adjacency(&vc.keys);
     vc
 }
 
-/// Filter 2: keeps the voxels whose adjacency size exceeds `min_adjacent` (n_t), with the
-/// adjacency recomputed among the kept voxels.
+/// Filter 2: keeps the voxels whose adjacency size exceeds `min_adjacent` (n_t). The kept
+/// voxels keep the adjacency size they had before the filter.
 pub fn filter_sparse(vc: &VoxelCloud, min_adjacent: usize) -> VoxelCloud {
-    let kept: Vec<usize> = (0..vc.len()).filter(|&i| vc.adjacency_size(i) > min_adjacent).collect();
-    let mut new_index = vec![u32::MAX; vc.len()];
-    for (k, &i) in kept.iter().enumerate() {
-        new_index[i] = k as u32;
-    }
-    // The kept voxels' neighbours are their old neighbours that were kept.
-    let lists: Vec<Neighbours> = kept
-        .par_iter()
-        .map(|&i| {
-            let mut out = Neighbours::default();
-            for &j in vc.neighbours(i) {
-                if new_index[j as usize] != u32::MAX {
-                    out.push(new_index[j as usize]);
-                }
-            }
-            out
-        })
-        .collect();
-    let (adj_start, adjacent) = to_csr(&lists);
+    let kept: Vec<usize> = (0..vc.len()).filter(|&i| vc.adjacency[i] as usize > min_adjacent).collect();
     VoxelCloud {
         resolution_m: vc.resolution_m,
         keys: kept.iter().map(|&i| vc.keys[i]).collect(),
         positions: kept.iter().map(|&i| vc.positions[i]).collect(),
         normals: kept.iter().map(|&i| vc.normals[i]).collect(),
         counts: kept.iter().map(|&i| vc.counts[i]).collect(),
-        adj_start,
-        adjacent,
+        adjacency: kept.iter().map(|&i| vc.adjacency[i]).collect(),
     }
-}
-
-/// The neighbours of one voxel, at most 26, kept on the stack.
-#[derive(Clone, Copy, Default)]
-struct Neighbours {
-    ids: [u32; 26],
-    len: u8,
-}
-
-impl Neighbours {
-    fn push(&mut self, id: u32) {
-        self.ids[self.len as usize] = id;
-        self.len += 1;
-    }
-
-    fn as_slice(&self) -> &[u32] {
-        &self.ids[..self.len as usize]
-    }
-}
-
-/// Concatenates per-voxel lists into CSR start offsets and indices.
-fn to_csr(lists: &[Neighbours]) -> (Vec<u32>, Vec<u32>) {
-    let mut start = Vec::with_capacity(lists.len() + 1);
-    let mut adj = Vec::with_capacity(lists.iter().map(|l| l.len as usize).sum());
-    start.push(0u32);
-    for l in lists {
-        adj.extend_from_slice(l.as_slice());
-        start.push(adj.len() as u32);
-    }
-    (start, adj)
 }
 
 const BITS: u32 = 21;
@@ -191,11 +128,12 @@ fn unpack(k: u64) -> [i32; 3] {
 /// Largest dense column table, cells; beyond it the columns go in a hash map.
 const MAX_DENSE_COLUMNS: usize = 1 << 24;
 
-/// 26-adjacency of cells sorted by (x, y, z): CSR start offsets and neighbour indices.
-fn adjacency(keys: &[[i32; 3]]) -> (Vec<u32>, Vec<u32>) {
+/// Adjacency size (occupied cells of the 3 x 3 x 3 block, itself included) of each of the
+/// distinct cells `keys`, sorted by (x, y, z).
+fn adjacency(keys: &[[i32; 3]]) -> Vec<u8> {
     let n = keys.len();
     if n == 0 {
-        return (vec![0], Vec::new());
+        return Vec::new();
     }
     // Runs of equal (x, y): the columns.
     let (mut xmin, mut xmax, mut ymin, mut ymax) = (i32::MAX, i32::MIN, i32::MAX, i32::MIN);
@@ -217,28 +155,21 @@ fn adjacency(keys: &[[i32; 3]]) -> (Vec<u32>, Vec<u32>) {
     }
     let (w, h) = ((xmax - xmin + 1) as usize, (ymax - ymin + 1) as usize);
     let columns = Columns::new(&runs, xmin, ymin, w, h);
-    let lists: Vec<Neighbours> = (0..n)
-        .into_par_iter()
-        .map(|i| {
-            let [x, y, z] = keys[i];
-            let mut out = Neighbours::default();
+    keys.par_iter()
+        .map(|&[x, y, z]| {
+            let mut size = 0u8;
             for dx in -1..=1 {
                 for dy in -1..=1 {
                     if let Some((a, b)) = columns.get(x + dx, y + dy) {
-                        // Keys are unique cells, so at most 26 pass this test.
-                        for j in a..b {
-                            let dz = keys[j as usize][2] - z;
-                            if dz.abs() <= 1 && j as usize != i {
-                                out.push(j);
-                            }
-                        }
+                        // Keys are unique cells, so at most 27 pass this test.
+                        size += keys[a as usize..b as usize].iter().filter(|k| (k[2] - z).abs() <= 1).count()
+                            as u8;
                     }
                 }
             }
-            out
+            size
         })
-        .collect();
-    to_csr(&lists)
+        .collect()
 }
 
 /// Column runs by (x, y): a dense table when the grid's footprint is small, else a hash map.
@@ -303,16 +234,16 @@ mod tests {
         assert_eq!(vc.len(), 101);
         let corner = vc.keys.iter().position(|k| *k == [0, 0, 0]).unwrap();
         let inner = vc.keys.iter().position(|k| *k == [5, 5, 0]).unwrap();
-        assert_eq!(vc.adjacency_size(corner), 4);
-        assert_eq!(vc.adjacency_size(inner), 9);
+        assert_eq!(vc.adjacency[corner], 4);
+        assert_eq!(vc.adjacency[inner], 9);
+        // Against counting every pair of cells.
+        for (i, a) in vc.keys.iter().enumerate() {
+            let brute = vc.keys.iter().filter(|b| (0..3).all(|d| (a[d] - b[d]).abs() <= 1)).count();
+            assert_eq!(vc.adjacency[i] as usize, brute);
+        }
         let kept = filter_sparse(&vc, 5);
         // corners (4) and the isolated voxel go; edges have 6 > 5 and stay
         assert_eq!(kept.len(), 96);
-        for i in 0..kept.len() {
-            for &j in kept.neighbours(i) {
-                let (a, b) = (kept.keys[i], kept.keys[j as usize]);
-                assert!((0..3).all(|d| (a[d] - b[d]).abs() <= 1));
-            }
-        }
+        assert!(kept.keys.iter().all(|k| !(k[0] % 9 == 0 && k[1] % 9 == 0)), "a corner was kept");
     }
 }
