@@ -12,9 +12,20 @@ fn cross(o: &P2, a: &P2, b: &P2) -> f64 {
 }
 
 /// Convex hull, counter-clockwise, without collinear points (Andrew's monotone chain).
-/// Non-finite points are ignored.
+/// Non-finite points are ignored. Large sets are first thinned by Akl and Toussaint's
+/// heuristic: points strictly inside the polygon of the eight extreme points (along x, y,
+/// x + y, x - y) cannot be hull vertices, and the sort only sees the rest.
 pub fn convex_hull(points: &[P2]) -> Vec<P2> {
-    let mut pts: Vec<P2> = points.iter().copied().filter(|p| p.x.is_finite() && p.y.is_finite()).collect();
+    let all: Vec<P2> = points.iter().copied().filter(|p| p.x.is_finite() && p.y.is_finite()).collect();
+    if all.len() <= THIN_ABOVE {
+        return monotone_chain(all);
+    }
+    let octagon = extreme_polygon(&all);
+    monotone_chain(all.into_iter().filter(|p| !strictly_inside(&octagon, p)).collect())
+}
+
+/// Andrew's monotone chain on finite points.
+fn monotone_chain(mut pts: Vec<P2>) -> Vec<P2> {
     pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
     pts.dedup();
     if pts.len() < 3 {
@@ -36,6 +47,45 @@ pub fn convex_hull(points: &[P2]) -> Vec<P2> {
     hull
 }
 
+/// Point sets at most this big go to the monotone chain as they are.
+const THIN_ABOVE: usize = 64;
+
+/// The distinct extreme points of `pts` along x, y, x + y and x - y, counter-clockwise.
+fn extreme_polygon(pts: &[P2]) -> Vec<P2> {
+    let Some(&first) = pts.first() else { return Vec::new() };
+    // Counter-clockwise from the lowest y: min y, max x - y, max x, max x + y, max y,
+    // max y - x, min x, min x + y.
+    let keys: [fn(&P2) -> f64; 8] =
+        [|p| -p.y, |p| p.x - p.y, |p| p.x, |p| p.x + p.y, |p| p.y, |p| p.y - p.x, |p| -p.x, |p| -p.x - p.y];
+    let mut best = [first; 8];
+    for p in pts {
+        for (b, key) in best.iter_mut().zip(&keys) {
+            if key(p) > key(b) {
+                *b = *p;
+            }
+        }
+    }
+    let mut poly: Vec<P2> = Vec::with_capacity(8);
+    for b in best {
+        if poly.last() != Some(&b) && poly.first() != Some(&b) {
+            poly.push(b);
+        }
+    }
+    poly
+}
+
+/// Whether `p` is strictly inside the convex counter-clockwise polygon `poly`, by a margin
+/// far above rounding (a point on or near an edge is never called inside).
+fn strictly_inside(poly: &[P2], p: &P2) -> bool {
+    let n = poly.len();
+    n >= 3
+        && (0..n).all(|i| {
+            let (a, b) = (&poly[i], &poly[(i + 1) % n]);
+            let scale = (b - a).norm_squared() + (p - a).norm_squared();
+            cross(a, b, p) > 1e-12 * scale
+        })
+}
+
 /// Signed area (positive when counter-clockwise), square metres.
 pub fn signed_area(poly: &[P2]) -> f64 {
     let n = poly.len();
@@ -50,7 +100,11 @@ pub fn area(poly: &[P2]) -> f64 {
 /// The minimum-area rectangle enclosing `points`: its unit axis `u` (the second axis is `u`
 /// turned by +90 degrees) and the extents [min, max] of the points along both axes.
 pub fn min_area_rect(points: &[P2]) -> Option<(P2, [f64; 2], [f64; 2])> {
-    let hull = convex_hull(points);
+    min_area_rect_of_hull(&convex_hull(points))
+}
+
+/// [`min_area_rect`] of points whose convex hull (counter-clockwise) is `hull`.
+pub fn min_area_rect_of_hull(hull: &[P2]) -> Option<(P2, [f64; 2], [f64; 2])> {
     if hull.len() < 3 {
         return None;
     }
@@ -58,7 +112,7 @@ pub fn min_area_rect(points: &[P2]) -> Option<(P2, [f64; 2], [f64; 2])> {
     for i in 0..hull.len() {
         let e = hull[(i + 1) % hull.len()] - hull[i];
         let Some(u) = e.try_normalize(1e-15) else { continue };
-        let (ra, rb) = extents(&hull, &u);
+        let (ra, rb) = extents(hull, &u);
         let a = (ra[1] - ra[0]) * (rb[1] - rb[0]);
         if best.is_none_or(|b| a < b.0) {
             best = Some((a, u, ra, rb));
@@ -177,6 +231,37 @@ mod tests {
         ];
         assert!(contains(&poly, &P2::new(0.2129, 0.0937)));
         assert!(!contains(&poly, &P2::new(0.2129, 0.01)));
+    }
+
+    #[test]
+    fn thinning_keeps_the_hull() {
+        let mut seed = 99u64;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 33) as f64 / (1u64 << 31) as f64
+        };
+        for shape in 0..4 {
+            for trial in 0..50 {
+                let n = 65 + trial * 40;
+                let (yaw, sx, sy) = (rnd() * 6.3, 0.2 + rnd(), 0.05 + rnd());
+                let pts: Vec<P2> = (0..n)
+                    .map(|_| {
+                        let (a, b) = match shape {
+                            0 => (rnd() - 0.5, rnd() - 0.5), // filled box
+                            1 => ((rnd() * 20.0).round() / 40.0, (rnd() * 8.0).round() / 16.0), // grid, repeats
+                            2 => {
+                                let t = rnd() * 6.3;
+                                (t.cos() / 2.0, t.sin() / 2.0) // all on a circle
+                            }
+                            _ => (rnd() - 0.5, 0.0), // collinear
+                        };
+                        let (x, y) = (a * sx, b * sy);
+                        P2::new(x * yaw.cos() - y * yaw.sin() + 3.0, x * yaw.sin() + y * yaw.cos() - 1.0)
+                    })
+                    .collect();
+                assert_eq!(convex_hull(&pts), monotone_chain(pts.clone()), "shape {shape}, {n} points");
+            }
+        }
     }
 
     #[test]

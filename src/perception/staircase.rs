@@ -145,11 +145,11 @@ pub fn extract(
 
 fn candidate(vc: &VoxelCloud, voxels: Vec<u32>, normal: Vector3<f64>) -> Option<Candidate> {
     let xy: Vec<P2> = voxels.iter().map(|&v| vc.positions[v as usize].xy().coords.cast::<f64>()).collect();
-    let (axis, ra, rb) = geom2d::min_area_rect(&xy)?;
+    let hull = geom2d::convex_hull(&xy);
+    let (axis, ra, rb) = geom2d::min_area_rect_of_hull(&hull)?;
     let (a, b) = (ra[1] - ra[0], rb[1] - rb[0]);
     let height = voxels.iter().map(|&v| vc.positions[v as usize].z as f64).sum::<f64>() / voxels.len() as f64;
     let centroid = xy.iter().sum::<P2>() / xy.len() as f64;
-    let hull = geom2d::convex_hull(&xy);
     Some(Candidate { voxels, xy, height, normal, shape: [a.min(b), a.max(b)], axis, hull, centroid })
 }
 
