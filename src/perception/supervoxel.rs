@@ -10,9 +10,11 @@
 //! supervoxels across its lines.
 //!
 //! Each round attaches again only the voxels of the seed cells that see a centre the last
-//! round moved (every voxel of a cell has the same candidates), and keeps the centres' sums
-//! in f64, updated by the voxels that changed supervoxel; this gives the labels a full
-//! re-evaluation gives (a unit test compares them) at a fraction of the cost.
+//! round moved (every voxel of a cell has the same candidates); this gives the labels a full
+//! re-evaluation gives (a unit test compares them) at a fraction of the cost. The centres
+//! are summed in f32 in voxel order, as before: a centre that moves by a rounding error
+//! changes the closed loop's later views enough to matter (f64 running sums made the
+//! Exp. 1 climb fall on step 2).
 
 use super::voxel::VoxelCloud;
 use super::PerceptionParams;
@@ -46,8 +48,11 @@ pub fn distance(
     n_voxel: &Vector3<f32>,
     n_centre: &Vector3<f32>,
 ) -> f32 {
+    let mu = p.distance_impact_factor as f32;
     let r = p.seed_resolution_m as f32;
-    distance_squared(p.distance_impact_factor as f32, r * r, dp, n_voxel, n_centre).sqrt()
+    let ds2 = dp.norm_squared();
+    let dn = 1.0 - n_voxel.dot(n_centre);
+    (mu * ds2 / (3.0 * r * r) + (1.0 - mu) * dn * dn).sqrt()
 }
 
 /// Most attachment rounds (a guard; they stop as soon as no voxel moves).
@@ -98,21 +103,16 @@ pub fn supervoxels(vc: &VoxelCloud, p: &PerceptionParams) -> Supervoxels {
 
     let mut centres: Vec<Point3<f32>> = seeded.iter().map(|e| vc.positions[e.1 as usize]).collect();
     let mut normals: Vec<Vector3<f32>> = seeded.iter().map(|e| vc.normals[e.1 as usize]).collect();
-    let mut sum_p = vec![Vector3::<f64>::zeros(); m];
-    let mut sum_n = vec![Vector3::<f64>::zeros(); m];
-    let mut count = vec![0u32; m];
     let mut labels = vec![UNLABELLED; n];
     // Centres (position or normal) moved by the last update: only voxels that see one of
     // them are attached again, which gives what attaching every voxel would.
     let mut moved_centres: Vec<u32> = (0..m as u32).collect();
     let mut flag = vec![false; m];
-    let (mu, r2) = (p.distance_impact_factor as f32, (p.seed_resolution_m * p.seed_resolution_m) as f32);
     let mut rounds = 0;
-    while rounds < MAX_ROUNDS && !moved_centres.is_empty() {
+    while rounds < MAX_ROUNDS {
         rounds += 1;
         let cells_to_attach = distinct(moved_centres.iter().map(|&l| volume.get(l as usize)), &mut flag);
-        // Attachment given fixed centres is independent per voxel (a Lloyd step); the
-        // argmin of D is that of D^2.
+        // Attachment given fixed centres is independent per voxel (a Lloyd step).
         let moves: Vec<(u32, u32)> = cells_to_attach
             .par_iter()
             .flat_map_iter(|&c| {
@@ -122,7 +122,7 @@ pub fn supervoxels(vc: &VoxelCloud, p: &PerceptionParams) -> Supervoxels {
                     let (q, nq) = (vc.positions[i as usize], vc.normals[i as usize]);
                     let mut best = (f32::INFINITY, UNLABELLED);
                     for &l in candidates {
-                        let d = distance_squared(mu, r2, q - centres[l as usize], &nq, &normals[l as usize]);
+                        let d = distance(p, q - centres[l as usize], &nq, &normals[l as usize]);
                         if d < best.0 {
                             best = (d, l);
                         }
@@ -131,36 +131,13 @@ pub fn supervoxels(vc: &VoxelCloud, p: &PerceptionParams) -> Supervoxels {
                 })
             })
             .collect();
-        let mut gained_or_lost = Vec::new();
         for &(i, l) in &moves {
-            let (q, nq) =
-                (vc.positions[i as usize].coords.cast::<f64>(), vc.normals[i as usize].cast::<f64>());
-            let old = labels[i as usize];
-            if old != UNLABELLED {
-                sum_p[old as usize] -= q;
-                sum_n[old as usize] -= nq;
-                count[old as usize] -= 1;
-                gained_or_lost.push(old);
-            }
-            sum_p[l as usize] += q;
-            sum_n[l as usize] += nq;
-            count[l as usize] += 1;
-            gained_or_lost.push(l);
             labels[i as usize] = l;
         }
-        moved_centres = distinct(std::iter::once(&gained_or_lost[..]), &mut flag);
-        moved_centres.retain(|&l| {
-            let l = l as usize;
-            if count[l] == 0 {
-                return false;
-            }
-            let c = Point3::from((sum_p[l] / count[l] as f64).cast::<f32>());
-            let nl = sum_n[l].try_normalize(1e-12).map_or(normals[l], |v| v.cast::<f32>());
-            let moved = c != centres[l] || nl != normals[l];
-            centres[l] = c;
-            normals[l] = nl;
-            moved
-        });
+        moved_centres = update_centres(vc, &labels, &mut centres, &mut normals);
+        if moves.is_empty() {
+            break;
+        }
     }
     let mut sizes = vec![0u32; centres.len()];
     for &l in &labels {
@@ -171,16 +148,37 @@ pub fn supervoxels(vc: &VoxelCloud, p: &PerceptionParams) -> Supervoxels {
     Supervoxels { labels, centres, normals, sizes, rounds }
 }
 
-/// The squared distance D^2 of Eq. 1 (`mu` the distance impact factor, `r2` = R_seed^2).
-fn distance_squared(
-    mu: f32,
-    r2: f32,
-    dp: Vector3<f32>,
-    n_voxel: &Vector3<f32>,
-    n_centre: &Vector3<f32>,
-) -> f32 {
-    let dn = 1.0 - n_voxel.dot(n_centre);
-    mu * dp.norm_squared() / (3.0 * r2) + (1.0 - mu) * dn * dn
+/// Every centre (position and normal) becomes the mean of its voxels, summed in f32 in
+/// voxel order; returns the supervoxels whose centre moved.
+fn update_centres(
+    vc: &VoxelCloud,
+    labels: &[u32],
+    centres: &mut [Point3<f32>],
+    normals: &mut [Vector3<f32>],
+) -> Vec<u32> {
+    let mut sum_p = vec![Vector3::<f32>::zeros(); centres.len()];
+    let mut sum_n = vec![Vector3::<f32>::zeros(); centres.len()];
+    let mut count = vec![0u32; centres.len()];
+    for (i, &l) in labels.iter().enumerate() {
+        if l != UNLABELLED {
+            sum_p[l as usize] += vc.positions[i].coords;
+            sum_n[l as usize] += vc.normals[i];
+            count[l as usize] += 1;
+        }
+    }
+    let mut moved = Vec::new();
+    for l in 0..centres.len() {
+        if count[l] > 0 {
+            let c = Point3::from(sum_p[l] / count[l] as f32);
+            let nl = sum_n[l].try_normalize(1e-12).unwrap_or(normals[l]);
+            if c != centres[l] || nl != normals[l] {
+                moved.push(l as u32);
+            }
+            centres[l] = c;
+            normals[l] = nl;
+        }
+    }
+    moved
 }
 
 /// The distinct items of `lists`, in first-seen order. `flag` (one per item, all false) is
