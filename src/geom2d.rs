@@ -235,11 +235,9 @@ mod tests {
 
     #[test]
     fn thinning_keeps_the_hull() {
-        let mut seed = 99u64;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 33) as f64 / (1u64 << 31) as f64
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(99);
+        let mut rnd = || rng.random::<f64>();
         for shape in 0..4 {
             for trial in 0..50 {
                 let n = 65 + trial * 40;

@@ -185,18 +185,11 @@ fn normal_from_offsets(
         return NO_NORMAL;
     }
     let mean = offsets.clone().sum::<Vector3<f32>>() / n as f32;
-    // The six distinct entries of the symmetric sum of e e^T.
-    let (mut xx, mut xy, mut xz, mut yy, mut yz, mut zz) = (0f32, 0f32, 0f32, 0f32, 0f32, 0f32);
+    let mut c = Matrix3::<f32>::zeros();
     for d in offsets {
         let e = d - mean;
-        xx += e.x * e.x;
-        xy += e.x * e.y;
-        xz += e.x * e.z;
-        yy += e.y * e.y;
-        yz += e.y * e.z;
-        zz += e.z * e.z;
+        c += e * e.transpose();
     }
-    let c = Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
     match smallest_eigenvector(&(c / n as f32)) {
         Some(v) => {
             let v = if v.dot(to_viewpoint) < 0.0 { -v } else { v };
@@ -256,14 +249,13 @@ pub fn smallest_eigenvector(a: &Matrix3<f32>) -> Option<Vector3<f32>> {
 mod tests {
     use super::*;
     use nalgebra::SymmetricEigen;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
 
     #[test]
     fn closed_form_eigenvector_matches_nalgebra() {
-        let mut seed = 12345u64;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((seed >> 33) as f64 / (1u64 << 31) as f64) - 0.5
-        };
+        let mut rng = ChaCha8Rng::seed_from_u64(12345);
+        let mut rnd = || rng.random_range(-0.5f64..0.5);
         for _ in 0..2000 {
             let pts: Vec<Vector3<f64>> =
                 (0..10).map(|_| Vector3::new(rnd(), rnd() * 0.5, rnd() * 0.01 * rnd().abs())).collect();

