@@ -15,6 +15,30 @@ use indicatif::{ProgressBar, ProgressStyle};
 use stairbench::scenario::Scenario;
 use std::path::{Path, PathBuf};
 
+/// Overrides of a scenario's lidar noise, for the commands that scan one.
+#[derive(Debug, Clone, clap::Args)]
+pub struct NoiseArgs {
+    /// Override the range noise, millimetres (0 for a noise-free scan; scenario input only).
+    #[arg(long)]
+    noise_mm: Option<f64>,
+    /// Override the scenario's random seed (the noise drawn in every scan): the same
+    /// staircase through another noise draw, to check a result is not luck.
+    #[arg(long)]
+    seed: Option<u64>,
+}
+
+impl NoiseArgs {
+    /// `scenario` with the overrides given (it is validated when its world is built).
+    pub fn apply(&self, scenario: &mut Scenario) {
+        if let Some(mm) = self.noise_mm {
+            scenario.lidar.noise_sigma_m = mm / 1000.0;
+        }
+        if let Some(seed) = self.seed {
+            scenario.seed = seed;
+        }
+    }
+}
+
 /// Folder searched for a scenario given by name (`exp2` → `scenarios/exp2.toml`).
 const SCENARIO_DIR: &str = "scenarios";
 

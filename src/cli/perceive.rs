@@ -27,9 +27,8 @@ pub struct PerceiveArgs {
     /// has one).
     #[arg(long, value_enum, default_value = "auto")]
     search: SearchArg,
-    /// Override the scan's range noise, millimetres (scenario input only).
-    #[arg(long)]
-    noise_mm: Option<f64>,
+    #[command(flatten)]
+    noise: super::NoiseArgs,
     /// Print one JSON object (segments, timings_ms, counts, and the score against ground
     /// truth for a scenario) instead of tables.
     #[arg(long)]
@@ -61,9 +60,7 @@ fn load(a: &PerceiveArgs) -> Result<Input> {
         (Some(p), Some("txt" | "xyz" | "csv")) => Ok(Input::Voxels(read_xyz_text(p)?)),
         (arg, _) => {
             let mut scenario = super::load_scenario(arg)?;
-            if let Some(mm) = a.noise_mm {
-                scenario.lidar.noise_sigma_m = mm / 1000.0;
-            }
+            a.noise.apply(&mut scenario);
             let scan = scan_scenario(&scenario, &mut |_, _| {})?;
             let cloud = scan.sweep.assemble(&AssembleParams::default())?;
             Ok(Input::Scenario(Box::new(scan.scene), cloud))

@@ -20,10 +20,8 @@ pub struct RunArgs {
     /// [checks], [run]; fields left out keep their defaults.
     #[arg(long)]
     params: Option<PathBuf>,
-    /// Override the scenario's random seed (the lidar's noise in every scan): the same
-    /// staircase seen through another noise draw, to check a climb does not pass by luck.
-    #[arg(long)]
-    seed: Option<u64>,
+    #[command(flatten)]
+    noise: super::NoiseArgs,
     /// Speed the planned motion up by this factor (CoM and foot speeds, shortest
     /// segment and swing piece, the IK's joint speed bound), to see how far from
     /// quasi-static the plan runs.
@@ -57,9 +55,7 @@ pub struct RunArgs {
 /// Runs `stairbench run`; exit code 0 when the climb succeeded, 1 when it failed.
 pub fn run(a: RunArgs) -> Result<ExitCode> {
     let mut scenario = super::load_scenario(a.scenario.as_deref())?;
-    if let Some(seed) = a.seed {
-        scenario.seed = seed;
-    }
+    a.noise.apply(&mut scenario);
     let mut params: ClimbParams = match &a.params {
         Some(p) => toml::from_str(
             &std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?,

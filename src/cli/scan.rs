@@ -18,12 +18,8 @@ pub struct ScanArgs {
     /// Output cloud; the extension chooses the format (.ply or .pcd).
     #[arg(short, long, default_value = "out/cloud.ply")]
     output: PathBuf,
-    /// Override the range noise, millimetres (0 for a noise-free scan).
-    #[arg(long)]
-    noise_mm: Option<f64>,
-    /// Override the scenario's random seed.
-    #[arg(long)]
-    seed: Option<u64>,
+    #[command(flatten)]
+    noise: super::NoiseArgs,
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
@@ -35,12 +31,7 @@ pub struct ScanArgs {
 /// Runs `stairbench scan`.
 pub fn run(a: ScanArgs) -> Result<ExitCode> {
     let mut scenario = super::load_scenario(a.scenario.as_deref())?;
-    if let Some(mm) = a.noise_mm {
-        scenario.lidar.noise_sigma_m = mm / 1000.0;
-    }
-    if let Some(seed) = a.seed {
-        scenario.seed = seed;
-    }
+    a.noise.apply(&mut scenario);
     let format = CloudFormat::from_path(&a.output)
         .with_context(|| format!("{}: the extension must be .ply or .pcd", a.output.display()))?;
     let bar = super::progress_bar(0, "scan", a.quiet);
