@@ -336,7 +336,7 @@ pub fn feet_height_m(model: &RobotModel, q: &[f64]) -> f64 {
 /// rectangle matches (the paper re-estimates upper steps as the robot climbs; a step under
 /// the lidar's blind spot stays as last seen). Where a new rectangle matches a known one, the
 /// new one is taken with its front edge (the nose) moved forward to the known one's if that
-/// was nearer ([`extend_front`]): close to a riser the head lidar no longer sees the near part
+/// was nearer ([`merge_view`]): close to a riser the head lidar no longer sees the near part
 /// of the next tread, and that partial view must not move the nose back.
 fn merge(known: &[PlaneSegment], seen: Vec<PlaneSegment>, same_m: f64) -> Vec<PlaneSegment> {
     let matches = |a: &PlaneSegment, b: &PlaneSegment| {
@@ -347,53 +347,39 @@ fn merge(known: &[PlaneSegment], seen: Vec<PlaneSegment>, same_m: f64) -> Vec<Pl
     let updated: Vec<PlaneSegment> = seen
         .into_iter()
         .map(|s| match known.iter().find(|k| matches(k, &s)) {
-            Some(k) => on_fuller_plane(extend_front(&s, k), &s, k),
+            Some(k) => merge_view(&s, k),
             None => s,
         })
         .collect();
     updated.into_iter().chain(kept).collect()
 }
 
-/// `a` with its front edge (toward the robot, along `a`'s direction of ascent) moved to
-/// `b`'s front edge when `b`'s is nearer; its back edge, sides, height and plane stay `a`'s.
-/// An edge's place is its midpoint's: a rectangle yawed by a degree or two (as perception
-/// returns them) has a front corner up to `width/2 * sin(yaw)` ahead of its front edge, and
-/// taking that corner for the edge moved the nose toward the robot at every merge (on the
-/// 50 cm Exp. 1 treads, 1.2-1.6 cm over three scans: the sole's heel then came down on the
-/// nose).
-fn extend_front(a: &PlaneSegment, b: &PlaneSegment) -> PlaneSegment {
-    let along = a.along();
-    let c = a.center();
-    let front = |r: &PlaneSegment| (r.center() - r.along() * (r.depth_m() / 2.0) - c).dot(&along);
-    let (front_a, front_b) = (front(a), front(b));
-    if front_b >= front_a {
-        return a.clone();
-    }
-    let back = a.depth_m() / 2.0;
-    let centre = c + along * ((front_b + back) / 2.0);
-    PlaneSegment::new(
-        centre,
-        along,
-        back - front_b,
-        a.width_m(),
-        a.normal().into_inner(),
-        a.voxel_count().max(b.voxel_count()),
-    )
-    .unwrap_or_else(|| a.clone())
-}
-
-/// `r`, a merge of the new view `s` of a step with the known `k`, on the plane (normal) of
-/// whichever of the two rests on more voxels; its extent and height stay `r`'s. A partial
-/// view (the near part of the tread hidden under the lidar) fits its plane to a strip 10-15
-/// cm deep: on Exp. 1 such a view of step 2 came out tilted 2-4 degrees (full views: under
-/// 1 degree), and a foot planned on that tilt came down on its toe or heel.
-fn on_fuller_plane(r: PlaneSegment, s: &PlaneSegment, k: &PlaneSegment) -> PlaneSegment {
+/// The new view `s` of the known step `k`: `s`'s rectangle with its front edge (the nose,
+/// toward the robot along `s`'s ascent) moved forward to `k`'s when that was nearer, on the
+/// plane (normal) of whichever view rests on more voxels; its back edge, sides and height
+/// stay `s`'s.
+/// - An edge's place is its midpoint's: a rectangle yawed by a degree or two (as perception
+///   returns them) has a front corner up to `width/2 * sin(yaw)` ahead of its front edge,
+///   and taking that corner for the edge moved the nose toward the robot at every merge (on
+///   the 50 cm Exp. 1 treads, 1.2-1.6 cm over three scans: the heel came down on the nose).
+/// - A partial view (the near part of the tread hidden under the lidar) fits its plane to a
+///   strip 10-15 cm deep: on Exp. 1 such a view of step 2 came out tilted 2-4 degrees (full
+///   views: under 1 degree), and a foot planned on that tilt came down on its toe or heel.
+fn merge_view(s: &PlaneSegment, k: &PlaneSegment) -> PlaneSegment {
     let fuller = if k.voxel_count() > s.voxel_count() { k } else { s };
-    if fuller.normal() == r.normal() {
-        return r;
-    }
-    let n = fuller.normal().into_inner();
-    PlaneSegment::new(r.center(), r.along(), r.depth_m(), r.width_m(), n, r.voxel_count()).unwrap_or(r)
+    let along = s.along();
+    let c = s.center();
+    let front = |r: &PlaneSegment| (r.center() - r.along() * (r.depth_m() / 2.0) - c).dot(&along);
+    let (front_s, front_k) = (front(s), front(k));
+    let (front, voxels) = if front_k < front_s {
+        (front_k, s.voxel_count().max(k.voxel_count()))
+    } else {
+        (front_s, s.voxel_count())
+    };
+    let back = s.depth_m() / 2.0;
+    let centre = c + along * ((front + back) / 2.0);
+    PlaneSegment::new(centre, along, back - front, s.width_m(), fuller.normal().into_inner(), voxels)
+        .unwrap_or_else(|| s.clone())
 }
 
 /// The true step (1-based) at height `z`: the ground-truth step nearest it.
