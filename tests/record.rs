@@ -36,7 +36,8 @@ fn a_recorded_run_replays_equal_and_reads_in_the_independent_reader() {
     let rec = read(&path).unwrap();
     assert!(rec.damage.is_none(), "{:?}", rec.damage);
     assert_eq!(rec.counts.values().sum::<usize>() as u64, written, "every message written is read");
-    assert_eq!(rec.sweeps.len(), 1);
+    // It stopped within its first cycle: a whole climb records five sweeps.
+    assert_eq!(rec.sweeps.len(), 1, "stopped promptly");
     let s = &rec.sweeps[0];
     assert_eq!(s.sweep.rows.len(), 240);
     // The raw rows rebuild the recorded cloud exactly.
@@ -161,11 +162,11 @@ fn ctrl_c_ends_a_recorded_run_with_a_complete_file() {
     assert!(kill.success());
     let status = child.wait().unwrap();
     assert_eq!(status.code(), Some(130), "interrupted, reported as such");
-    assert!(started.elapsed().as_secs() < 30, "it stopped promptly");
     let bytes = std::fs::read(&path).unwrap();
     assert!(bytes.ends_with(mcap::MAGIC), "the summary and footer were written");
     let rec = read_bytes(&bytes).unwrap();
     assert!(rec.damage.is_none(), "{:?}", rec.damage);
-    assert_eq!(rec.sweeps.len(), 1);
+    // It stopped within its first cycle: a whole climb records five sweeps.
+    assert_eq!(rec.sweeps.len(), 1, "stopped promptly");
     assert!(mcap::Summary::read(&bytes).unwrap().is_some(), "indexed");
 }

@@ -430,12 +430,14 @@ mod tests {
         let mut s = seg(Point3::origin(), Point3::origin(), square(0.0, 0.0, 1.0));
         s.support = vec![
             (Foot::Right, Isometry3::translation(0.0, -0.1, 0.2)),
-            (Foot::Left, Isometry3::translation(0.0, 0.1, 0.0)),
+            (Foot::Left, Isometry3::translation(0.0, 0.1, 0.05)),
         ];
         let ring = s.polygon_ring();
         assert_eq!(ring.len(), 5);
         assert_eq!(ring[0], ring[4]);
-        assert!(ring.iter().all(|p| p.z == 0.0));
+        // At the lower sole (not the fallback height 0), through the polygon's own vertices.
+        assert!(ring.iter().all(|p| p.z == 0.05));
+        assert!(ring[..4].iter().zip(&s.polygon).all(|(p, q)| p.x == q.x && p.y == q.y));
     }
 
     fn seg(a: Point3<f64>, b: Point3<f64>, polygon: Vec<P2>) -> Segment {
