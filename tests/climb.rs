@@ -3,19 +3,28 @@
 //! step and a too-fast timing are each caught and named.
 
 use nalgebra::{Translation3, Vector3};
+use stairbench::cancel::Cancel;
+use stairbench::climb::speed_margin::speed_margin;
+use stairbench::climb::{Check, CheckKind, ClimbReport, Execution, Footing, Nobody, StopReason};
+use stairbench::params::ClimbParams;
 use stairbench::perception::PlaneSegment;
 use stairbench::planning::clearance::step_blocks;
+use stairbench::planning::dd::DdParams;
 use stairbench::planning::gait::Phase;
 use stairbench::planning::motion::track;
+use stairbench::planning::RefusalKind;
 use stairbench::planning::{plan, rectangles, Foot, Plan, PlanParams};
 use stairbench::robot::{hrp4, RobotModel};
 use stairbench::scenario::Scenario;
 use stairbench::scene::Scene;
-use stairbench::sim::climb::{climb, ClimbParams, ClimbReport};
-use stairbench::sim::execute::{execute, CheckParams, Execution, ServoParams};
-use stairbench::sim::observe::Nobody;
-use stairbench::sim::speed_margin::speed_margin;
-use stairbench::sim::World;
+use stairbench::sim::checks::CheckParams;
+use stairbench::sim::execute::{execute, ServoParams};
+use stairbench::sim::{climb_scenario, World};
+
+/// The closed loop on `s` with `p`, nothing observing.
+fn climb(s: &Scenario, p: &ClimbParams) -> ClimbReport {
+    climb_scenario(s, p, &mut Nobody, &Cancel::never()).expect("the world runs")
+}
 
 fn print_report(r: &ClimbReport) {
     for c in &r.cycles {
@@ -32,17 +41,17 @@ fn print_report(r: &ClimbReport) {
             c.execution.max_friction_ratio
         );
         for v in &c.execution.violations {
-            println!("  t = {:.3} s {}: {}", v.t_s, v.check, v.detail);
+            println!("  t = {:.3} s {}: {}", v.t_s, v.check.kind(), v.check);
         }
     }
-    println!("{} of {} steps, stopped: {:?}", r.steps_climbed, r.steps_total, r.stopped);
+    println!("{} of {} steps, stopped: {:?}", r.steps_climbed, r.steps_total, r.stop);
 }
 
 /// What a climb to the top must show in every cycle: no violation, the CoM inside the
 /// polygon of the real contacts, torques within limits, feet where planned.
 fn assert_climbed(r: &ClimbReport, p: &CheckParams) {
     print_report(r);
-    assert!(r.success, "{:?}", r.stopped);
+    assert!(r.success, "{:?}", r.stop);
     assert_eq!(r.steps_climbed, r.steps_total, "the feet end on the top step (ground truth)");
     for c in &r.cycles {
         let ex = &c.execution;
@@ -58,9 +67,10 @@ fn assert_climbed(r: &ClimbReport, p: &CheckParams) {
 #[test]
 fn exp1_is_climbed_to_the_top_with_no_check_violated() {
     let p = ClimbParams::default();
-    let r = climb(&Scenario::default(), &p, &mut |_| {}).unwrap();
+    let r = climb(&Scenario::default(), &p);
     assert_climbed(&r, &p.checks);
-    assert!(r.cycles.iter().filter(|c| c.to.starts_with("step")).count() == 3, "one cycle per step");
+    let steps: Vec<Footing> = r.cycles.iter().map(|c| c.to).filter(|t| *t != Footing::Floor).collect();
+    assert_eq!(steps, [Footing::Step(1), Footing::Step(2), Footing::Step(3)], "one cycle per step");
 }
 
 /// The default scenario must not pass by the luck of its noise draw. Seeds 1 and 2 (the
@@ -71,7 +81,7 @@ fn exp1_is_climbed_through_other_noise_draws() {
     let p = ClimbParams::default();
     for seed in [1, 2] {
         let s = Scenario { seed, ..Scenario::default() };
-        let r = climb(&s, &p, &mut |_| {}).unwrap();
+        let r = climb(&s, &p);
         println!("seed {seed}:");
         assert_climbed(&r, &p.checks);
     }
@@ -82,7 +92,7 @@ fn the_papers_24_cm_step_is_climbed_within_torque_limits() {
     let s = Scenario::load(std::path::Path::new("scenarios/hrp4_step.toml")).unwrap();
     assert!((s.staircase.rise_m - 0.24).abs() < 1e-12);
     let p = ClimbParams::default();
-    let r = climb(&s, &p, &mut |_| {}).unwrap();
+    let r = climb(&s, &p);
     assert_climbed(&r, &p.checks);
     let worst = r.cycles.iter().map(|c| c.execution.max_torque_ratio).fold(0.0, f64::max);
     println!("largest torque demand: {:.0} % of a joint's limit", worst * 100.0);
@@ -92,12 +102,15 @@ fn the_papers_24_cm_step_is_climbed_within_torque_limits() {
 fn a_40_cm_rise_is_refused_before_anything_moves() {
     let mut s = Scenario::default();
     s.staircase.rise_m = 0.40;
-    let r = climb(&s, &ClimbParams::default(), &mut |_| {}).unwrap();
-    println!("{:?}", r.stopped);
+    let r = climb(&s, &ClimbParams::default());
+    println!("{:?}", r.stop);
     assert!(!r.success);
     assert!(r.cycles.is_empty(), "nothing may move");
-    let why = r.stopped.unwrap_or_default();
-    assert!(why.starts_with("plan refused") && why.contains("rise 0.400 m"), "{why}");
+    let Some(StopReason::Refused { cycle: 1, refusal }) = r.stop else { panic!("refused: {:?}", r.stop) };
+    assert_eq!(refusal.kind, RefusalKind::HighRise);
+    assert_eq!((refusal.step, refusal.unit.as_deref()), (Some(1), Some("m")));
+    assert!((refusal.value.expect("the rise") - 0.40).abs() < 0.01, "{refusal:?}");
+    assert!(refusal.value > refusal.limit);
     assert!(r.sim_s < 0.5, "only the settling before the scan ran: {} s", r.sim_s);
 }
 
@@ -139,11 +152,21 @@ fn settled_exp1() -> (Scene, RobotModel, World, Vec<f64>) {
 
 /// `plan` executed in `world` with the default servos and checks; its violations printed.
 fn execute_checked(world: &mut World, model: &RobotModel, scene: &Scene, plan: &Plan) -> Execution {
-    let ex =
-        execute(world, model, scene, plan, &ServoParams::default(), &CheckParams::default(), &mut Nobody)
-            .expect("the world runs");
+    let (servo, checks) = (ServoParams::default(), CheckParams::default());
+    let ex = execute(
+        world,
+        model,
+        scene,
+        plan,
+        &servo,
+        &checks,
+        &DdParams::default(),
+        &mut Nobody,
+        &Cancel::never(),
+    )
+    .expect("the world runs");
     for v in &ex.violations {
-        println!("t = {:.3} s {}: {}", v.t_s, v.check, v.detail);
+        println!("t = {:.3} s {}: {}", v.t_s, v.check.kind(), v.check);
     }
     ex
 }
@@ -173,9 +196,16 @@ fn a_broken_plan_lifting_the_support_foot_is_caught_with_its_instant() {
     let broken = Plan { segments, trajectory, tracking, ..good };
     let from_s = broken.segments[0].duration_s;
     let ex = execute_checked(&mut world, &model, &scene, &broken);
-    let first = ex.violations.iter().find(|v| v.check == "margin" || v.check == "fall").expect("caught");
-    assert_eq!(first.check, "margin", "the margin check sees it before the fall");
-    assert!(first.detail.contains("outside"), "{}", first.detail);
+    let first = ex
+        .violations
+        .iter()
+        .find(|v| matches!(v.check.kind(), CheckKind::Margin | CheckKind::Fall))
+        .expect("caught");
+    let Check::Margin { margin_m, feet_down, .. } = first.check else {
+        panic!("the margin check sees it before the fall: {:?}", first.check)
+    };
+    assert!(margin_m.is_none_or(|m| m < 0.0), "the CoM is outside: {margin_m:?}");
+    assert!(!feet_down[1], "the lifted left foot is out of the polygon: {feet_down:?}");
     let at = first.t_s; // on the plan's clock
     assert!(at > from_s && at < from_s + broken.segments[1].duration_s, "caught at {at} s, in segment (2)");
 }
@@ -203,20 +233,24 @@ fn a_foot_placed_5_cm_off_its_steps_edge_is_reported() {
     let p = plan(&model, &q0, &rects, Some(3), &PlanParams::default()).unwrap();
     assert_eq!(p.stances.last().unwrap().step, Some(0), "the third stance is on step 1");
     let ex = execute_checked(&mut world, &model, &scene, &p);
-    let off: Vec<_> = ex.violations.iter().filter(|v| v.check == "off_step").collect();
-    assert!(!off.is_empty(), "the overhang is reported");
-    let mm: f64 = off[0]
-        .detail
-        .split("by ")
-        .nth(1)
-        .and_then(|x| x.trim_end_matches(" mm").parse().ok())
-        .expect("overhang in mm");
-    assert!((mm - 50.0).abs() < 10.0, "overhang {mm} mm, placed 50 mm off");
+    let off = ex.first(CheckKind::OffStep).expect("the overhang is reported");
+    let Check::OffStep { overhang_m, limit_m, .. } = off.check else { panic!("{:?}", off.check) };
+    assert!((overhang_m - 0.05).abs() < 0.01, "overhang {overhang_m} m, placed 50 mm off");
+    assert!(overhang_m > limit_m);
 }
 
 #[test]
 fn the_speed_margin_is_measured_and_its_edge_names_a_check() {
-    let m = speed_margin(&Scenario::default(), &ClimbParams::default(), 8.0, 0.25, &mut |t| {
+    let params = ClimbParams::default();
+    let mut one = |plan: &PlanParams| {
+        climb_scenario(
+            &Scenario::default(),
+            &ClimbParams { plan: plan.clone(), ..params.clone() },
+            &mut Nobody,
+            &Cancel::never(),
+        )
+    };
+    let m = speed_margin(&params.plan, 8.0, 0.25, &mut one, &mut |t| {
         println!("x {:.2}: {} {:?}", t.factor, t.success, t.why);
     })
     .unwrap();
@@ -226,6 +260,7 @@ fn the_speed_margin_is_measured_and_its_edge_names_a_check() {
     assert!(pass >= 1.0 && fail > pass && fail / pass <= 1.25 + 1e-9);
     let at_fail = m.tries.iter().find(|t| t.factor == fail).unwrap();
     assert!(!at_fail.success && at_fail.why.is_some());
+    assert!(at_fail.first_violation.is_some() || at_fail.stop.is_some(), "the failure is named as data");
     // The search is consistent: every faster try failed, every slower one passed, and the
     // planned timing (x 1) was tried.
     assert!(m.tries.iter().any(|t| t.factor == 1.0 && t.success));

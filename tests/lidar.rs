@@ -3,11 +3,13 @@
 mod common;
 
 use nalgebra::{Point3, Vector3};
+use stairbench::cancel::Cancel;
 use stairbench::cloud::PointCloud;
 use stairbench::scenario::Scenario;
 use stairbench::scene::mjcf::ROBOT_GEOM_GROUP;
 use stairbench::scene::{Scene, SurfaceRole};
 use stairbench::sensor::{AssembleParams, SimLidar, Sweep};
+use stairbench::sim::lidar::head_lidar;
 use stairbench::sim::World;
 
 fn exp1(noise_sigma_m: f64) -> (Scenario, Scene, World) {
@@ -19,9 +21,9 @@ fn exp1(noise_sigma_m: f64) -> (Scenario, Scene, World) {
 }
 
 /// The scenario's lidar in `world`, one whole sweep of it, and the sweep's cloud.
-fn swept<'w>(s: &Scenario, world: &'w World) -> (SimLidar<'w>, Sweep, PointCloud) {
-    let lidar = SimLidar::new(world, &s.lidar, s.seed).unwrap();
-    let sweep = lidar.sweep_with_progress(&mut |_, _| {});
+fn swept<'w>(s: &Scenario, world: &'w World) -> (SimLidar<'w, World>, Sweep, PointCloud) {
+    let lidar = head_lidar(world, &s.lidar, s.seed).unwrap();
+    let sweep = lidar.sweep_rows(&Cancel::never(), &mut |_, _| {}).unwrap();
     let cloud = sweep.assemble(&AssembleParams::default()).unwrap();
     (lidar, sweep, cloud)
 }
@@ -48,7 +50,7 @@ fn noise_free_points_lie_on_the_world_within_a_millimetre() {
 #[test]
 fn ranges_agree_with_an_independent_ray_caster() {
     let (s, scene, world) = exp1(0.0);
-    let lidar = SimLidar::new(&world, &s.lidar, s.seed).unwrap();
+    let lidar = head_lidar(&world, &s.lidar, s.seed).unwrap();
     let mount = lidar.mount_to_world();
     let model = lidar.lidar();
     let mut compared = 0;
@@ -75,7 +77,7 @@ fn ranges_agree_with_an_independent_ray_caster() {
 fn range_noise_matches_the_configured_sigma() {
     let sigma = 0.01;
     let (s, _scene, world) = exp1(sigma);
-    let lidar = SimLidar::new(&world, &s.lidar, 7).unwrap();
+    let lidar = head_lidar(&world, &s.lidar, 7).unwrap();
     let mut residuals = Vec::new();
     for k in 0..lidar.sweep().rows() {
         let (row, hits) = lidar.row_with_hits(k);
@@ -134,7 +136,7 @@ fn first_step_is_hit_with_the_density_the_geometry_predicts() {
 #[test]
 fn the_robot_is_never_hit_though_it_is_in_the_way() {
     let (s, _scene, world) = exp1(0.0);
-    let lidar = SimLidar::new(&world, &s.lidar, s.seed).unwrap();
+    let lidar = head_lidar(&world, &s.lidar, s.seed).unwrap();
     let robot_geoms: Vec<usize> = (0..world.model().ffi().ngeom as usize)
         .filter(|&g| world.geom_group(g) == ROBOT_GEOM_GROUP)
         .collect();

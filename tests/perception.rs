@@ -8,11 +8,12 @@ use stairbench::cloud::io::read_xyz_text;
 use stairbench::cloud::PointCloud;
 use stairbench::geom2d::{self, P2};
 use stairbench::perception::{
-    filter_slope, metrics, normals, perceive, perceive_voxels, NeighbourSearch, PerceptionError,
+    filter_slope, metrics, normals, perceive, perceive_voxels, NeighbourSearch, NoStaircase, PerceptionError,
     PerceptionParams,
 };
 use stairbench::scenario::Scenario;
-use stairbench::sensor::{scan_scenario, AssembleParams};
+use stairbench::sensor::AssembleParams;
+use stairbench::sim::scan_scenario;
 use std::path::Path;
 
 fn scan(s: &Scenario) -> PointCloud {
@@ -125,9 +126,9 @@ fn grid_neighbourhoods_match_the_kd_tree() {
     }
 }
 
-fn no_staircase(cloud: &PointCloud) -> String {
+fn no_staircase(cloud: &PointCloud) -> NoStaircase {
     match perceive(cloud, &PerceptionParams::default()) {
-        Err(e @ PerceptionError::NoStaircase(_)) => e.to_string(),
+        Err(PerceptionError::NoStaircase(why)) => why,
         Err(e) => panic!("unexpected error {e}"),
         Ok(r) => panic!("found {} steps", r.segments.len()),
     }
@@ -140,7 +141,7 @@ fn grid_points(f: impl Fn(f32, f32) -> Point3<f32>, n: usize, step: f32) -> Vec<
 #[test]
 fn bad_clouds_give_a_clear_no_staircase() {
     let vp = Point3::new(0.0, 0.0, 1.4);
-    assert!(no_staircase(&PointCloud::unorganized(vec![], vp)).contains("empty"));
+    assert_eq!(no_staircase(&PointCloud::unorganized(vec![], vp)), NoStaircase::EmptyCloud);
     no_staircase(&PointCloud::unorganized(vec![Point3::new(1.0, 0.0, 0.0)], vp));
     let nan = vec![
         Point3::new(f32::NAN, 0.0, 0.0),
@@ -150,10 +151,18 @@ fn bad_clouds_give_a_clear_no_staircase() {
     no_staircase(&PointCloud::unorganized(nan, vp));
     // Walls only: every normal is horizontal.
     let wall = grid_points(|a, b| Point3::new(2.0, a - 1.0, b), 100, 0.01);
-    assert!(no_staircase(&PointCloud::unorganized(wall, vp)).contains("horizontal"));
+    let why = no_staircase(&PointCloud::unorganized(wall, vp));
+    assert!(
+        matches!(why, NoStaircase::NoHorizontalSurface { points: 10000, after_filter1: 0, .. }),
+        "{why:?}"
+    );
     // A flat floor only: found, but it is the ground.
     let floor = grid_points(|a, b| Point3::new(a - 0.5, b - 0.5, 0.0), 150, 0.01);
-    assert!(no_staircase(&PointCloud::unorganized(floor, vp)).contains("only the ground"));
+    let why = no_staircase(&PointCloud::unorganized(floor, vp));
+    assert!(
+        matches!(why, NoStaircase::OnlyGround { segments: 1, ground_m } if ground_m.abs() < 1e-3),
+        "{why:?}"
+    );
 }
 
 #[test]
@@ -173,8 +182,8 @@ fn ten_million_points_are_handled() {
     let n = 3163; // n^2 > 10^7
     let pts = grid_points(|a, b| Point3::new(a - 5.0, b - 5.0, 0.0), n, 0.003);
     assert!(pts.len() >= 10_000_000);
-    let msg = no_staircase(&PointCloud::unorganized(pts, Point3::new(0.0, 0.0, 1.4)));
-    assert!(msg.contains("ground"), "{msg}");
+    let why = no_staircase(&PointCloud::unorganized(pts, Point3::new(0.0, 0.0, 1.4)));
+    assert!(matches!(why, NoStaircase::OnlyGround { .. }), "{why:?}");
 }
 
 #[test]

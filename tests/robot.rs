@@ -10,6 +10,7 @@ use stairbench::robot::model::{Q_JOINTS, V_JOINTS};
 use stairbench::robot::{Kinematics, RobotModel};
 use stairbench::scenario::Scenario;
 use stairbench::scene::Scene;
+use stairbench::sensor::RayCaster;
 use stairbench::sim::World;
 
 fn model() -> RobotModel {

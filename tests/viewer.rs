@@ -2,10 +2,12 @@
 //! rerun-sdk Python package (installed by the test set-up in third_party/venv), and holds the
 //! entities the issue names.
 
+use stairbench::cancel::Cancel;
+use stairbench::params::ClimbParams;
 use stairbench::record::viewer::{RerunLogger, Sink};
 use stairbench::robot::hrp4;
 use stairbench::scenario::Scenario;
-use stairbench::sim::climb::{climb_observed, ClimbParams};
+use stairbench::sim::climb_scenario;
 use std::path::Path;
 use std::process::Command;
 
@@ -17,7 +19,7 @@ fn a_saved_rrd_of_a_run_verifies_with_rerun_and_holds_every_stage() {
     let mut p = ClimbParams::default();
     p.run.max_cycles = 1;
     let mut viewer = RerunLogger::new(&Sink::Save(path.clone()), &model).unwrap();
-    let r = climb_observed(&Scenario::default(), &p, &mut |_| {}, &mut viewer).unwrap();
+    let r = climb_scenario(&Scenario::default(), &p, &mut viewer, &Cancel::never()).unwrap();
     assert_eq!(r.cycles.len(), 1);
     viewer.finish().unwrap();
     let size = std::fs::metadata(&path).unwrap().len();

@@ -10,7 +10,8 @@ use stairbench::perception::{
     metrics, perceive, perceive_voxels, NeighbourSearch, Perception, PerceptionParams,
 };
 use stairbench::scene::Scene;
-use stairbench::sensor::{scan_scenario, AssembleParams};
+use stairbench::sensor::AssembleParams;
+use stairbench::sim::scan_scenario;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 

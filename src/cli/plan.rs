@@ -5,13 +5,14 @@
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use serde_json::json;
 use stairbench::perception::{perceive, PerceptionParams, PlaneSegment};
 use stairbench::planning::motion::JointTrajectory;
 use stairbench::planning::{plan, rectangles, Plan, PlanParams};
+use stairbench::record::messages::{PlanMsg, PlanReport};
 use stairbench::robot::{hrp4, RobotModel};
 use stairbench::scene::Scene;
-use stairbench::sensor::{scan_scenario, AssembleParams};
+use stairbench::sensor::AssembleParams;
+use stairbench::sim::scan_scenario;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -45,8 +46,9 @@ pub struct PlanArgs {
     /// Write q(t) as CSV (t_s, base x y z qw qx qy qz, then one column per joint).
     #[arg(long)]
     trajectory: Option<PathBuf>,
-    /// Print one JSON object (ok, reason, footholds, segments with polygons and margins,
-    /// duration_s, tracking) instead of tables.
+    /// Print one JSON object instead of tables: `ok`, `reason` and `refusal` (the refusal
+    /// as data) when refused, else the plan as the MCAP `/plan` message holds it (`steps`,
+    /// `stances`, `segments` with polygons and margins, `duration_s`, `tracking`, ...).
     #[arg(long)]
     json: bool,
 }
@@ -69,7 +71,14 @@ pub fn run(a: PlanArgs) -> Result<ExitCode> {
         Ok(p) => p,
         Err(e) => {
             if a.json {
-                println!("{}", json!({ "ok": false, "reason": e.to_string(), "segments": [] }));
+                let report = PlanReport {
+                    ok: false,
+                    reason: Some(e.to_string()),
+                    refusal: Some(e.refusal()),
+                    wall_s,
+                    plan: None,
+                };
+                println!("{}", serde_json::to_string_pretty(&report)?);
             } else {
                 println!("refused: {e}");
             }
@@ -80,7 +89,9 @@ pub fn run(a: PlanArgs) -> Result<ExitCode> {
         write_csv(path, &model, &planned.trajectory)?;
     }
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&to_json(&planned, wall_s))?);
+        let plan = PlanMsg::of(0.0, &rects, &planned);
+        let report = PlanReport { ok: true, reason: None, refusal: None, wall_s, plan: Some(plan) };
+        println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         print_tables(&planned, wall_s);
     }
@@ -129,39 +140,6 @@ fn start_before(rects: &[PlaneSegment], floor_z: Option<f64>, standoff_m: f64) -
         Translation3::new(front.x, front.y, floor),
         UnitQuaternion::from_axis_angle(&Vector3::z_axis(), u.y.atan2(u.x)),
     ))
-}
-
-fn xyz(p: &nalgebra::Point3<f64>) -> [f64; 3] {
-    [p.x, p.y, p.z]
-}
-
-fn to_json(p: &Plan, wall_s: f64) -> serde_json::Value {
-    let foot = |f: &Isometry3<f64>| {
-        let t = f.translation.vector;
-        json!({ "center": [t.x, t.y, t.z], "yaw_deg": f.rotation.euler_angles().2.to_degrees() })
-    };
-    json!({
-        "ok": true,
-        "duration_s": p.duration_s(),
-        "min_margin_m": p.min_margin_m(),
-        "footholds": p.stances.iter().map(|s| json!({ "step": s.step.map(|i| i + 1), "right": foot(&s.right), "left": foot(&s.left) })).collect::<Vec<_>>(),
-        "segments": p.segments.iter().map(|s| json!({
-            "phase": s.phase,
-            "stance": s.stance + 1,
-            "duration_s": s.duration_s,
-            "com_start": xyz(&s.com_start),
-            "com_end": xyz(&s.com_end),
-            "polygon": s.polygon.iter().map(|v| [v.x, v.y]).collect::<Vec<_>>(),
-            "margin": s.margin_m,
-            "support": s.support.iter().map(|(f, _)| f).collect::<Vec<_>>(),
-            "swing": s.swing.as_ref().map(|w| w.foot),
-        })).collect::<Vec<_>>(),
-        "tracking": p.tracking,
-        "samples": p.trajectory.samples.len(),
-        "rate_hz": p.trajectory.rate_hz,
-        "wall_s": wall_s,
-        "ik_tick_ms": 1e3 * p.tracking.ik_time_s / p.tracking.ik_ticks.max(1) as f64,
-    })
 }
 
 fn print_tables(p: &Plan, wall_s: f64) {

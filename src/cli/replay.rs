@@ -6,14 +6,15 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use serde_json::Value;
+use stairbench::climb::feet_height_m;
+use stairbench::params::ClimbParams;
+use stairbench::perception::step_map::StepMap;
 use stairbench::perception::PerceptionError;
 use stairbench::perception::{perceive, PlaneSegment};
 use stairbench::planning::plan;
-use stairbench::record::plan_json;
+use stairbench::record::messages::{PerceptionMsg, PlanMsg};
 use stairbench::record::replay::{read, RecordedSweep};
 use stairbench::sensor::AssembleParams;
-use stairbench::sim::climb::{feet_height_m, ClimbParams, Staircase};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -32,21 +33,8 @@ pub struct ReplayArgs {
 }
 
 /// Corners of the recorded segments, metres.
-fn recorded_corners(v: &Value) -> Option<Vec<[[f64; 3]; 4]>> {
-    let segs = v.get("segments")?.as_array()?;
-    segs.iter()
-        .map(|s| {
-            let c = s.get("corners")?.as_array()?;
-            let mut out = [[0.0; 3]; 4];
-            for (k, p) in c.iter().enumerate().take(4) {
-                let p = p.as_array()?;
-                for (j, x) in p.iter().enumerate().take(3) {
-                    out[k][j] = x.as_f64()?;
-                }
-            }
-            Some(out)
-        })
-        .collect()
+fn recorded_corners(m: &PerceptionMsg) -> Vec<[[f64; 3]; 4]> {
+    m.segments.iter().map(corners_of).collect()
 }
 
 fn corners_of(s: &PlaneSegment) -> [[f64; 3]; 4] {
@@ -111,7 +99,7 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
     let changed = a.params.is_some() || !a.set.is_empty();
     let params = parameters(&a, rec.attachments.get("params.toml").map(Vec::as_slice))?;
     let model = stairbench::robot::hrp4::model()?;
-    let mut stairs = Staircase::default();
+    let mut map = StepMap::default();
     let mut differ = 0;
     for (i, RecordedSweep { stamp_s, sweep, perception, plan: planned, trajectory, .. }) in
         rec.sweeps.iter().enumerate()
@@ -120,8 +108,8 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
         let now = perceive(&cloud, &params.perception);
         let found: Vec<[[f64; 3]; 4]> =
             now.as_ref().map(|r| r.segments.iter().map(corners_of).collect()).unwrap_or_default();
-        let then = perception.as_ref().and_then(recorded_corners);
-        let recorded_error = perception.as_ref().and_then(|v| v.get("error")).and_then(Value::as_str);
+        let then = perception.as_ref().map(recorded_corners);
+        let recorded_error = perception.as_ref().and_then(|m| m.error.as_deref());
         let verdict = match (&then, &now) {
             (None, _) => "no recorded perception to compare".to_string(),
             (Some(_), Err(e)) if recorded_error.is_some() => {
@@ -150,54 +138,69 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
             cloud.len(),
             found.len()
         );
-        // The loop's next steps: merge, keep what is ahead, plan from the recorded pose.
+        // The loop's next steps: the step map's next input, planned from the recorded pose.
         let seen = match now {
             Ok(r) => r.segments,
             Err(PerceptionError::NoStaircase(_)) => Vec::new(),
             Err(_) => continue,
         };
-        stairs.update(seen, params.run.same_step_m);
-        let Some(then) = planned else { continue };
-        let q0: Vec<f64> =
-            then["q0"].as_array().map(|a| a.iter().filter_map(Value::as_f64).collect()).unwrap_or_default();
-        if q0.len() != model.nq() {
+        let Some(then) = planned else {
+            // No plan followed this sweep (the top, or a refusal): the view still enters the map.
+            map.update(seen, params.step_map.same_step_m);
+            continue;
+        };
+        if then.q0.len() != model.nq() {
             differ += 1;
             println!("  plan: DIFFERENT: the recorded plan has no usable start configuration");
             continue;
         }
-        let ahead = stairs.ahead(feet_height_m(&model, &q0), params.run.ahead_margin_m);
-        let verdict = match plan(&model, &q0, &ahead, Some(params.run.stances_per_scan), &params.plan) {
-            Err(e) => {
-                differ += 1;
-                format!("DIFFERENT: refused now ({e})")
-            }
-            Ok(p) => {
-                let now = plan_json(0.0, &ahead, &p);
-                let same = |k: &str| now[k] == then[k];
-                let q_now: Vec<&Vec<f64>> = p.trajectory.samples.iter().map(|s| &s.q).collect();
-                let same_q = trajectory
-                    .as_ref()
-                    .is_none_or(|t| serde_json::to_value(&q_now).is_ok_and(|v| v == t["q"]));
-                match ["steps", "stances", "segments", "duration_s"].into_iter().find(|k| !same(k)) {
-                    None if !same_q => {
-                        differ += 1;
-                        "DIFFERENT q(t): the same footholds and segments, another joint trajectory"
-                            .to_string()
-                    }
-                    None => format!(
-                        "same plan: {} stances, {:.1} s of motion, q(t){}",
-                        p.stances.len(),
-                        p.duration_s(),
-                        if trajectory.is_some() { " equal" } else { " not recorded" }
-                    ),
-                    Some(k) => {
-                        differ += 1;
-                        let d = |v: &Value| v["duration_s"].as_f64().unwrap_or(f64::NAN);
-                        format!("DIFFERENT {k}: {:.1} s of motion now, {:.1} s recorded", d(&now), d(then))
+        let next = map.next_input(
+            seen,
+            feet_height_m(&model, &then.q0),
+            params.plan.gait.min_tread_m,
+            &params.step_map,
+        );
+        if let Some(top) = &next.deferred {
+            println!(
+                "  step map: the top step at {:.3} m, seen {:.3} m deep, is left for a closer look",
+                top.height_m(),
+                top.depth_m()
+            );
+        }
+        let verdict =
+            match plan(&model, &then.q0, &next.ahead, Some(params.run.stances_per_scan), &params.plan) {
+                Err(e) => {
+                    differ += 1;
+                    format!("DIFFERENT: refused now ({e})")
+                }
+                Ok(p) => {
+                    let now = PlanMsg::of(then.start_s, &next.ahead, &p);
+                    let same_q = trajectory.as_ref().is_none_or(|t| {
+                        t.q.len() == p.trajectory.samples.len()
+                            && t.q.iter().zip(&p.trajectory.samples).all(|(a, b)| *a == b.q)
+                    });
+                    match now.differs_from(then) {
+                        None if !same_q => {
+                            differ += 1;
+                            "DIFFERENT q(t): the same footholds and segments, another joint trajectory"
+                                .to_string()
+                        }
+                        None => format!(
+                            "same plan: {} stances, {:.1} s of motion, q(t){}",
+                            p.stances.len(),
+                            p.duration_s(),
+                            if trajectory.is_some() { " equal" } else { " not recorded" }
+                        ),
+                        Some(k) => {
+                            differ += 1;
+                            format!(
+                                "DIFFERENT {k}: {:.1} s of motion now, {:.1} s recorded",
+                                now.duration_s, then.duration_s
+                            )
+                        }
                     }
                 }
-            }
-        };
+            };
         println!("  plan: {verdict}");
     }
     if changed {

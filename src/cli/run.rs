@@ -3,11 +3,13 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
+use stairbench::cancel::Cancel;
+use stairbench::climb::speed_margin::speed_margin;
+use stairbench::climb::{ClimbReport, CycleReport, Each, Event, Observer, Watch};
+use stairbench::params::ClimbParams;
 use stairbench::record::viewer::{RerunLogger, Sink};
 use stairbench::scenario::Scenario;
-use stairbench::sim::climb::{climb_observed, ClimbParams, ClimbReport, CycleReport};
-use stairbench::sim::observe::{Each, Observer};
-use stairbench::sim::speed_margin::speed_margin;
+use stairbench::sim::climb_scenario;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -16,8 +18,9 @@ use std::process::ExitCode;
 pub struct RunArgs {
     /// The scenario (file or name in scenarios/; default: the paper's Exp. 1).
     scenario: Option<PathBuf>,
-    /// Parameters as TOML: sections [perception], [plan.gait], [plan.step], [plan.ik],
-    /// [checks], [run]; fields left out keep their defaults.
+    /// Parameters as TOML: sections [perception], [step_map], [plan.gait], [plan.step]
+    /// (with [plan.step.dd]), [plan.ik], [servo], [checks], [run]; fields left out keep
+    /// their defaults, unknown fields are refused.
     #[arg(long)]
     params: Option<PathBuf>,
     #[command(flatten)]
@@ -94,12 +97,14 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
     );
     // Ctrl-C ends the climb at the next physics step, so the report and the recordings are
     // completed; a second Ctrl-C quits at once.
-    let handler = ctrlc::set_handler(|| {
-        if stairbench::sim::stop::requested() {
+    let cancel = Cancel::new();
+    let on_signal = cancel.clone();
+    let handler = ctrlc::set_handler(move || {
+        if on_signal.is_cancelled() {
             std::process::exit(130);
         }
         eprintln!("\nstopping after this physics step (Ctrl-C again to quit now)");
-        stairbench::sim::stop::request();
+        on_signal.cancel();
     });
     if let Err(e) = handler {
         eprintln!("warning: Ctrl-C will not stop the climb cleanly: {e}");
@@ -117,14 +122,19 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         (None, None) => None,
     };
     let mut viewer = sink.as_ref().map(|s| RerunLogger::new(s, &model)).transpose()?;
-    let mut observers: Vec<&mut dyn Observer> = Vec::new();
+    let mut table = Watch(|e: &Event| {
+        if let Event::Cycle { report, .. } = e {
+            print_cycle(report);
+        }
+    });
+    let mut observers: Vec<&mut dyn Observer> = vec![&mut table];
     if let Some(r) = recorder.as_mut() {
         observers.push(r);
     }
     if let Some(v) = viewer.as_mut() {
         observers.push(v);
     }
-    let report = climb_observed(&scenario, &params, &mut print_cycle, &mut Each(observers))?;
+    let report = climb_scenario(&scenario, &params, &mut Each(observers), &cancel)?;
     if let (Some(rec), Some(path)) = (recorder, &a.record) {
         let n = rec.finish().with_context(|| format!("recording {} failed", path.display()))?;
         println!("recorded {n} messages to {}", path.display());
@@ -141,7 +151,7 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
             .with_context(|| format!("cannot write {}", path.display()))?;
         println!("report written to {}", path.display());
     }
-    Ok(match (report.success, stairbench::sim::stop::requested()) {
+    Ok(match (report.success, cancel.is_cancelled()) {
         (_, true) => ExitCode::from(130),
         (true, false) => ExitCode::SUCCESS,
         (false, false) => ExitCode::from(1),
@@ -152,7 +162,12 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
 fn run_speed_margin(scenario: &Scenario, params: &ClimbParams, a: &RunArgs) -> Result<ExitCode> {
     anyhow::ensure!(a.max_speedup >= 1.0, "--max-speedup must be at least 1, got {}", a.max_speedup);
     println!("speed margin of {}: whole climbs with the planned timing sped up", scenario.name);
-    let m = speed_margin(scenario, params, a.max_speedup, 0.1, &mut |t| {
+    let never = Cancel::never();
+    let mut climb = |plan: &stairbench::planning::PlanParams| {
+        let p = ClimbParams { plan: plan.clone(), ..params.clone() };
+        climb_scenario(scenario, &p, &mut stairbench::climb::Nobody, &never)
+    };
+    let m = speed_margin(&params.plan, a.max_speedup, 0.1, &mut climb, &mut |t| {
         println!(
             "  x {:.2}: {} ({:.1} s simulated in {:.1} s){}",
             t.factor,
@@ -193,7 +208,7 @@ fn print_cycle(c: &CycleReport) {
         c.execution.sim_s
     );
     for v in &c.execution.violations {
-        println!("         t = {:.3} s  {}: {}", v.t_s, v.check, v.detail);
+        println!("         t = {:.3} s  {}: {}", v.t_s, v.check.kind(), v.check);
     }
 }
 
@@ -207,7 +222,7 @@ fn print_summary(r: &ClimbReport) {
         r.wall_s,
         r.sim_s / r.wall_s.max(1e-9)
     );
-    if let Some(why) = &r.stopped {
+    if let Some(why) = &r.stop {
         println!("stopped: {why}");
     }
     if !r.cycles.is_empty() {

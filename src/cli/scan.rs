@@ -3,9 +3,9 @@
 use anyhow::{Context, Result};
 use clap::Args;
 use stairbench::cloud::io::{write_cloud, CloudFormat};
-use stairbench::sensor::{scan_scenario, AssembleParams, ScenarioScan};
-use stairbench::sim::climb::ClimbParams;
-use stairbench::sim::observe::Observer;
+use stairbench::params::ClimbParams;
+use stairbench::sensor::AssembleParams;
+use stairbench::sim::{scan_scenario, ScenarioScan};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;

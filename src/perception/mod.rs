@@ -9,6 +9,7 @@ pub mod metrics;
 pub mod normals;
 pub mod ransac;
 pub mod staircase;
+pub mod step_map;
 pub mod supervoxel;
 pub mod voxel;
 
@@ -140,17 +141,87 @@ pub enum PerceptionError {
     },
     /// The cloud holds no staircase the pipeline can find; the reason says where it stopped.
     #[error("no staircase found: {0}")]
-    NoStaircase(String),
+    NoStaircase(NoStaircase),
+}
+
+/// Where the pipeline stopped finding a staircase, with its figures.
+#[derive(Debug, Clone, PartialEq, thiserror::Error, Serialize, Deserialize)]
+#[serde(tag = "stage", rename_all = "snake_case")]
+pub enum NoStaircase {
+    /// No points at all.
+    #[error("the cloud is empty")]
+    EmptyCloud,
+    /// Filters 1 and 2 left nothing.
+    #[error("no near-horizontal surface: {after_filter1} of {points} points passed the slope filter, {after_filter2} voxels the sparse filter")]
+    NoHorizontalSurface {
+        /// Points in.
+        points: usize,
+        /// Points after Filter 1.
+        after_filter1: usize,
+        /// Voxels after Filter 2.
+        after_filter2: usize,
+    },
+    /// No plane's foot-sized cluster is flat within epsilon.
+    #[error("no flat segment: {planes} planes, none within epsilon = {epsilon_m} m in height over a foot-sized cluster")]
+    NoFlatSegment {
+        /// Planes RANSAC drew.
+        planes: usize,
+        /// The height extent allowed (Table 1's epsilon), metres.
+        epsilon_m: f64,
+    },
+    /// Every flat segment is at the ground's height.
+    #[error("only the ground: {segments} flat segment(s), all at the ground's height {ground_m:.3} m")]
+    OnlyGround {
+        /// Flat segments found.
+        segments: usize,
+        /// The ground's height, metres.
+        ground_m: f64,
+    },
 }
 
 /// One step of the staircase: a rectangle in the world frame. Valid once built: four
-/// finite corners forming a rectangle, counter-clockwise seen from above.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// finite corners forming a rectangle, counter-clockwise seen from above. Read back from JSON
+/// (a recording), it is checked again and keeps its figures bit for bit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "PlaneSegmentData")]
 pub struct PlaneSegment {
     corners: [Point3<f64>; 4],
     normal: Vector3<f64>,
     height_m: f64,
     voxel_count: usize,
+}
+
+/// A [`PlaneSegment`]'s fields as written, before they are checked.
+#[derive(Deserialize)]
+struct PlaneSegmentData {
+    corners: [Point3<f64>; 4],
+    normal: Vector3<f64>,
+    height_m: f64,
+    voxel_count: usize,
+}
+
+impl TryFrom<PlaneSegmentData> for PlaneSegment {
+    type Error = String;
+
+    fn try_from(d: PlaneSegmentData) -> Result<Self, String> {
+        let finite = d.corners.iter().all(|c| c.coords.iter().all(|v| v.is_finite()))
+            && d.normal.iter().all(|v| v.is_finite())
+            && d.height_m.is_finite();
+        if !finite {
+            return Err("a step rectangle has a non-finite figure".into());
+        }
+        let [a, b, _, e] = d.corners;
+        let (along, across) = (b - a, e - a);
+        let (depth, width) = (along.norm(), across.norm());
+        // Opposite corners meet, edges are at right angles, the turn is counter-clockwise.
+        let closes = (d.corners[2] - (b + across)).norm() <= 1e-9 * (1.0 + depth + width);
+        let square = along.dot(&across).abs() <= 1e-9 * depth * width;
+        let ccw = along.x * across.y - along.y * across.x > 0.0;
+        if depth <= 0.0 || width <= 0.0 || !closes || !square || !ccw || d.normal.norm() < 1e-9 {
+            return Err("a step rectangle's corners are not a counter-clockwise rectangle".into());
+        }
+        Ok(Self { corners: d.corners, normal: d.normal, height_m: d.height_m, voxel_count: d.voxel_count })
+    }
 }
 
 impl PlaneSegment {
@@ -225,7 +296,7 @@ impl PlaneSegment {
 }
 
 /// Wall time of each phase, milliseconds.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct PhaseTimings {
     /// Normal estimation.
     pub normals: f64,
@@ -246,7 +317,7 @@ pub struct PhaseTimings {
 }
 
 /// Sizes of the intermediate results.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Counts {
     /// Points in.
     pub points: usize,
@@ -317,7 +388,7 @@ pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, 
     let mut timings = PhaseTimings::default();
     let mut counts = Counts { points: cloud.len(), ..Default::default() };
     if cloud.is_empty() {
-        return Err(PerceptionError::NoStaircase("the cloud is empty".into()));
+        return Err(PerceptionError::NoStaircase(NoStaircase::EmptyCloud));
     }
     let t = Instant::now();
     let normals = normals::estimate(cloud, p.normal_neighbours, p.neighbour_search);
@@ -346,7 +417,7 @@ pub fn perceive_voxels(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perce
     let mut timings = PhaseTimings::default();
     let mut counts = Counts { points: cloud.len(), after_filter1: cloud.len(), ..Default::default() };
     if cloud.is_empty() {
-        return Err(PerceptionError::NoStaircase("the cloud is empty".into()));
+        return Err(PerceptionError::NoStaircase(NoStaircase::EmptyCloud));
     }
     let t = Instant::now();
     let normals = normals::by_kdtree(cloud.points(), p.normal_neighbours, cloud.viewpoint().cast());
@@ -370,10 +441,11 @@ fn from_voxels(
     mut counts: Counts,
 ) -> Result<Perception, PerceptionError> {
     if voxels.is_empty() {
-        return Err(PerceptionError::NoStaircase(format!(
-            "no near-horizontal surface: {} of {} points passed the slope filter, {} voxels the sparse filter",
-            counts.after_filter1, counts.points, counts.after_filter2
-        )));
+        return Err(PerceptionError::NoStaircase(NoStaircase::NoHorizontalSurface {
+            points: counts.points,
+            after_filter1: counts.after_filter1,
+            after_filter2: counts.after_filter2,
+        }));
     }
     let t = Instant::now();
     let sv = supervoxel::supervoxels(&voxels, p);

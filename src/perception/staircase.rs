@@ -15,7 +15,7 @@
 use super::ransac::Plane;
 use super::supervoxel::{Clusters, Supervoxels, UNLABELLED};
 use super::voxel::VoxelCloud;
-use super::{PerceptionError, PerceptionParams, PlaneSegment};
+use super::{NoStaircase, PerceptionError, PerceptionParams, PlaneSegment};
 use crate::geom2d::{self, P2};
 use nalgebra::{Point3, Unit, Vector3};
 
@@ -76,11 +76,10 @@ pub fn extract(
     }
     let n_candidates = cands.len();
     if cands.is_empty() {
-        return Err(PerceptionError::NoStaircase(format!(
-            "no flat segment: {} planes, none within epsilon = {} m in height over a foot-sized cluster",
-            planes.len(),
-            p.max_height_extent_m
-        )));
+        return Err(PerceptionError::NoStaircase(NoStaircase::NoFlatSegment {
+            planes: planes.len(),
+            epsilon_m: p.max_height_extent_m,
+        }));
     }
 
     // The ground: under the sensor, else the lowest segment (a sloped floor may have failed
@@ -95,9 +94,10 @@ pub fn extract(
     let steps: Vec<&Candidate> =
         cands.iter().filter(|c| (c.height - ground_h).abs() > p.max_height_extent_m).collect();
     if steps.is_empty() {
-        return Err(PerceptionError::NoStaircase(format!(
-            "only the ground: {n_candidates} flat segment(s), all at the ground's height {ground_h:.3} m"
-        )));
+        return Err(PerceptionError::NoStaircase(NoStaircase::OnlyGround {
+            segments: n_candidates,
+            ground_m: ground_h,
+        }));
     }
 
     // Single-linkage clusters in (depth, width) space.

@@ -12,7 +12,8 @@
 use nalgebra::SVector;
 
 /// Tolerances of the method.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct DdParams {
     /// |a . r| below this counts as zero (unit rows and rays).
     pub zero_tol: f64,

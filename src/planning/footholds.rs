@@ -10,7 +10,7 @@ use crate::perception::PlaneSegment;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 /// Which foot.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Foot {
     /// The right foot (it leads each step, §6.1).
     Right,
@@ -114,9 +114,11 @@ pub fn footholds(start: &Stance, rects: &[PlaneSegment], p: &GaitParams) -> Resu
     }
     let steps = super::rectangles::by_height(rects);
     let u = steps[0].along();
+    let limit_rad = 10f64.to_radians();
     for (i, s) in steps.iter().enumerate() {
-        if s.along().dot(&u) < 10f64.to_radians().cos() {
-            return Err(PlanError::NotStraight { step: i });
+        let angle_rad = s.along().dot(&u).clamp(-1.0, 1.0).acos();
+        if s.along().dot(&u) < limit_rad.cos() {
+            return Err(PlanError::NotStraight { step: i, angle_rad, limit_rad });
         }
     }
     let w = Vector3::z().cross(&u);
@@ -169,7 +171,12 @@ pub fn footholds(start: &Stance, rects: &[PlaneSegment], p: &GaitParams) -> Resu
         for (f, lane) in Foot::BOTH.into_iter().zip(lanes) {
             let over = (lane - side).abs() + p.sole_width_m / 2.0 - s.width_m() / 2.0;
             if over > p.side_overhang_m {
-                return Err(PlanError::OffTheSide { step: i, foot: f, overhang_m: over });
+                return Err(PlanError::OffTheSide {
+                    step: i,
+                    foot: f,
+                    overhang_m: over,
+                    max_m: p.side_overhang_m,
+                });
             }
         }
         if i == 0 && along - prev_along > p.max_stride_m {

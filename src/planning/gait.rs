@@ -10,12 +10,11 @@ use super::footholds::{Foot, Stance};
 use super::polygon::{by_double_description, margin};
 use super::PlanError;
 use crate::geom2d::{self, P2};
-use crate::robot::hrp4;
 use crate::robot::Kinematics;
 use nalgebra::{Isometry3, Point3, Vector3};
 
 /// The five segments of a step (§6.1).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Phase {
     /// (1) CoM over the left ankle.
     ShiftToLeft,
@@ -123,6 +122,9 @@ pub struct StepParams {
     /// Largest knee bend the leading leg may need, radians (the name carries the unit in
     /// parameter files too).
     pub knee_max_rad: f64,
+    /// Tolerances of the double description that computes the stability polygons (§6.2);
+    /// the execution's checks build theirs with the same.
+    pub dd: DdParams,
 }
 
 impl Default for StepParams {
@@ -137,6 +139,7 @@ impl Default for StepParams {
             friction: super::contact::DEFAULT_FRICTION,
             reach_fraction: 0.95,
             knee_max_rad: 125f64.to_radians(),
+            dd: DdParams::default(),
         }
     }
 }
@@ -167,8 +170,8 @@ pub struct Body {
     pub shank_m: f64,
     /// Ankle (pitch axis) in each sole's frame: right, left.
     pub ankle_in_sole: [Vector3<f64>; 2],
-    /// Sole half length and half width.
-    pub sole_half_m: [f64; 2],
+    /// Each sole's half length and half width (right, left), from the model's foot boxes.
+    pub sole_half_m: [[f64; 2]; 2],
 }
 
 impl Body {
@@ -192,7 +195,7 @@ impl Body {
                 rs.inverse_transform_point(&Point3::from(at(ankle))).coords,
                 ls.inverse_transform_point(&Point3::from(at(left_ankle))).coords,
             ],
-            sole_half_m: hrp4::SOLE_HALF_M,
+            sole_half_m: [model.sole_half_m(soles[0])?, model.sole_half_m(soles[1])?],
         })
     }
 
@@ -201,8 +204,9 @@ impl Body {
         sole.transform_point(&Point3::from(self.ankle_in_sole[k]))
     }
 
-    fn contact(&self, sole: &Isometry3<f64>, friction: f64) -> Result<Contact, PlanError> {
-        Contact::new(*sole, self.sole_half_m[0], self.sole_half_m[1], friction).map_err(PlanError::Config)
+    fn contact(&self, foot: Foot, sole: &Isometry3<f64>, friction: f64) -> Result<Contact, PlanError> {
+        let [hx, hy] = self.sole_half_m[foot.index()];
+        Contact::new(*sole, hx, hy, friction).map_err(PlanError::Config)
     }
 }
 
@@ -279,9 +283,11 @@ fn one_step(
     ];
     plan.into_iter()
         .map(|(phase, a, b, support, swing)| {
-            let contacts: Vec<Contact> =
-                support.iter().map(|(_, pose)| body.contact(pose, p.friction)).collect::<Result<_, _>>()?;
-            let polygon = by_double_description(&contacts, &DdParams::default())?;
+            let contacts: Vec<Contact> = support
+                .iter()
+                .map(|(foot, pose)| body.contact(*foot, pose, p.friction))
+                .collect::<Result<_, _>>()?;
+            let polygon = by_double_description(&contacts, &p.dd)?;
             Ok(Segment {
                 phase,
                 stance: k,
@@ -314,10 +320,7 @@ fn hip_height_max(
     let reach = p.reach_fraction * (body.thigh_m + body.shank_m);
     let d = (ankle - over).dot(forward).abs();
     if d >= reach {
-        return Err(PlanError::Reach {
-            stance,
-            what: format!("the feet are {d:.3} m apart along the ascent, a leg reaches {reach:.3} m"),
-        });
+        return Err(PlanError::LegReach { stance, apart_m: d, reach_m: reach });
     }
     Ok(ankle.z + (reach * reach - d * d).sqrt())
 }
@@ -328,12 +331,11 @@ fn check_fold(body: &Body, p: &StepParams, hip_above_ankle_m: f64, stance: usize
     let (t, s) = (body.thigh_m, body.shank_m);
     let fold = (t * t + s * s + 2.0 * t * s * p.knee_max_rad.cos()).sqrt();
     if hip_above_ankle_m < fold {
-        return Err(PlanError::Reach {
+        return Err(PlanError::KneeFold {
             stance,
-            what: format!(
-                "the leading knee would fold beyond {:.0} deg: hip {hip_above_ankle_m:.3} m above the ankle, needs {fold:.3} m",
-                p.knee_max_rad.to_degrees()
-            ),
+            hip_above_ankle_m,
+            needs_m: fold,
+            knee_max_rad: p.knee_max_rad,
         });
     }
     Ok(())
@@ -354,7 +356,11 @@ fn swing_path(a: &Isometry3<f64>, b: &Isometry3<f64>, clearance_m: f64) -> Vec<I
 fn settle_waypoints(segs: &mut [Segment], min_margin_m: f64) -> Result<(), PlanError> {
     let start = P2::new(segs[0].com_start.x, segs[0].com_start.y);
     if margin(&segs[0].polygon, &start) < 0.0 {
-        return Err(PlanError::Unstable { segment: 0, margin_m: margin(&segs[0].polygon, &start) });
+        return Err(PlanError::Unstable {
+            segment: 0,
+            margin_m: margin(&segs[0].polygon, &start),
+            min_m: 0.0,
+        });
     }
     for i in 0..segs.len() {
         let end = segs[i].com_end;
@@ -369,6 +375,7 @@ fn settle_waypoints(segs: &mut [Segment], min_margin_m: f64) -> Result<(), PlanE
             toward_middle(&region, xy, min_margin_m).ok_or(PlanError::Unstable {
                 segment: i,
                 margin_m: if region.len() >= 3 { margin(&region, &xy) } else { f64::NEG_INFINITY },
+                min_m: min_margin_m,
             })?
         };
         let new = Point3::new(moved.x, moved.y, end.z);

@@ -77,8 +77,12 @@ pub enum IkError {
     #[error("velocity bounds cross at coordinate {0} (a joint is outside its limits)")]
     CrossedBounds(usize),
     /// The solver did not converge or found the constraints infeasible.
-    #[error("the IK QP failed: {0}")]
-    Solver(String),
+    #[error("the IK QP failed: {0:?}")]
+    Solver(SolverStatus),
+    /// The solver refused the problem's data (sizes or values it cannot take): a bug of
+    /// the problem's assembly, with the solver's message.
+    #[error("the IK QP could not be set up: {0}")]
+    Setup(String),
 }
 
 /// Velocities minimizing the weighted tasks subject to the equalities and bounds.
@@ -210,7 +214,7 @@ impl Solver {
         }
         let solver = match &mut self.qp {
             Some((s, solver)) if *s == shape => {
-                let update = |e: clarabel::solver::DataUpdateError| IkError::Solver(e.to_string());
+                let update = |e: clarabel::solver::DataUpdateError| IkError::Setup(e.to_string());
                 solver.update_P(&self.p_values).map_err(update)?;
                 solver.update_q(self.c.data.as_vec()).map_err(update)?;
                 solver.update_A(&self.a_values).map_err(update)?;
@@ -227,7 +231,7 @@ impl Solver {
             SolverStatus::Solved | SolverStatus::AlmostSolved => {
                 Ok(DVector::from_column_slice(&solver.solution.x))
             }
-            s => Err(IkError::Solver(format!("{s:?}"))),
+            s => Err(IkError::Solver(s)),
         }
     }
 
@@ -250,7 +254,7 @@ impl Solver {
         let a = CscMatrix::new(m, nv, a_colptr, a_rows, self.a_values.clone());
         let cones = [SupportedConeT::ZeroConeT(n_eq), SupportedConeT::NonnegativeConeT(m - n_eq)];
         DefaultSolver::new(&p, self.c.as_slice(), &a, &self.b, &cones, settings(self.tolerance))
-            .map_err(|e| IkError::Solver(e.to_string()))
+            .map_err(|e| IkError::Setup(e.to_string()))
     }
 }
 

@@ -24,10 +24,14 @@ pub enum PlanError {
     #[error("no staircase: no step rectangles to plan on")]
     NoSteps,
     /// A rectangle's direction of ascent differs from the first one's.
-    #[error("step {} is turned more than 10 deg from step 1: not a straight staircase", .step + 1)]
+    #[error("step {} is turned more than {:.0} deg from step 1: not a straight staircase", .step + 1, .limit_rad.to_degrees())]
     NotStraight {
         /// 0-based step.
         step: usize,
+        /// Its turn from step 1, radians.
+        angle_rad: f64,
+        /// The largest accepted.
+        limit_rad: f64,
     },
     /// A tread shorter than the foot.
     #[error("step {}: tread {depth_m:.3} m is shorter than the foot needs ({min_m:.3} m)", .step + 1)]
@@ -78,6 +82,8 @@ pub enum PlanError {
         foot: Foot,
         /// By how much.
         overhang_m: f64,
+        /// The largest accepted.
+        max_m: f64,
     },
     /// A stride too long (or backward).
     #[error("step {}: stride {stride_m:.3} m is outside 0..{max_m:.3} m", .step + 1)]
@@ -89,21 +95,37 @@ pub enum PlanError {
         /// The longest accepted.
         max_m: f64,
     },
-    /// The legs cannot take a stance of the gait.
-    #[error("stance {}: {what}", .stance + 1)]
-    Reach {
+    /// The feet of a stance are farther apart along the ascent than a leg reaches.
+    #[error("stance {}: the feet are {apart_m:.3} m apart along the ascent, a leg reaches {reach_m:.3} m", .stance + 1)]
+    LegReach {
         /// 0-based stance.
         stance: usize,
-        /// What fails.
-        what: String,
+        /// The feet's distance along the ascent, metres.
+        apart_m: f64,
+        /// A leg's reach, metres.
+        reach_m: f64,
+    },
+    /// The leading knee would fold beyond its limit to take a stance.
+    #[error("stance {}: the leading knee would fold beyond {:.0} deg: hip {hip_above_ankle_m:.3} m above the ankle, needs {needs_m:.3} m", .stance + 1, .knee_max_rad.to_degrees())]
+    KneeFold {
+        /// 0-based stance.
+        stance: usize,
+        /// The hip's height over the ankle the stance allows, metres.
+        hip_above_ankle_m: f64,
+        /// The least height the knee limit needs, metres.
+        needs_m: f64,
+        /// The knee limit, radians.
+        knee_max_rad: f64,
     },
     /// A CoM waypoint cannot be placed inside its polygons with the margin.
     #[error("segment {}: the CoM cannot stay inside the static-stability polygon with margin (margin {margin_m:.3} m)", .segment + 1)]
     Unstable {
         /// 0-based segment.
         segment: usize,
-        /// The margin found.
+        /// The margin found, metres (negative outside; -inf without a polygon).
         margin_m: f64,
+        /// The least margin asked for, metres.
+        min_m: f64,
     },
     /// The stability polygon could not be computed.
     #[error("stability polygon: {0}")]
@@ -118,17 +140,170 @@ pub enum PlanError {
         /// The solver's complaint.
         error: ik::IkError,
     },
-    /// The IK could not follow the gait closely enough.
-    #[error("segment {}: {what}", .segment + 1)]
-    Tracking {
+    /// A limb of the IK's trajectory enters a step.
+    #[error("segment {}: {limb} touches step {} ({:.1} mm deep) at t = {t_s:.2} s", .segment + 1, .step + 1, .depth_m * 1e3)]
+    LimbTouchesStep {
         /// 0-based segment.
         segment: usize,
-        /// What strayed.
-        what: String,
+        /// The limb (its collision capsule's name).
+        limb: String,
+        /// 0-based step.
+        step: usize,
+        /// How deep, metres.
+        depth_m: f64,
+        /// When, seconds from the plan's start.
+        t_s: f64,
+    },
+    /// The IK's swing foot ends too far from its target.
+    #[error("segment {}: {foot:?} foot misses its target by {:.1} mm", .segment + 1, .error_m * 1e3)]
+    FootMisses {
+        /// 0-based segment.
+        segment: usize,
+        /// Which foot.
+        foot: Foot,
+        /// The distance, metres.
+        error_m: f64,
+        /// The largest accepted, metres.
+        limit_m: f64,
+    },
+    /// The IK's CoM strays from the planned path.
+    #[error("segment {}: the CoM strays {:.1} mm from its path", .segment + 1, .error_m * 1e3)]
+    ComStrays {
+        /// 0-based segment.
+        segment: usize,
+        /// The largest distance, metres.
+        error_m: f64,
+        /// The largest accepted, metres.
+        limit_m: f64,
     },
     /// The robot model or its configuration is unusable.
     #[error("robot: {0}")]
     Config(String),
+}
+
+/// What kind of refusal a [`Refusal`] is (one per [`PlanError`] variant).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RefusalKind {
+    /// [`PlanError::NoSteps`].
+    NoSteps,
+    /// [`PlanError::NotStraight`].
+    NotStraight,
+    /// [`PlanError::ShortTread`].
+    ShortTread,
+    /// [`PlanError::MissingStep`].
+    MissingStep,
+    /// [`PlanError::HighRise`].
+    HighRise,
+    /// [`PlanError::Gap`].
+    Gap,
+    /// [`PlanError::OffTheSide`].
+    OffTheSide,
+    /// [`PlanError::Stride`].
+    Stride,
+    /// [`PlanError::LegReach`].
+    LegReach,
+    /// [`PlanError::KneeFold`].
+    KneeFold,
+    /// [`PlanError::Unstable`].
+    Unstable,
+    /// [`PlanError::Polygon`].
+    Polygon,
+    /// [`PlanError::Ik`].
+    Ik,
+    /// [`PlanError::LimbTouchesStep`].
+    LimbTouchesStep,
+    /// [`PlanError::FootMisses`].
+    FootMisses,
+    /// [`PlanError::ComStrays`].
+    ComStrays,
+    /// [`PlanError::Config`].
+    Robot,
+}
+
+/// A refusal as data, for reports and regression tables: its kind, where (1-based step,
+/// stance or segment, as in messages), the value that broke a limit and the limit, and the
+/// message. Made by [`PlanError::refusal`].
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Refusal {
+    /// Which refusal.
+    pub kind: RefusalKind,
+    /// The step (1 = lowest) it is about, if one.
+    pub step: Option<usize>,
+    /// The stance (1 = first planned) it is about, if one.
+    pub stance: Option<usize>,
+    /// The segment (1 = first) it is about, if one.
+    pub segment: Option<usize>,
+    /// The value found, in `unit`.
+    pub value: Option<f64>,
+    /// The limit it broke, in `unit`.
+    pub limit: Option<f64>,
+    /// Unit of `value` and `limit` (`m`, `rad`, `ratio`).
+    pub unit: Option<String>,
+    /// The message, as printed.
+    pub message: String,
+}
+
+impl PlanError {
+    /// This refusal as data.
+    pub fn refusal(&self) -> Refusal {
+        use RefusalKind as K;
+        let m = |v: f64, l: f64| (Some(v), Some(l), Some("m"));
+        let none = (None, None, None);
+        let (kind, step, stance, segment, (value, limit, unit)) = match self {
+            PlanError::NoSteps => (K::NoSteps, None, None, None, none),
+            PlanError::NotStraight { step, angle_rad, limit_rad } => {
+                (K::NotStraight, Some(*step), None, None, (Some(*angle_rad), Some(*limit_rad), Some("rad")))
+            }
+            PlanError::ShortTread { step, depth_m, min_m } => {
+                (K::ShortTread, Some(*step), None, None, m(*depth_m, *min_m))
+            }
+            PlanError::MissingStep { step, rise_m, median_m } => {
+                (K::MissingStep, Some(*step), None, None, m(*rise_m, *median_m))
+            }
+            PlanError::HighRise { step, rise_m, max_m } => {
+                (K::HighRise, Some(*step), None, None, m(*rise_m, *max_m))
+            }
+            PlanError::Gap { step, gap_m, max_m } => (K::Gap, Some(*step), None, None, m(*gap_m, *max_m)),
+            PlanError::OffTheSide { step, overhang_m, max_m, .. } => {
+                (K::OffTheSide, Some(*step), None, None, m(*overhang_m, *max_m))
+            }
+            PlanError::Stride { step, stride_m, max_m } => {
+                (K::Stride, Some(*step), None, None, m(*stride_m, *max_m))
+            }
+            PlanError::LegReach { stance, apart_m, reach_m } => {
+                (K::LegReach, None, Some(*stance), None, m(*apart_m, *reach_m))
+            }
+            PlanError::KneeFold { stance, hip_above_ankle_m, needs_m, .. } => {
+                (K::KneeFold, None, Some(*stance), None, m(*hip_above_ankle_m, *needs_m))
+            }
+            PlanError::Unstable { segment, margin_m, min_m } => {
+                (K::Unstable, None, None, Some(*segment), m(*margin_m, *min_m))
+            }
+            PlanError::Polygon(_) => (K::Polygon, None, None, None, none),
+            PlanError::Ik { segment, .. } => (K::Ik, None, None, Some(*segment), none),
+            PlanError::LimbTouchesStep { segment, step, depth_m, .. } => {
+                (K::LimbTouchesStep, Some(*step), None, Some(*segment), m(*depth_m, 0.0))
+            }
+            PlanError::FootMisses { segment, error_m, limit_m, .. } => {
+                (K::FootMisses, None, None, Some(*segment), m(*error_m, *limit_m))
+            }
+            PlanError::ComStrays { segment, error_m, limit_m } => {
+                (K::ComStrays, None, None, Some(*segment), m(*error_m, *limit_m))
+            }
+            PlanError::Config(_) => (K::Robot, None, None, None, none),
+        };
+        Refusal {
+            kind,
+            step: step.map(|i| i + 1),
+            stance: stance.map(|i| i + 1),
+            segment: segment.map(|i| i + 1),
+            value,
+            limit,
+            unit: unit.map(str::to_string),
+            message: self.to_string(),
+        }
+    }
 }
 
 impl From<crate::robot::RobotError> for PlanError {

@@ -140,7 +140,7 @@ impl JointTrajectory {
 }
 
 /// How well the IK tracked the gait.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Tracking {
     /// Largest CoM error over the trajectory, metres.
     pub max_com_error_m: f64,
@@ -324,14 +324,12 @@ pub fn track(
             if let Some((d, limb, block)) = least {
                 stats.min_leg_clearance_m = Some(stats.min_leg_clearance_m.map_or(d, |m: f64| m.min(d)));
                 if d < 0.0 {
-                    return Err(PlanError::Tracking {
+                    return Err(PlanError::LimbTouchesStep {
                         segment: si,
-                        what: format!(
-                            "{} touches step {} ({:.1} mm deep) at t = {t:.2} s",
-                            limbs[limb].name,
-                            block + 1,
-                            -d * 1e3
-                        ),
+                        limb: limbs[limb].name.clone(),
+                        step: block,
+                        depth_m: -d,
+                        t_s: t,
                     });
                 }
             }
@@ -353,18 +351,21 @@ pub fn track(
             let err = (kin.frame_pose(f).translation.vector - target).norm();
             stats.max_touchdown_error_m = stats.max_touchdown_error_m.max(err);
             if err > p.foot_tolerance_m {
-                return Err(PlanError::Tracking {
+                return Err(PlanError::FootMisses {
                     segment: si,
-                    what: format!("{:?} foot misses its target by {:.1} mm", sw.foot, err * 1e3),
+                    foot: sw.foot,
+                    error_m: err,
+                    limit_m: p.foot_tolerance_m,
                 });
             }
         }
         t0 = end;
     }
     if stats.max_com_error_m > p.com_tolerance_m {
-        return Err(PlanError::Tracking {
+        return Err(PlanError::ComStrays {
             segment: worst_com_segment,
-            what: format!("the CoM strays {:.1} mm from its path", stats.max_com_error_m * 1e3),
+            error_m: stats.max_com_error_m,
+            limit_m: p.com_tolerance_m,
         });
     }
     Ok((JointTrajectory { rate_hz: p.rate_hz, samples }, stats))

@@ -1,31 +1,33 @@
 //! Reading a recording back: the raw lidar rows of every sweep (so perception can be rerun on
-//! them), what perception found at the time, and the attached scenario and parameters. A
-//! truncated or corrupt file gives every complete record before the damage, and says where it
-//! stopped.
+//! them, or the sweeps fed to the loop again as a [`Source`]), what perception found and
+//! what was planned at the time, and the attached scenario and parameters. Messages are read
+//! into the same types they were written from ([`super::messages`]). A truncated or corrupt
+//! file gives every complete record before the damage, and says where it stopped.
 
-use crate::scenario::LidarSpec;
-use crate::sensor::{LidarModel, ScanRow, Sweep};
+use super::foxglove::{LaserScan, PointCloud};
+use super::messages::{PerceptionMsg, PlanMsg, SweepMsg, TrajectoryMsg};
+use crate::cancel::Cancel;
+use crate::sensor::{LidarModel, ScanRow, SensorError, Source, Sweep};
 use mcap::read::{ChunkFlattener, Options};
 use mcap::records::Record;
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
-use serde_json::Value;
+use nalgebra::Vector3;
 use std::collections::HashMap;
 
 /// A sweep as recorded.
 #[derive(Debug, Clone)]
 pub struct RecordedSweep {
-    /// When it was assembled (log time), seconds.
+    /// When it was taken (log time), seconds.
     pub stamp_s: f64,
     /// Its rows and what is needed to assemble them.
     pub sweep: Sweep,
     /// What perception found on it at the time (`/perception/result`), if recorded.
-    pub perception: Option<Value>,
+    pub perception: Option<PerceptionMsg>,
     /// The cloud assembled at the time (`/cloud`), if recorded.
     pub cloud: Option<Vec<nalgebra::Point3<f32>>>,
     /// The plan made after this sweep (`/plan`), if recorded.
-    pub plan: Option<Value>,
+    pub plan: Option<PlanMsg>,
     /// Its planned q(t) (`/plan/trajectory`), if recorded.
-    pub trajectory: Option<Value>,
+    pub trajectory: Option<TrajectoryMsg>,
 }
 
 /// What a recording holds.
@@ -66,6 +68,11 @@ pub fn read(path: &std::path::Path) -> Result<Recording, ReplayError> {
     read_bytes(&bytes).map_err(|e| ReplayError::NotMcap(path.display().to_string(), e))
 }
 
+/// A message's payload as `T`, or why not.
+fn parse<'a, T: serde::Deserialize<'a>>(topic: &str, data: &'a [u8]) -> Result<T, String> {
+    serde_json::from_slice(data).map_err(|e| format!("bad {topic} message: {e}"))
+}
+
 /// [`read`] from memory.
 pub fn read_bytes(bytes: &[u8]) -> Result<Recording, String> {
     if !bytes.starts_with(mcap::MAGIC) {
@@ -84,72 +91,27 @@ pub fn read_bytes(bytes: &[u8]) -> Result<Recording, String> {
                 break;
             }
         };
-        match r {
+        let (header, data) = match r {
             Record::Channel(c) => {
                 topics.insert(c.id, c.topic);
+                continue;
             }
             Record::Attachment { header, data, .. } => {
                 rec.attachments.insert(header.name, data.into_owned());
+                continue;
             }
             Record::Metadata(m) => {
                 rec.metadata.insert(m.name, m.metadata);
+                continue;
             }
-            Record::Message { header, data } => {
-                let Some(topic) = topics.get(&header.channel_id) else { continue };
-                *rec.counts.entry(topic.clone()).or_default() += 1;
-                let Ok(v) = serde_json::from_slice::<Value>(&data) else {
-                    rec.damage = Some(format!("a {topic} message is not JSON"));
-                    break;
-                };
-                let stamp_s = header.log_time as f64 * 1e-9;
-                match topic.as_str() {
-                    "/lidar/sweep" => {
-                        if let Some((s, _)) = open.take() {
-                            rec.sweeps.push(s);
-                        }
-                        match sweep_of(&v, stamp_s) {
-                            Ok(s) => open = Some(s),
-                            Err(e) => {
-                                rec.damage = Some(format!("bad /lidar/sweep message: {e}"));
-                                break;
-                            }
-                        }
-                    }
-                    "/lidar/scan" => {
-                        if let Some((s, _)) = open.as_mut() {
-                            match row_of(&v) {
-                                Ok(row) => s.sweep.rows.push(row),
-                                Err(e) => {
-                                    rec.damage = Some(format!("bad /lidar/scan message: {e}"));
-                                    break;
-                                }
-                            }
-                        }
-                    }
-                    "/perception/result" => {
-                        if let Some((s, _)) = open.as_mut() {
-                            s.perception = Some(v);
-                        }
-                    }
-                    "/plan" => {
-                        if let Some((s, _)) = open.as_mut() {
-                            s.plan = Some(v);
-                        }
-                    }
-                    "/plan/trajectory" => {
-                        if let Some((s, _)) = open.as_mut() {
-                            s.trajectory = Some(v);
-                        }
-                    }
-                    "/cloud" => {
-                        if let Some((s, _)) = open.as_mut() {
-                            s.cloud = super::foxglove::point_cloud_xyz(&v);
-                        }
-                    }
-                    _ => {}
-                }
-            }
-            _ => {}
+            Record::Message { header, data } => (header, data),
+            _ => continue,
+        };
+        let Some(topic) = topics.get(&header.channel_id) else { continue };
+        *rec.counts.entry(topic.clone()).or_default() += 1;
+        if let Err(e) = take(topic, &data, header.log_time, &mut rec, &mut open) {
+            rec.damage = Some(e);
+            break;
         }
     }
     // A sweep whose rows were cut off by damage is not replayed.
@@ -163,50 +125,100 @@ pub fn read_bytes(bytes: &[u8]) -> Result<Recording, String> {
     Ok(rec)
 }
 
-fn sweep_of(v: &Value, stamp_s: f64) -> Result<(RecordedSweep, usize), String> {
-    let spec: LidarSpec = serde_json::from_value(v["lidar"].clone()).map_err(|e| e.to_string())?;
-    // The spec is checked as part of a scenario (its validation covers the lidar table).
-    crate::scenario::Scenario { lidar: spec.clone(), ..Default::default() }
-        .validate()
-        .map_err(|e| format!("{}: {}", e.field, e.reason))?;
-    let rows = v["rows"].as_u64().ok_or("no row count")? as usize;
-    let nums = |x: &Value, n: usize| -> Result<Vec<f64>, String> {
-        let a = x.as_array().ok_or("not an array")?;
-        let out: Vec<f64> = a.iter().filter_map(Value::as_f64).collect();
-        if out.len() == n && out.iter().all(|x| x.is_finite()) {
-            Ok(out)
-        } else {
-            Err("bad numbers".into())
+/// Takes one message of `topic` into the recording (a new sweep, or a part of the open one).
+fn take(
+    topic: &str,
+    data: &[u8],
+    log_time_ns: u64,
+    rec: &mut Recording,
+    open: &mut Option<(RecordedSweep, usize)>,
+) -> Result<(), String> {
+    match topic {
+        "/lidar/sweep" => {
+            if let Some((s, _)) = open.take() {
+                rec.sweeps.push(s);
+            }
+            *open = Some(sweep_of(parse(topic, data)?, log_time_ns as f64 * 1e-9)?);
         }
-    };
-    let t = nums(&v["mount_to_world"]["translation"], 3)?;
-    let r = nums(&v["mount_to_world"]["rotation"], 4)?;
-    // The recorded quaternion was unit already: taken as is, so the replayed assembly is
-    // bit for bit the recorded one (renormalizing would change the last bits).
-    let q = Quaternion::new(r[0], r[1], r[2], r[3]);
-    let rotation = if (q.norm() - 1.0).abs() < 1e-12 {
-        UnitQuaternion::new_unchecked(q)
-    } else {
-        UnitQuaternion::try_new(q, 1e-9).ok_or("the mount rotation is not a rotation")?
-    };
-    let mount_to_world = Isometry3::from_parts(Translation3::new(t[0], t[1], t[2]), rotation);
-    let sweep = Sweep { rows: Vec::with_capacity(rows), lidar: LidarModel::from_spec(&spec), mount_to_world };
-    Ok((RecordedSweep { stamp_s, sweep, perception: None, cloud: None, plan: None, trajectory: None }, rows))
+        "/lidar/scan" => {
+            if let Some((s, _)) = open.as_mut() {
+                s.sweep.rows.push(row_of(parse(topic, data)?));
+            }
+        }
+        "/perception/result" => {
+            if let Some((s, _)) = open.as_mut() {
+                s.perception = Some(parse(topic, data)?);
+            }
+        }
+        "/plan" => {
+            if let Some((s, _)) = open.as_mut() {
+                s.plan = Some(parse(topic, data)?);
+            }
+        }
+        "/plan/trajectory" => {
+            if let Some((s, _)) = open.as_mut() {
+                s.trajectory = Some(parse(topic, data)?);
+            }
+        }
+        "/cloud" => {
+            if let Some((s, _)) = open.as_mut() {
+                s.cloud = parse::<PointCloud>(topic, data)?.xyz();
+            }
+        }
+        _ => {}
+    }
+    Ok(())
 }
 
-fn row_of(v: &Value) -> Result<ScanRow, String> {
-    let num = |k: &str| v[k].as_f64().filter(|x| x.is_finite()).ok_or_else(|| format!("no {k}"));
-    let g = v["stairbench_gravity_mount"].as_array().ok_or("no gravity")?;
-    let g: Vec<f64> = g.iter().filter_map(Value::as_f64).collect();
-    if g.len() != 3 {
-        return Err("gravity is not 3 numbers".into());
+fn sweep_of(m: SweepMsg, stamp_s: f64) -> Result<(RecordedSweep, usize), String> {
+    // The spec is checked as part of a scenario (its validation covers the lidar table).
+    crate::scenario::Scenario { lidar: m.lidar.clone(), ..Default::default() }
+        .validate()
+        .map_err(|e| format!("bad /lidar/sweep message: {}: {}", e.field, e.reason))?;
+    let mount_to_world = m.mount_to_world.isometry().map_err(|e| format!("bad /lidar/sweep message: {e}"))?;
+    let sweep =
+        Sweep { rows: Vec::with_capacity(m.rows), lidar: LidarModel::from_spec(&m.lidar), mount_to_world };
+    let s = RecordedSweep { stamp_s, sweep, perception: None, cloud: None, plan: None, trajectory: None };
+    Ok((s, m.rows))
+}
+
+fn row_of(m: LaserScan) -> ScanRow {
+    let [x, y, z] = m.stairbench_gravity_mount;
+    ScanRow {
+        stamp_s: m.stairbench_stamp_s,
+        tilt_rad: m.stairbench_tilt_rad,
+        ranges_m: m.ranges,
+        gravity_mount: Vector3::new(x, y, z),
     }
-    let ranges = v["ranges"].as_array().ok_or("no ranges")?;
-    let ranges_m: Vec<f32> = ranges.iter().map(|x| x.as_f64().unwrap_or(0.0) as f32).collect();
-    Ok(ScanRow {
-        stamp_s: num("stairbench_stamp_s")?,
-        tilt_rad: num("stairbench_tilt_rad")?,
-        ranges_m,
-        gravity_mount: Vector3::new(g[0], g[1], g[2]),
-    })
+}
+
+/// A recording's sweeps as a [`Source`]: each call gives the next recorded sweep, as it was
+/// recorded; after the last, [`SensorError::Exhausted`].
+pub struct ReplaySource {
+    sweeps: std::vec::IntoIter<Sweep>,
+    given: usize,
+}
+
+impl ReplaySource {
+    /// The sweeps of `rec`, in order.
+    pub fn new(rec: &Recording) -> Self {
+        let sweeps: Vec<Sweep> = rec.sweeps.iter().map(|s| s.sweep.clone()).collect();
+        Self { sweeps: sweeps.into_iter(), given: 0 }
+    }
+}
+
+impl Source for ReplaySource {
+    fn sweep(
+        &mut self,
+        cancel: &Cancel,
+        on_rows: &mut dyn FnMut(usize, usize),
+    ) -> Result<Sweep, SensorError> {
+        if cancel.is_cancelled() {
+            return Err(SensorError::Cancelled { rows: 0 });
+        }
+        let sweep = self.sweeps.next().ok_or(SensorError::Exhausted { given: self.given })?;
+        self.given += 1;
+        on_rows(sweep.rows.len(), sweep.rows.len());
+        Ok(sweep)
+    }
 }

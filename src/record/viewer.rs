@@ -9,15 +9,15 @@
 //! `robot/boxes`, `robot/capsules`, `robot/com`, `metrics/margin_mm`,
 //! `metrics/torque_ratio`, `checks`.
 
+use crate::climb::{Event, Observer, RobotState, Violation};
 use crate::cloud::PointCloud;
+use crate::perception::PerceptionError;
 use crate::perception::{Perception, PlaneSegment};
 use crate::planning::Plan;
 use crate::robot::model::{RobotModel, Shape};
 use crate::robot::Kinematics;
 use crate::scene::{Scene, SurfaceRole};
 use crate::sensor::{assemble, AssembleParams, Sweep};
-use crate::sim::execute::Violation;
-use crate::sim::observe::{Observer, RobotState};
 use nalgebra::{Isometry3, Point3, UnitQuaternion};
 
 /// Where the recording goes.
@@ -45,6 +45,7 @@ pub struct RerunLogger<'m> {
     kin: Kinematics<'m>,
     last_state_s: f64,
     errors: usize,
+    sole_half_m: [f64; 2],
 }
 
 fn p3(p: &Point3<f64>) -> [f32; 3] {
@@ -83,7 +84,8 @@ impl<'m> RerunLogger<'m> {
             Sink::Save(path) => builder.save(path),
         }
         .map_err(|e| RerunError(e.to_string()))?;
-        Ok(Self { rec, kin: Kinematics::new(model), last_state_s: f64::NEG_INFINITY, errors: 0 })
+        let sole_half_m = crate::robot::hrp4::sole_half_m(model).map_err(|e| RerunError(e.to_string()))?[0];
+        Ok(Self { rec, kin: Kinematics::new(model), last_state_s: f64::NEG_INFINITY, errors: 0, sole_half_m })
     }
 
     /// Logs `what` at `path`, counting failures (a viewer that went away must not stop a
@@ -115,7 +117,7 @@ impl<'m> RerunLogger<'m> {
     }
 }
 
-impl Observer for RerunLogger<'_> {
+impl RerunLogger<'_> {
     fn scene(&mut self, scene: &Scene) {
         let boxes: Vec<_> = scene.boxes().iter().filter(|b| b.role() != SurfaceRole::Ceiling).collect();
         let centres: Vec<[f32; 3]> =
@@ -170,10 +172,10 @@ impl Observer for RerunLogger<'_> {
         self.log("perception/rectangles", &outlines);
     }
 
-    fn perception_failed(&mut self, stamp_s: f64, why: &str) {
+    fn perception_failed(&mut self, stamp_s: f64, error: &PerceptionError) {
         self.at(stamp_s);
         self.log("perception/rectangles", &rerun::Clear::flat());
-        self.log("checks", &rerun::TextLog::new(format!("perception: {why}")));
+        self.log("checks", &rerun::TextLog::new(format!("perception: {error}")));
     }
 
     fn plan(&mut self, stamp_s: f64, _steps: &[PlaneSegment], plan: &Plan) {
@@ -193,7 +195,7 @@ impl Observer for RerunLogger<'_> {
         let feet: Vec<Isometry3<f64>> = plan.stances.iter().flat_map(|s| [s.right, s.left]).collect();
         let targets = rerun::Boxes3D::from_centers_and_half_sizes(
             feet.iter().map(|f| p3(&Point3::from(f.translation.vector))),
-            feet.iter().map(|_| [0.12f32, 0.065, 0.003]),
+            feet.iter().map(|_| [self.sole_half_m[0] as f32, self.sole_half_m[1] as f32, 0.003]),
         )
         .with_quaternions(feet.iter().map(|f| quat(&f.rotation)))
         .with_colors([rerun::Color::from_unmultiplied_rgba(51, 230, 77, 150)]);
@@ -259,6 +261,22 @@ impl Observer for RerunLogger<'_> {
 
     fn violation(&mut self, stamp_s: f64, v: &Violation) {
         self.at(stamp_s);
-        self.log("checks", &rerun::TextLog::new(format!("{}: {}", v.check, v.detail)));
+        self.log("checks", &rerun::TextLog::new(format!("{}: {}", v.check.kind(), v.check)));
+    }
+}
+
+impl Observer for RerunLogger<'_> {
+    fn event(&mut self, event: &Event) {
+        match *event {
+            Event::Scene(scene) => self.scene(scene),
+            Event::Sweep { stamp_s, sweep } => self.sweep(stamp_s, sweep),
+            Event::Cloud { stamp_s, cloud } => self.cloud(stamp_s, cloud),
+            Event::Perception { stamp_s, result } => self.perception(stamp_s, result),
+            Event::PerceptionFailed { stamp_s, error } => self.perception_failed(stamp_s, error),
+            Event::Plan { stamp_s, steps, plan } => self.plan(stamp_s, steps, plan),
+            Event::State { stamp_s, state } => self.state(stamp_s, state),
+            Event::Violation { stamp_s, violation } => self.violation(stamp_s, violation),
+            Event::Cycle { .. } => {}
+        }
     }
 }

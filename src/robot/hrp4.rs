@@ -18,10 +18,10 @@ pub const L_SOLE: &str = "L_SOLE";
 pub const LIDAR_MOUNT: &str = crate::scene::mjcf::HEAD_SITE;
 /// Top of the head (for the standing-height figure).
 pub const HEAD_TOP: &str = "head_top";
-/// Sole size, length x width, metres (HRP-4's published figure).
+/// Sole size, length x width, metres (HRP-4's published figure): the default of the
+/// footholds' parameters. Contacts and checks take the sole from the model
+/// ([`sole_half_m`]), whose foot boxes have this size (a unit test holds them together).
 pub const SOLE_SIZE_M: [f64; 2] = [0.24, 0.13];
-/// Half the sole's length and width, metres (a contact rectangle's half sizes).
-pub const SOLE_HALF_M: [f64; 2] = [SOLE_SIZE_M[0] / 2.0, SOLE_SIZE_M[1] / 2.0];
 
 /// Half-sitting, HRP-4's standard posture, degrees (the task's figures); joints not listed
 /// are at 0.
@@ -64,6 +64,13 @@ pub fn half_sitting_joints(model: &RobotModel) -> Result<Vec<f64>, RobotError> {
 /// The sole frames' indices, right then left.
 pub fn sole_frames(model: &RobotModel) -> Result<[usize; 2], RobotError> {
     Ok([model.frame_id(R_SOLE)?, model.frame_id(L_SOLE)?])
+}
+
+/// Half length and half width of each sole, right then left, from the model's foot boxes
+/// ([`RobotModel::sole_half_m`]), metres.
+pub fn sole_half_m(model: &RobotModel) -> Result<[[f64; 2]; 2], RobotError> {
+    let [r, l] = sole_frames(model)?;
+    Ok([model.sole_half_m(r)?, model.sole_half_m(l)?])
 }
 
 /// Half-sitting, standing with the soles' mean centre at `feet` (see [`standing_config`]):

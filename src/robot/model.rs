@@ -350,6 +350,29 @@ impl RobotModel {
             .copied()
             .ok_or_else(|| RobotError::Unknown { kind: "frame", name: name.into() })
     }
+
+    /// Half length (x) and half width (y) of the sole at frame `frame`, metres: the box
+    /// collision of the frame's link whose bottom face the frame lies on, centred (within
+    /// 1 mm) and parallel to it. The contact rectangle of every stability polygon and check.
+    pub fn sole_half_m(&self, frame: usize) -> Result<[f64; 2], RobotError> {
+        let f = &self.frames[frame];
+        let link = &self.links[f.link];
+        link.collisions
+            .iter()
+            .find_map(|c| {
+                let Shape::Box([x, y, z]) = c.shape else { return None };
+                let bottom = c.placement * nalgebra::Point3::new(0.0, 0.0, -z / 2.0);
+                let on = (bottom - nalgebra::Point3::from(f.placement.translation.vector)).norm() < 1e-3;
+                let parallel = c.placement.rotation.angle_to(&f.placement.rotation) < 1e-6;
+                (on && parallel).then_some([x / 2.0, y / 2.0])
+            })
+            .ok_or_else(|| {
+                RobotError::Invalid(format!(
+                    "frame `{}` lies on no box collision of link `{}`: the sole's size is unknown",
+                    f.name, link.name
+                ))
+            })
+    }
 }
 
 #[cfg(test)]

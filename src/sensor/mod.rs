@@ -1,19 +1,32 @@
 //! The paper's sensor (§3): a Hokuyo UTM-30LX-EW 2-D lidar tilted by a Dynamixel MX-64 servo.
 //!
-//! Every source (the MuJoCo simulation, the real serial drivers, an MCAP replay) produces the
-//! same [`ScanRow`]s; [`assemble`] turns a sweep of rows into a gravity-aligned point cloud.
+//! Every [`Source`] (the MuJoCo simulation, the real drivers, an MCAP replay) produces the
+//! same [`Sweep`] of [`ScanRow`]s; [`assemble`] turns a sweep into a gravity-aligned point
+//! cloud. Nothing here knows the simulator: the simulated lidar casts its beams through any
+//! [`RayCaster`], and the MuJoCo world is one.
 
 pub mod assemble;
 pub mod lidar;
 pub mod servo;
-pub mod sim;
+pub mod simulated;
 
 pub use assemble::{assemble, AssembleParams};
 pub use lidar::LidarModel;
 pub use servo::TiltSweep;
-pub use sim::{scan_scenario, ScenarioScan, SimLidar};
+pub use simulated::{RayCaster, RayHit, SimLidar};
 
+use crate::cancel::Cancel;
 use nalgebra::Vector3;
+
+/// Where sweeps come from: the simulated lidar in a world, the real lidar and servo, or a
+/// recording. The closed loop knows its sensor only through this.
+pub trait Source {
+    /// One tilt sweep from where the sensor head is now. `on_rows(done, total)` is called as
+    /// rows arrive (for progress bars). A cancelled `cancel` ends the sweep early with
+    /// [`SensorError::Cancelled`].
+    fn sweep(&mut self, cancel: &Cancel, on_rows: &mut dyn FnMut(usize, usize))
+        -> Result<Sweep, SensorError>;
+}
 
 /// One row of the lidar: one mirror revolution, `beams` ranges in a plane.
 #[derive(Debug, Clone, PartialEq)]
@@ -58,9 +71,18 @@ pub enum SensorError {
         /// Index of the row in the sweep.
         row: usize,
     },
-    /// The simulated world is missing a frame the lidar needs.
-    #[error(transparent)]
-    Sim(#[from] crate::sim::SimError),
+    /// The sweep was cancelled (Ctrl-C, a timeout) after `rows` rows.
+    #[error("the sweep was cancelled after {rows} rows")]
+    Cancelled {
+        /// Rows received before the cancellation.
+        rows: usize,
+    },
+    /// The source has no more sweeps (a recording's end).
+    #[error("no more sweeps: the source has given its {given}")]
+    Exhausted {
+        /// Sweeps given before.
+        given: usize,
+    },
 }
 
 /// A whole tilt sweep: the rows and what is needed to assemble them.

@@ -1,10 +1,80 @@
-//! MuJoCo side of the bench: the compiled world and what is asked of it (ray casts, frames).
+//! The MuJoCo side of the bench: the compiled world and what is asked of it (ray casts,
+//! frames), the simulated lidar as a sensor [`Source`](crate::sensor::Source), the simulated
+//! HRP-4 with its checks as the loop's [`Executor`](crate::climb::Executor), and the two
+//! together on a scenario ([`climb_scenario`], [`scan_scenario`]).
 
-pub mod climb;
+pub mod checks;
 pub mod execute;
-pub mod observe;
-pub mod speed_margin;
-pub mod stop;
+pub mod lidar;
 pub mod world;
 
-pub use world::{RayHit, SimError, World};
+pub use execute::SimRobot;
+pub use lidar::SimSource;
+pub use world::{SimError, World};
+
+use crate::cancel::Cancel;
+use crate::climb::{self, Bench, ClimbError, ClimbReport, Observer};
+use crate::params::ClimbParams;
+use crate::scenario::Scenario;
+use crate::scene::Scene;
+use crate::sensor::{SensorError, Sweep};
+use std::cell::RefCell;
+
+/// Why a scenario's world could not be set up.
+#[derive(Debug, thiserror::Error)]
+pub enum SetupError {
+    /// The scenario is invalid.
+    #[error(transparent)]
+    Scenario(#[from] crate::scenario::ScenarioError),
+    /// The world.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// The robot model.
+    #[error(transparent)]
+    Robot(#[from] crate::robot::RobotError),
+    /// The sensor.
+    #[error(transparent)]
+    Sensor(#[from] SensorError),
+    /// The climb.
+    #[error(transparent)]
+    Climb(#[from] ClimbError),
+}
+
+/// Runs the closed loop on `scenario` in MuJoCo: its world, its lidar as the source, the
+/// simulated HRP-4 as the executor, judged against the scenario's ground truth.
+pub fn climb_scenario(
+    scenario: &Scenario,
+    p: &ClimbParams,
+    observer: &mut dyn Observer,
+    cancel: &Cancel,
+) -> Result<ClimbReport, SetupError> {
+    let scene = Scene::from_scenario(scenario)?;
+    let model = crate::robot::hrp4::model()?;
+    let world = RefCell::new(World::for_scene(&scene)?);
+    let mut source = SimSource::new(&world, &scenario.lidar, scenario.seed)?;
+    let mut robot = SimRobot::new(&world, &model, &scene, &p.servo, &p.checks, &p.plan.step.dd);
+    let bench = Bench { source: &mut source, robot: &mut robot, model: &model, truth: &scene };
+    Ok(climb::run(bench, p.loop_params(), observer, cancel)?)
+}
+
+/// A scenario's world, scanned once by its lidar from the robot's start.
+pub struct ScenarioScan {
+    /// The scenario's scene (ground truth included).
+    pub scene: Scene,
+    /// The sweep.
+    pub sweep: Sweep,
+}
+
+/// Builds the world of `scenario` (with the bench's robot, see [`World::for_scene`]) and
+/// sweeps its lidar once (noise drawn from the scenario's seed); `progress(done_rows,
+/// total_rows)` is called along the way.
+pub fn scan_scenario(
+    scenario: &Scenario,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<ScenarioScan, SetupError> {
+    let scene = Scene::from_scenario(scenario)?;
+    let world = World::for_scene(&scene)?;
+    let sweep =
+        lidar::head_lidar(&world, &scenario.lidar, scenario.seed)?.sweep_rows(&Cancel::never(), progress)?;
+    Ok(ScenarioScan { scene, sweep })
+}

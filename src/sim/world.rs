@@ -1,9 +1,10 @@
 //! A compiled MuJoCo world (model + data) built from a [`Scene`] and a robot fragment, with
-//! thread-safe ray casting for the simulated lidar.
+//! thread-safe ray casting for the simulated lidar (the world is a [`RayCaster`]).
 
 use crate::robot::{self, hrp4};
 use crate::scene::mjcf::{world_xml, RobotFragment, ROBOT_GEOM_GROUP};
 use crate::scene::Scene;
+use crate::sensor::{RayCaster, RayHit};
 use mujoco_rs::mujoco_c::{mjNGROUP, mj_ray};
 use mujoco_rs::prelude::{MjData, MjModel, MjtObjBase};
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
@@ -24,15 +25,6 @@ pub enum SimError {
     /// The robot model could not be placed in the world.
     #[error(transparent)]
     Robot(#[from] crate::robot::RobotError),
-}
-
-/// One ray's hit.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RayHit {
-    /// Distance along the (unit) ray direction, metres.
-    pub distance_m: f64,
-    /// Id of the geom hit.
-    pub geom: usize,
 }
 
 /// The MuJoCo model and data of one world. `data` holds the current state; ray casts read it.
@@ -134,10 +126,12 @@ impl World {
     pub fn geom_name(&self, id: usize) -> &str {
         self.model.id_to_name(MjtObjBase::mjOBJ_GEOM, id).unwrap_or("")
     }
+}
 
+impl RayCaster for World {
     /// Casts one ray from `origin` along the unit vector `dir` against every geom except the
     /// robot's, as of the last forward kinematics. Thread-safe: reads the state only.
-    pub fn ray(&self, origin: &Point3<f64>, dir: &Vector3<f64>) -> Option<RayHit> {
+    fn ray(&self, origin: &Point3<f64>, dir: &Vector3<f64>) -> Option<RayHit> {
         let pnt = [origin.x, origin.y, origin.z];
         let vec = [dir.x, dir.y, dir.z];
         let mut geom = -1i32;

@@ -6,7 +6,16 @@
 
 use super::machine;
 use anyhow::Result;
-use stairbench::sim::climb::{climb, climb_observed, ClimbParams, ClimbReport};
+use stairbench::cancel::Cancel;
+use stairbench::climb::{ClimbReport, Nobody, Observer};
+use stairbench::params::ClimbParams;
+use stairbench::scenario::Scenario;
+use stairbench::sim::climb_scenario;
+
+/// One climb of `scenario` with `params`, seen by `observer`.
+fn climb(scenario: &Scenario, params: &ClimbParams, observer: &mut dyn Observer) -> Result<ClimbReport> {
+    Ok(climb_scenario(scenario, params, observer, &Cancel::never())?)
+}
 
 /// Returns the Markdown table.
 pub fn run(repeat: usize) -> Result<String> {
@@ -18,7 +27,7 @@ pub fn run(repeat: usize) -> Result<String> {
     for name in ["exp1", "hrp4_step"] {
         let scenario = crate::cli::load_scenario(Some(std::path::Path::new(name)))?;
         let mut runs: Vec<ClimbReport> = (0..repeat)
-            .map(|_| climb(&scenario, &ClimbParams::default(), &mut |_| {}))
+            .map(|_| climb(&scenario, &ClimbParams::default(), &mut Nobody))
             .collect::<Result<_, _>>()?;
         runs.sort_by(|a, b| a.wall_s.total_cmp(&b.wall_s));
         let r = &runs[runs.len() / 2];
@@ -44,10 +53,10 @@ pub fn run(repeat: usize) -> Result<String> {
     let path = std::env::temp_dir().join(format!("stairbench-bench-{}.mcap", std::process::id()));
     let (mut plain, mut recorded, mut bytes) = (Vec::new(), Vec::new(), 0);
     for _ in 0..repeat {
-        plain.push(climb(&scenario, &params, &mut |_| {})?.wall_s);
+        plain.push(climb(&scenario, &params, &mut Nobody)?.wall_s);
         let started = std::time::Instant::now();
         let mut rec = crate::cli::start_recording(&path, "bench climb", &scenario, &params)?;
-        climb_observed(&scenario, &params, &mut |_| {}, &mut rec)?;
+        climb(&scenario, &params, &mut rec)?;
         rec.finish()?;
         recorded.push(started.elapsed().as_secs_f64());
         bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);

@@ -4,7 +4,7 @@ use super::{machine, median_s};
 use anyhow::{Context, Result};
 use stairbench::scenario::Scenario;
 use stairbench::scene::Scene;
-use stairbench::sensor::SimLidar;
+use stairbench::sim::lidar::head_lidar;
 use stairbench::sim::World;
 
 /// Measures one sweep of the Exp. 1 world; returns the Markdown table.
@@ -13,7 +13,7 @@ pub fn run(repeat: usize) -> Result<String> {
     let scenario = Scenario::default();
     let scene = Scene::from_scenario(&scenario)?;
     let world = World::for_scene(&scene)?;
-    let lidar = SimLidar::new(&world, &scenario.lidar, scenario.seed)?;
+    let lidar = head_lidar(&world, &scenario.lidar, scenario.seed)?;
     let rows = lidar.sweep().rows();
     let rays = (rows * lidar.lidar().beams()) as f64;
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().context("thread pool")?;

@@ -13,7 +13,8 @@ use stairbench::perception::{
     metrics, perceive, NeighbourSearch, Perception, PerceptionParams, PhaseTimings,
 };
 use stairbench::scene::Scene;
-use stairbench::sensor::{scan_scenario, AssembleParams};
+use stairbench::sensor::AssembleParams;
+use stairbench::sim::scan_scenario;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

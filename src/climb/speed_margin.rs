@@ -6,8 +6,9 @@
 //!
 //! [`PlanParams::faster`]: crate::planning::PlanParams::faster
 
-use super::climb::{climb, ClimbError, ClimbParams, ClimbReport};
-use crate::scenario::Scenario;
+use super::outcome::{StopReason, Violation};
+use super::ClimbReport;
+use crate::planning::PlanParams;
 
 /// One climb of the search.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -16,7 +17,11 @@ pub struct Try {
     pub factor: f64,
     /// The climb passed every check to the top.
     pub success: bool,
-    /// Why it failed: the first violated check with its instant, or why the loop stopped.
+    /// Its first violated check, if any.
+    pub first_violation: Option<Violation>,
+    /// Why the loop stopped early, if it did.
+    pub stop: Option<StopReason>,
+    /// Why it failed, in one line ([`ClimbReport::why_failed`]).
     pub why: Option<String>,
     /// Simulated time of the climb, seconds.
     pub sim_s: f64,
@@ -36,19 +41,27 @@ pub struct SpeedMargin {
 }
 
 /// Searches factors from 1 up to `max_factor` until the pass and fail factors are within
-/// `1 + resolution` of each other; `on_try` sees each climb as it ends.
-pub fn speed_margin(
-    scenario: &Scenario,
-    p: &ClimbParams,
+/// `1 + resolution` of each other. `climb(plan)` runs one whole climb with the planner's
+/// parameters `plan` (the given ones sped up); `on_try` sees each climb as it ends.
+pub fn speed_margin<E>(
+    plan: &PlanParams,
     max_factor: f64,
     resolution: f64,
+    climb: &mut dyn FnMut(&PlanParams) -> Result<ClimbReport, E>,
     on_try: &mut dyn FnMut(&Try),
-) -> Result<SpeedMargin, ClimbError> {
+) -> Result<SpeedMargin, E> {
     let mut out = SpeedMargin { passes_at: None, fails_at: None, tries: Vec::new() };
-    let mut attempt = |factor: f64, out: &mut SpeedMargin| -> Result<bool, ClimbError> {
-        let q = ClimbParams { plan: p.plan.faster(factor), ..p.clone() };
-        let r = climb(scenario, &q, &mut |_| {})?;
-        let t = Try { factor, success: r.success, why: why(&r), sim_s: r.sim_s, wall_s: r.wall_s };
+    let mut attempt = |factor: f64, out: &mut SpeedMargin| -> Result<bool, E> {
+        let r = climb(&plan.faster(factor))?;
+        let t = Try {
+            factor,
+            success: r.success,
+            first_violation: r.first_violation().cloned(),
+            stop: r.stop.clone(),
+            why: r.why_failed(),
+            sim_s: r.sim_s,
+            wall_s: r.wall_s,
+        };
         on_try(&t);
         out.tries.push(t);
         Ok(r.success)
@@ -82,20 +95,4 @@ pub fn speed_margin(
     out.passes_at = Some(lo);
     out.fails_at = hi;
     Ok(out)
-}
-
-/// The first violated check (cycle, instant, detail), else why the loop stopped.
-fn why(r: &ClimbReport) -> Option<String> {
-    if r.success {
-        return None;
-    }
-    let first = r.cycles.iter().find_map(|c| {
-        c.execution
-            .violations
-            .first()
-            .map(|v| format!("cycle {}, t = {:.3} s: {}: {}", c.cycle, v.t_s, v.check, v.detail))
-    });
-    first
-        .or_else(|| r.stopped.clone())
-        .or_else(|| Some(format!("{} of {} steps climbed", r.steps_climbed, r.steps_total)))
 }

@@ -1,34 +1,51 @@
-//! The simulated sensor: the tilting lidar's beams cast into the MuJoCo world, each beam with
-//! the tilt at its own time stamp, with range noise and dropouts.
+//! The simulated sensor: the tilting lidar's beams cast into a world through a
+//! [`RayCaster`] (MuJoCo's in the bench, an analytic one in tests), each beam with the tilt at
+//! its own time stamp, with range noise and dropouts.
 
-use super::{LidarModel, ScanRow, SensorError, TiltSweep};
+use super::{LidarModel, ScanRow, SensorError, Sweep, TiltSweep};
+use crate::cancel::Cancel;
 use crate::scenario::LidarSpec;
-use crate::scene::mjcf::HEAD_SITE;
-use crate::sim::{RayHit, World};
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
 use std::ops::Range;
 
-/// A tilting lidar mounted on the robot's head in a [`World`], frozen at the world's current
-/// state (the robot stands still during a sweep, as on the real robot).
-pub struct SimLidar<'w> {
-    world: &'w World,
+/// One ray's hit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RayHit {
+    /// Distance along the (unit) ray direction, metres.
+    pub distance_m: f64,
+    /// Id of the surface hit, as the caster numbers them (MuJoCo's geom id).
+    pub geom: usize,
+}
+
+/// A world rays can be cast into (everything but the robot itself). Shared by the threads
+/// that cast a sweep's rows.
+pub trait RayCaster: Sync {
+    /// The first hit of the ray from `origin` along the unit vector `dir`, if any.
+    fn ray(&self, origin: &Point3<f64>, dir: &Vector3<f64>) -> Option<RayHit>;
+}
+
+/// A tilting lidar whose servo base sits at `mount_to_world` in a world seen through a
+/// [`RayCaster`], frozen at the world's current state (the robot stands still during a
+/// sweep, as on the real robot).
+pub struct SimLidar<'w, C: RayCaster> {
+    world: &'w C,
     lidar: LidarModel,
     sweep: TiltSweep,
     mount_to_world: Isometry3<f64>,
     seed: u64,
 }
 
-impl<'w> SimLidar<'w> {
-    /// The lidar of `spec` on the `head` site of `world`; `seed` drives noise and dropouts.
-    pub fn new(world: &'w World, spec: &LidarSpec, seed: u64) -> Result<Self, SensorError> {
+impl<'w, C: RayCaster> SimLidar<'w, C> {
+    /// The lidar of `spec` mounted on a head at `head_to_world` (the scenario's mount is
+    /// relative to the head); `seed` drives noise and dropouts.
+    pub fn new(world: &'w C, spec: &LidarSpec, head_to_world: &Isometry3<f64>, seed: u64) -> Self {
         let lidar = LidarModel::from_spec(spec);
-        let head = world.site_pose(world.site_id(HEAD_SITE)?);
-        let mount_to_world = head * lidar.mount_in_head;
-        Ok(Self { world, sweep: TiltSweep::from_spec(spec), lidar, mount_to_world, seed })
+        let mount_to_world = head_to_world * lidar.mount_in_head;
+        Self { world, sweep: TiltSweep::from_spec(spec), lidar, mount_to_world, seed }
     }
 
     /// The lidar's model (what the assembler needs).
@@ -88,41 +105,26 @@ impl<'w> SimLidar<'w> {
         let gravity_mount = self.mount_to_world.rotation.inverse() * -Vector3::z();
         ScanRow { stamp_s, tilt_rad: self.sweep.reading_at(stamp_s), ranges_m, gravity_mount }
     }
-}
 
-impl SimLidar<'_> {
-    /// The whole sweep, cast in chunks of rows; `progress(done_rows, total_rows)` is called
-    /// after each chunk (for progress bars).
-    pub fn sweep_with_progress(&self, progress: &mut dyn FnMut(usize, usize)) -> super::Sweep {
+    /// The whole sweep, cast in chunks of rows; `on_rows(done_rows, total_rows)` is called
+    /// after each chunk (for progress bars). A cancelled `cancel` stops it between chunks.
+    pub fn sweep_rows(
+        &self,
+        cancel: &Cancel,
+        on_rows: &mut dyn FnMut(usize, usize),
+    ) -> Result<Sweep, SensorError> {
         let total = self.sweep.rows();
         let chunk = 24;
         let mut rows = Vec::with_capacity(total);
         let mut k = 0;
         while k < total {
+            if cancel.is_cancelled() {
+                return Err(SensorError::Cancelled { rows: k });
+            }
             rows.extend(self.rows(k..k + chunk));
             k = (k + chunk).min(total);
-            progress(k, total);
+            on_rows(k, total);
         }
-        super::Sweep { rows, lidar: self.lidar.clone(), mount_to_world: self.mount_to_world }
+        Ok(Sweep { rows, lidar: self.lidar.clone(), mount_to_world: self.mount_to_world })
     }
-}
-
-/// A scenario's world, scanned once by its lidar from the robot's start.
-pub struct ScenarioScan {
-    /// The scenario's scene (ground truth included).
-    pub scene: crate::scene::Scene,
-    /// The sweep.
-    pub sweep: super::Sweep,
-}
-
-/// Builds the world of `scenario` (with the bench's robot, see [`World::for_scene`]) and
-/// sweeps its lidar once; `progress(done_rows, total_rows)` is called along the way.
-pub fn scan_scenario(
-    scenario: &crate::scenario::Scenario,
-    progress: &mut dyn FnMut(usize, usize),
-) -> Result<ScenarioScan, SensorError> {
-    let scene = crate::scene::Scene::from_scenario(scenario)?;
-    let world = World::for_scene(&scene)?;
-    let sweep = SimLidar::new(&world, &scenario.lidar, scenario.seed)?.sweep_with_progress(progress);
-    Ok(ScenarioScan { scene, sweep })
 }

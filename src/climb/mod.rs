@@ -1,0 +1,253 @@
+//! The closed loop, the bench's main job: stand, sweep the lidar, perceive, update the step
+//! map, plan the next stance, execute it with every check, sweep again from the new pose,
+//! until the top (the upper steps are reconstructed after stepping on the lower ones, as in
+//! the paper). The loop knows its sensor only as a [`Source`] and its robot only as an
+//! [`Executor`]; the MuJoCo simulation is one implementation of each (`sim`), the real
+//! sensors and recordings others. What happens is told to an [`Observer`] as [`Event`]s;
+//! outcomes are typed ([`outcome`]).
+
+pub mod event;
+pub mod executor;
+pub mod outcome;
+pub mod report;
+pub mod speed_margin;
+
+pub use event::{Each, Event, Nobody, Observer, RobotState, Watch};
+pub use executor::{Execution, Executor, Touchdown};
+pub use outcome::{Check, CheckKind, SimWarning, StopReason, Violation};
+pub use report::{ClimbReport, CycleReport, Footing, StageTimes};
+
+use crate::cancel::Cancel;
+use crate::perception::step_map::{StepMap, StepMapParams};
+use crate::perception::{perceive, PerceptionError, PerceptionParams};
+use crate::planning::plan::stance_at;
+use crate::planning::{plan, PlanParams};
+use crate::robot::model::RobotModel;
+use crate::scene::Scene;
+use crate::sensor::{AssembleParams, SensorError, Source};
+use std::time::Instant;
+
+/// Settings of the loop itself.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RunParams {
+    /// Stances planned and executed between two scans.
+    pub stances_per_scan: usize,
+    /// Most scan-plan-execute cycles before giving up.
+    pub max_cycles: usize,
+    /// Standing still before each scan, seconds (the servos settle; the real robot scans
+    /// standing still too).
+    pub settle_s: f64,
+}
+
+impl Default for RunParams {
+    fn default() -> Self {
+        Self { stances_per_scan: 1, max_cycles: 40, settle_s: 0.3 }
+    }
+}
+
+/// The parameters the loop uses (the executor has its own).
+#[derive(Debug, Clone, Copy)]
+pub struct LoopParams<'a> {
+    /// Perception (§4, Table 1).
+    pub perception: &'a PerceptionParams,
+    /// The step map.
+    pub step_map: &'a StepMapParams,
+    /// Planning (§6).
+    pub plan: &'a PlanParams,
+    /// The loop's own settings.
+    pub run: &'a RunParams,
+}
+
+/// What the loop runs against.
+pub struct Bench<'a, E: Executor> {
+    /// Where sweeps come from.
+    pub source: &'a mut dyn Source,
+    /// What executes the plans.
+    pub robot: &'a mut E,
+    /// The model of the robot (kinematics for planning and for where the feet are).
+    pub model: &'a RobotModel,
+    /// The world as it really is: the steps to climb, and how many the robot climbed (in
+    /// simulation the scenario's scene; in a rehearsal the world built from perception).
+    pub truth: &'a Scene,
+}
+
+/// Why a climb could not run at all (a failing executor), as opposed to a failed climb.
+#[derive(Debug, thiserror::Error)]
+pub enum ClimbError {
+    /// The executor failed (not a check: a broken simulator or robot link).
+    #[error("the executor failed: {0}")]
+    Executor(#[source] Box<dyn std::error::Error + Send + Sync>),
+    /// The robot model.
+    #[error(transparent)]
+    Robot(#[from] crate::robot::RobotError),
+}
+
+/// Runs the closed loop to the top, a refusal, a fall, a cancellation or `max_cycles`.
+pub fn run<E: Executor>(
+    bench: Bench<'_, E>,
+    p: LoopParams<'_>,
+    observer: &mut dyn Observer,
+    cancel: &Cancel,
+) -> Result<ClimbReport, ClimbError> {
+    let Bench { source, robot, model, truth } = bench;
+    let failed = |e: E::Error| ClimbError::Executor(Box::new(e));
+    let started = Instant::now();
+    let t0 = robot.now_s();
+    let mut report = ClimbReport {
+        scenario: truth.name().to_string(),
+        success: false,
+        steps_climbed: 0,
+        steps_total: truth.steps().len(),
+        stop: None,
+        cycles: Vec::new(),
+        sim_s: 0.0,
+        wall_s: 0.0,
+    };
+    observer.event(&Event::Scene(truth));
+    let mut map = StepMap::default();
+    let mut last_cycle = 0;
+    for cycle in 1..=p.run.max_cycles {
+        last_cycle = cycle;
+        robot.settle(p.run.settle_s).map_err(failed)?;
+        let q = robot.configuration();
+        let t = Instant::now();
+        let stamp_s = robot.now_s();
+        let sweep = match source.sweep(cancel, &mut |_, _| {}) {
+            Ok(s) => s,
+            Err(SensorError::Cancelled { .. }) => {
+                report.stop = Some(StopReason::StoppedByUser { cycle });
+                break;
+            }
+            Err(e) => {
+                report.stop = Some(StopReason::SensorFailed { cycle, error: e.to_string() });
+                break;
+            }
+        };
+        let cloud = match sweep.assemble(&AssembleParams::default()) {
+            Ok(c) => c,
+            Err(e) => {
+                report.stop = Some(StopReason::SensorFailed { cycle, error: e.to_string() });
+                break;
+            }
+        };
+        let scan_s = t.elapsed().as_secs_f64();
+        observer.event(&Event::Sweep { stamp_s, sweep: &sweep });
+        observer.event(&Event::Cloud { stamp_s, cloud: &cloud });
+        let t = Instant::now();
+        let perceived = perceive(&cloud, p.perception);
+        let perceive_s = t.elapsed().as_secs_f64();
+        let (seen, nothing) = match perceived {
+            Ok(r) => {
+                observer.event(&Event::Perception { stamp_s, result: &r });
+                (r.segments, None)
+            }
+            Err(e) => {
+                observer.event(&Event::PerceptionFailed { stamp_s, error: &e });
+                match e {
+                    PerceptionError::NoStaircase(why) => (Vec::new(), Some(why)),
+                    e => {
+                        report.stop = Some(StopReason::PerceptionFailed { cycle, error: e.to_string() });
+                        break;
+                    }
+                }
+            }
+        };
+        let feet_z = feet_height_m(model, &q);
+        let next = map.next_input(seen, feet_z, p.plan.gait.min_tread_m, p.step_map);
+        let ahead = next.ahead;
+        if ahead.is_empty() {
+            if climbed(truth, model, &q) < truth.steps().len() {
+                report.stop = Some(StopReason::NoStaircaseAhead { cycle, last_view: nothing });
+            }
+            break;
+        }
+        let t = Instant::now();
+        let planned = match plan(model, &q, &ahead, Some(p.run.stances_per_scan), p.plan) {
+            Ok(x) => x,
+            Err(e) => {
+                report.stop = Some(StopReason::Refused { cycle, refusal: e.refusal() });
+                break;
+            }
+        };
+        let plan_s = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        observer.event(&Event::Plan { stamp_s: robot.now_s(), steps: &ahead, plan: &planned });
+        let exec_start_s = robot.now_s();
+        let mut execution = robot.execute(&planned, observer, cancel).map_err(failed)?;
+        let execute_s = t.elapsed().as_secs_f64();
+        for v in &mut execution.violations {
+            v.cycle = cycle;
+            observer.event(&Event::Violation { stamp_s: exec_start_s + v.t_s, violation: v });
+        }
+        let to = match planned.stances.last() {
+            Some(s) if s.step.is_some() => Footing::Step(true_step(truth, s.right.translation.z)),
+            _ => Footing::Floor,
+        };
+        let c = CycleReport {
+            cycle,
+            to,
+            pass: execution.pass(),
+            steps_seen: ahead.len(),
+            scan_s,
+            perceive_s,
+            plan_s,
+            execute_s,
+            execution,
+        };
+        observer.event(&Event::Cycle { stamp_s: robot.now_s(), report: &c });
+        let (fell, unstable, cancelled) = (c.execution.fell, c.execution.unstable, c.execution.cancelled);
+        report.cycles.push(c);
+        if fell {
+            report.stop = Some(StopReason::Fell { cycle });
+            break;
+        }
+        if let Some(warning) = unstable {
+            report.stop = Some(StopReason::SimulationUnstable { cycle, warning });
+            break;
+        }
+        if cancelled || cancel.is_cancelled() {
+            report.stop = Some(StopReason::StoppedByUser { cycle });
+            break;
+        }
+    }
+    let q = robot.configuration();
+    report.steps_climbed = climbed(truth, model, &q);
+    if report.stop.is_none() && last_cycle == p.run.max_cycles && report.steps_climbed < report.steps_total {
+        report.stop = Some(StopReason::CyclesExhausted { cycles: last_cycle });
+    }
+    report.sim_s = robot.now_s() - t0;
+    report.wall_s = started.elapsed().as_secs_f64();
+    report.success = report.stop.is_none()
+        && report.steps_climbed == report.steps_total
+        && report.cycles.iter().all(|c| c.pass);
+    Ok(report)
+}
+
+/// The higher sole's height at configuration `q`, metres (`-inf` if `q` is unusable).
+pub fn feet_height_m(model: &RobotModel, q: &[f64]) -> f64 {
+    stance_at(model, q).map(|s| s.right.translation.z.max(s.left.translation.z)).unwrap_or(f64::NEG_INFINITY)
+}
+
+/// The true step (1-based) at height `z`: the ground-truth step nearest it.
+fn true_step(scene: &Scene, z: f64) -> usize {
+    scene
+        .steps()
+        .iter()
+        .enumerate()
+        .min_by(|a, b| (a.1.height_m - z).abs().total_cmp(&(b.1.height_m - z).abs()))
+        .map_or(0, |(i, _)| i + 1)
+}
+
+/// How many steps the robot has climbed: the highest true step both soles stand on.
+pub fn climbed(scene: &Scene, model: &RobotModel, q: &[f64]) -> usize {
+    let Ok(stance) = stance_at(model, q) else { return 0 };
+    let on = |i: usize| {
+        let s = &scene.steps()[i];
+        [&stance.right, &stance.left].iter().all(|f| {
+            let c = nalgebra::Point3::from(f.translation.vector);
+            (c.z - s.height_m).abs() < 0.02 && s.contains_xy(&c, 0.0)
+        })
+    };
+    (0..scene.steps().len()).rev().find(|&i| on(i)).map_or(0, |i| i + 1)
+}

@@ -1,0 +1,208 @@
+//! The loop's reports: one [`CycleReport`] per scan-plan-execute cycle and a [`ClimbReport`]
+//! for the climb, typed data from which the terminal table and the JSON are rendered. The
+//! JSON keeps the keys its readers know (`success`, `steps_climbed`, `steps_total`, `stopped`
+//! as text, `cycles[].pass`, `cycles[].min_margin_m`, `cycles[].max_torque_ratio`,
+//! `cycles[].violations`) and adds the typed ones (`stop`, `first_violation`, the summary
+//! figures).
+
+use super::executor::Execution;
+use super::outcome::{StopReason, Violation};
+use serde::{Serialize, Serializer};
+use std::fmt;
+
+/// Where a cycle took the feet.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Footing {
+    /// Still on the floor (walking closer to look).
+    Floor,
+    /// On this step (1 = lowest; the ground truth's numbering).
+    Step(usize),
+}
+
+impl fmt::Display for Footing {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // `pad`, so tables can align it with `{:<8}`.
+        match self {
+            Footing::Floor => f.pad("floor"),
+            Footing::Step(n) => f.pad(&format!("step {n}")),
+        }
+    }
+}
+
+impl Serialize for Footing {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+/// One scan-plan-execute cycle.
+#[derive(Debug, Clone, Serialize)]
+pub struct CycleReport {
+    /// 1-based cycle.
+    pub cycle: usize,
+    /// Where the cycle took the feet (`floor` or `step N` in JSON).
+    pub to: Footing,
+    /// No check violated (`execution.pass()`, kept for the JSON report's readers).
+    pub pass: bool,
+    /// Steps the plan was made on (the known steps ahead).
+    pub steps_seen: usize,
+    /// Wall time of the sweep, seconds.
+    pub scan_s: f64,
+    /// Perception wall time, seconds.
+    pub perceive_s: f64,
+    /// Planning wall time, seconds.
+    pub plan_s: f64,
+    /// Wall time of the execution with its checks, seconds.
+    pub execute_s: f64,
+    /// What the execution found (flattened into the JSON: `min_margin_m`,
+    /// `max_torque_ratio`, `torque_joint`, `touchdowns`, `violations`, `sim_s`, ...).
+    #[serde(flatten)]
+    pub execution: Execution,
+}
+
+/// The whole climb.
+#[derive(Debug, Clone)]
+pub struct ClimbReport {
+    /// Scenario name.
+    pub scenario: String,
+    /// Climbed to the top with no check violated.
+    pub success: bool,
+    /// Steps whose tread both feet stood on at the end (the highest reached).
+    pub steps_climbed: usize,
+    /// Steps of the staircase.
+    pub steps_total: usize,
+    /// Why the loop stopped early (a refusal, no staircase, a fall), if it did.
+    pub stop: Option<StopReason>,
+    /// One entry per cycle.
+    pub cycles: Vec<CycleReport>,
+    /// Simulated time, seconds.
+    pub sim_s: f64,
+    /// Wall time, seconds.
+    pub wall_s: f64,
+}
+
+/// Wall time of a climb by stage, seconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, serde::Deserialize)]
+pub struct StageTimes {
+    /// Sweeps.
+    pub scan_s: f64,
+    /// Perception.
+    pub perceive_s: f64,
+    /// Planning.
+    pub plan_s: f64,
+    /// Execution with its checks.
+    pub execute_s: f64,
+}
+
+impl ClimbReport {
+    /// How many times faster than real time the execution ran (MuJoCo with the servos and
+    /// every check, without scanning, perception or planning).
+    pub fn execution_speed(&self) -> f64 {
+        let sim_s: f64 = self.cycles.iter().map(|c| c.execution.sim_s).sum();
+        sim_s / self.stage_times().execute_s.max(1e-9)
+    }
+
+    /// The longest a cycle waited for perception and planning, seconds.
+    pub fn worst_think_s(&self) -> f64 {
+        self.cycles.iter().map(|c| c.perceive_s + c.plan_s).fold(0.0, f64::max)
+    }
+
+    /// The mean over the cycles of `f`, 0 without cycles.
+    pub fn mean_per_cycle(&self, f: impl Fn(&CycleReport) -> f64) -> f64 {
+        self.cycles.iter().map(f).sum::<f64>() / self.cycles.len().max(1) as f64
+    }
+
+    /// Wall time summed over the cycles, by stage.
+    pub fn stage_times(&self) -> StageTimes {
+        self.cycles.iter().fold(StageTimes::default(), |t, c| StageTimes {
+            scan_s: t.scan_s + c.scan_s,
+            perceive_s: t.perceive_s + c.perceive_s,
+            plan_s: t.plan_s + c.plan_s,
+            execute_s: t.execute_s + c.execute_s,
+        })
+    }
+
+    /// The first violated check of the climb.
+    pub fn first_violation(&self) -> Option<&Violation> {
+        self.cycles.iter().flat_map(|c| &c.execution.violations).next()
+    }
+
+    /// The smallest CoM margin over every cycle, metres (`+inf` without cycles).
+    pub fn min_margin_m(&self) -> f64 {
+        self.cycles.iter().map(|c| c.execution.min_margin_m).fold(f64::INFINITY, f64::min)
+    }
+
+    /// The largest torque ratio over every cycle, with its joint.
+    pub fn max_torque(&self) -> (f64, &str) {
+        self.cycles
+            .iter()
+            .map(|c| (c.execution.max_torque_ratio, c.execution.torque_joint.as_str()))
+            .fold((0.0, ""), |a, b| if b.0 > a.0 { b } else { a })
+    }
+
+    /// The largest friction ratio a loaded foot used over every cycle.
+    pub fn max_friction_ratio(&self) -> f64 {
+        self.cycles.iter().map(|c| c.execution.max_friction_ratio).fold(0.0, f64::max)
+    }
+
+    /// Why the climb failed, in one line: the first violated check, else why the loop
+    /// stopped, else how far it got (`None` on success).
+    pub fn why_failed(&self) -> Option<String> {
+        if self.success {
+            return None;
+        }
+        let line = match (self.first_violation(), &self.stop) {
+            (Some(v), _) => v.to_string(),
+            (None, Some(s)) => s.to_string(),
+            (None, None) => format!("{} of {} steps climbed", self.steps_climbed, self.steps_total),
+        };
+        Some(line)
+    }
+}
+
+/// The JSON form of a [`ClimbReport`].
+#[derive(Serialize)]
+struct ClimbReportJson<'a> {
+    scenario: &'a str,
+    success: bool,
+    steps_climbed: usize,
+    steps_total: usize,
+    /// The stop reason's message (the key older readers know).
+    stopped: Option<String>,
+    /// The stop reason as data.
+    stop: &'a Option<StopReason>,
+    first_violation: Option<&'a Violation>,
+    min_margin_m: Option<f64>,
+    max_torque_ratio: f64,
+    torque_joint: &'a str,
+    max_friction_ratio: f64,
+    stage_times: StageTimes,
+    cycles: &'a [CycleReport],
+    sim_s: f64,
+    wall_s: f64,
+}
+
+impl Serialize for ClimbReport {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let (max_torque_ratio, torque_joint) = self.max_torque();
+        let margin = self.min_margin_m();
+        ClimbReportJson {
+            scenario: &self.scenario,
+            success: self.success,
+            steps_climbed: self.steps_climbed,
+            steps_total: self.steps_total,
+            stopped: self.stop.as_ref().map(ToString::to_string),
+            stop: &self.stop,
+            first_violation: self.first_violation(),
+            min_margin_m: margin.is_finite().then_some(margin),
+            max_torque_ratio,
+            torque_joint,
+            max_friction_ratio: self.max_friction_ratio(),
+            stage_times: self.stage_times(),
+            cycles: &self.cycles,
+            sim_s: self.sim_s,
+            wall_s: self.wall_s,
+        }
+        .serialize(s)
+    }
+}

@@ -1,0 +1,41 @@
+//! Every parameter of a climb, as a parameters file holds them (`run --params`, the MCAP
+//! attachment `params.toml`): perception (§4, Table 1), the step map, planning (§6), the
+//! simulated robot's servos and the checks that judge the execution, and the loop's own
+//! settings. Fields left out keep their defaults; unknown fields are refused.
+
+use crate::climb::{LoopParams, RunParams};
+use crate::perception::step_map::StepMapParams;
+use crate::perception::PerceptionParams;
+use crate::planning::PlanParams;
+use crate::sim::checks::CheckParams;
+use crate::sim::execute::ServoParams;
+
+/// Every parameter of a climb.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ClimbParams {
+    /// Perception (§4, Table 1).
+    pub perception: PerceptionParams,
+    /// The step map (known steps merged with each new view).
+    pub step_map: StepMapParams,
+    /// Planning (§6).
+    pub plan: PlanParams,
+    /// The simulated robot's servos.
+    pub servo: ServoParams,
+    /// The checks.
+    pub checks: CheckParams,
+    /// Loop settings.
+    pub run: RunParams,
+}
+
+impl ClimbParams {
+    /// The parts the loop uses.
+    pub fn loop_params(&self) -> LoopParams<'_> {
+        LoopParams {
+            perception: &self.perception,
+            step_map: &self.step_map,
+            plan: &self.plan,
+            run: &self.run,
+        }
+    }
+}
