@@ -1,0 +1,160 @@
+//! The closed loop as a library (issue 15): it knows its sensor only as a `Source` and its
+//! robot only as an `Executor`. Here neither is MuJoCo: the rows come from a fixture cast by
+//! the tests' own ray caster (slab method on the scene's boxes), and a fake robot lands
+//! exactly where each plan ends. The loop must still perceive, keep its step map, plan every
+//! stance to the top and report it as typed data.
+
+mod common;
+
+use stairbench::cancel::Cancel;
+use stairbench::climb::{self, Bench, Event, Execution, Executor, Footing, Observer, StopReason};
+use stairbench::params::ClimbParams;
+use stairbench::planning::Plan;
+use stairbench::robot::{hrp4, Kinematics, RobotModel};
+use stairbench::scenario::Scenario;
+use stairbench::scene::Scene;
+use stairbench::sensor::{RayCaster, RayHit, SensorError, SimLidar, Source, Sweep};
+
+/// The scene's boxes as a ray caster, without MuJoCo.
+struct Boxes<'a>(&'a Scene);
+
+impl RayCaster for Boxes<'_> {
+    fn ray(&self, origin: &nalgebra::Point3<f64>, dir: &nalgebra::Vector3<f64>) -> Option<RayHit> {
+        common::cast(self.0.boxes(), origin, dir).map(|(d, _)| RayHit { distance_m: d, geom: 0 })
+    }
+}
+
+/// A source replaying one fixture sweep at every call, counting the calls.
+struct Fixture {
+    sweep: Sweep,
+    given: usize,
+}
+
+impl Source for Fixture {
+    fn sweep(
+        &mut self,
+        cancel: &Cancel,
+        _on_rows: &mut dyn FnMut(usize, usize),
+    ) -> Result<Sweep, SensorError> {
+        if cancel.is_cancelled() {
+            return Err(SensorError::Cancelled { rows: 0 });
+        }
+        self.given += 1;
+        Ok(self.sweep.clone())
+    }
+}
+
+/// A robot that lands exactly where each plan ends, checking nothing.
+struct Teleport {
+    q: Vec<f64>,
+    t_s: f64,
+}
+
+impl Executor for Teleport {
+    type Error = std::convert::Infallible;
+
+    fn now_s(&self) -> f64 {
+        self.t_s
+    }
+
+    fn configuration(&self) -> Vec<f64> {
+        self.q.clone()
+    }
+
+    fn settle(&mut self, seconds: f64) -> Result<(), Self::Error> {
+        self.t_s += seconds;
+        Ok(())
+    }
+
+    fn execute(&mut self, plan: &Plan, _o: &mut dyn Observer, _c: &Cancel) -> Result<Execution, Self::Error> {
+        self.t_s += plan.duration_s();
+        if let Some(last) = plan.trajectory.samples.last() {
+            self.q.clone_from(&last.q);
+        }
+        let mut ex = Execution::empty();
+        ex.sim_s = plan.duration_s();
+        ex.min_margin_m = plan.min_margin_m();
+        Ok(ex)
+    }
+}
+
+/// The fixture: Exp. 1 without noise, swept from the robot's start by the analytic caster.
+fn fixture(scene: &Scene, scenario: &Scenario, model: &RobotModel, q0: &[f64]) -> Sweep {
+    let mut kin = Kinematics::new(model);
+    kin.update(q0).expect("a valid configuration");
+    let head = kin.frame_pose(model.frame_id(hrp4::LIDAR_MOUNT).expect("the lidar mount"));
+    let caster = Boxes(scene);
+    SimLidar::new(&caster, &scenario.lidar, &head, 1)
+        .sweep_rows(&Cancel::never(), &mut |_, _| {})
+        .expect("a sweep")
+}
+
+#[test]
+fn a_fixture_source_and_a_fake_robot_drive_the_loop_to_the_top() {
+    let mut scenario = Scenario::default();
+    scenario.lidar.noise_sigma_m = 0.0;
+    let scene = common::scene_of(&scenario);
+    let model = hrp4::model().unwrap();
+    let q0 = hrp4::half_sitting_at(&model, &scene.robot_start()).unwrap();
+    let mut source = Fixture { sweep: fixture(&scene, &scenario, &model, &q0), given: 0 };
+    let mut robot = Teleport { q: q0, t_s: 0.0 };
+    let p = ClimbParams::default();
+    let mut plans: Vec<(usize, Vec<f64>)> = Vec::new();
+    let mut watch = climb::Watch(|e: &Event| {
+        if let Event::Plan { steps, plan, .. } = e {
+            plans.push((plan.stances.len(), steps.iter().map(|s| s.height_m()).collect()));
+        }
+    });
+    let bench = Bench { source: &mut source, robot: &mut robot, model: &model, truth: &scene };
+    let r = climb::run(bench, p.loop_params(), &mut watch, &Cancel::never()).unwrap();
+    println!("{:?}: {} cycles, plans on step heights {plans:?}", r.stop, r.cycles.len());
+    assert!(r.success, "{:?}", r.why_failed());
+    assert_eq!((r.steps_climbed, r.steps_total), (3, 3), "the feet end on the true top step");
+    let to: Vec<Footing> = r.cycles.iter().map(|c| c.to).collect();
+    assert_eq!(to, [Footing::Floor, Footing::Floor, Footing::Step(1), Footing::Step(2), Footing::Step(3)]);
+    assert_eq!(source.given, 6, "one sweep per cycle, and the last one finds nothing ahead");
+    // Every plan was made on perceived steps at the true heights, the ones still ahead.
+    for (stances, heights) in &plans {
+        assert_eq!(*stances, 1, "one stance per scan");
+        for h in heights {
+            let nearest = scene.steps().iter().map(|s| (s.height_m - h).abs()).fold(f64::INFINITY, f64::min);
+            assert!(nearest < 0.01, "a step planned at {h:.3} m, none true within 1 cm");
+        }
+    }
+    assert_eq!(plans.iter().map(|p| p.1.len()).collect::<Vec<_>>(), [3, 3, 3, 2, 1]);
+    assert!((r.sim_s - (robot.t_s)).abs() < 1e-12, "the report keeps the robot's clock");
+}
+
+/// The loop on Exp. 1 fed empty sweeps by a fixture source, with `cancel`.
+fn on_empty_sweeps(cancel: &Cancel) -> (climb::ClimbReport, usize) {
+    let scenario = Scenario::default();
+    let scene = common::scene_of(&scenario);
+    let model = hrp4::model().unwrap();
+    let q0 = hrp4::half_sitting_at(&model, &scene.robot_start()).unwrap();
+    let lidar = stairbench::sensor::LidarModel::from_spec(&scenario.lidar);
+    let empty = Sweep { rows: vec![], lidar, mount_to_world: nalgebra::Isometry3::identity() };
+    let mut source = Fixture { sweep: empty, given: 0 };
+    let mut robot = Teleport { q: q0, t_s: 0.0 };
+    let bench = Bench { source: &mut source, robot: &mut robot, model: &model, truth: &scene };
+    let r = climb::run(bench, ClimbParams::default().loop_params(), &mut climb::Nobody, cancel).unwrap();
+    (r, source.given)
+}
+
+#[test]
+fn a_cancelled_loop_stops_before_its_first_sweep_and_says_so() {
+    let cancel = Cancel::new();
+    cancel.cancel();
+    let (r, sweeps) = on_empty_sweeps(&cancel);
+    assert_eq!(r.stop, Some(StopReason::StoppedByUser { cycle: 1 }));
+    assert!(!r.success && r.cycles.is_empty() && sweeps == 0);
+}
+
+#[test]
+fn an_empty_sweep_is_no_staircase_not_a_crash() {
+    let (r, sweeps) = on_empty_sweeps(&Cancel::never());
+    let Some(StopReason::NoStaircaseAhead { cycle: 1, last_view: Some(why) }) = &r.stop else {
+        panic!("{:?}", r.stop)
+    };
+    assert_eq!(*why, stairbench::perception::NoStaircase::EmptyCloud);
+    assert!(r.cycles.is_empty() && sweeps == 1, "one look, nothing moved");
+}
