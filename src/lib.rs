@@ -18,6 +18,7 @@ pub mod params;
 pub mod perception;
 pub mod planning;
 pub mod record;
+pub mod regress;
 pub mod robot;
 pub mod scenario;
 pub mod scene;

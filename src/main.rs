@@ -32,6 +32,9 @@ enum Command {
     Run(cli::run::RunArgs),
     /// Rerun perception on a recording's lidar rows and compare with what it recorded.
     Replay(cli::replay::ReplayArgs),
+    /// CI regression: a suite's generated staircases climbed in parallel, verdicts against
+    /// the expected outcomes, JUnit, capability maps, baseline comparison, shards.
+    Regress(cli::regress::RegressArgs),
     /// Build a scenario's world: print its ground truth, optionally write the MJCF.
     Scene(cli::scene::SceneArgs),
     /// Measure speed (rays per second of the simulated lidar, ...).
@@ -39,6 +42,14 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    // Output piped into `head` or `less` ends the process quietly when the reader goes,
+    // as command-line tools do, instead of a panic on the broken pipe.
+    #[cfg(unix)]
+    // SAFETY: restores the default action of one signal before any thread starts; no
+    // handler of ours is replaced.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Scan(a) => cli::scan::run(a),
@@ -48,6 +59,7 @@ fn main() -> ExitCode {
         Command::Plan(a) => cli::plan::run(a),
         Command::Run(a) => cli::run::run(a),
         Command::Replay(a) => cli::replay::run(a),
+        Command::Regress(a) => cli::regress::run(a),
         Command::Bench(a) => cli::bench::run(a),
     };
     match result {

@@ -5,6 +5,7 @@ pub mod bench;
 pub mod perceive;
 pub mod plan;
 pub mod polygon;
+pub mod regress;
 pub mod replay;
 pub mod run;
 pub mod scan;

@@ -8,6 +8,7 @@ use stairbench::climb::speed_margin::speed_margin;
 use stairbench::climb::{ClimbReport, CycleReport, Each, Event, Observer, Watch};
 use stairbench::params::ClimbParams;
 use stairbench::record::viewer::{RerunLogger, Sink};
+use stairbench::regress::verdict::classify;
 use stairbench::scenario::Scenario;
 use stairbench::sim::climb_scenario;
 use std::path::PathBuf;
@@ -55,7 +56,8 @@ pub struct RunArgs {
     rrd: Option<PathBuf>,
 }
 
-/// Runs `stairbench run`; exit code 0 when the climb succeeded, 1 when it failed.
+/// Runs `stairbench run`; exit code 0 when the climb succeeded (or, for a scenario with an
+/// expected outcome, when the verdict passes), 1 when it failed, 130 when interrupted.
 pub fn run(a: RunArgs) -> Result<ExitCode> {
     let mut scenario = super::load_scenario(a.scenario.as_deref())?;
     a.noise.apply(&mut scenario);
@@ -146,12 +148,23 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         }
     }
     print_summary(&report);
+    // A scenario written by `regress` says what the bench should do: the verdict against it.
+    let verdict = scenario.expect.as_ref().map(|e| (e, classify(e.outcome, &report, false)));
+    if let Some((e, v)) = &verdict {
+        println!("verdict: {v} (expected {:?}: {})", e.outcome, e.reason);
+    }
     if let Some(path) = &a.json {
-        std::fs::write(path, serde_json::to_string_pretty(&report)?)
+        let mut json = serde_json::to_value(&report)?;
+        if let Some((e, v)) = &verdict {
+            json["verdict"] = serde_json::to_value(v)?;
+            json["expect"] = serde_json::to_value(e)?;
+        }
+        std::fs::write(path, serde_json::to_string_pretty(&json)?)
             .with_context(|| format!("cannot write {}", path.display()))?;
         println!("report written to {}", path.display());
     }
-    Ok(match (report.success, cancel.is_cancelled()) {
+    let passed = verdict.map_or(report.success, |(_, v)| v.pass());
+    Ok(match (passed, cancel.is_cancelled()) {
         (_, true) => ExitCode::from(130),
         (true, false) => ExitCode::SUCCESS,
         (false, false) => ExitCode::from(1),

@@ -25,7 +25,7 @@ pub struct SceneArgs {
 pub fn run(a: SceneArgs) -> Result<ExitCode> {
     let scenario = super::load_scenario(a.scenario.as_deref())?;
     if a.resolved {
-        print!("{}", scenario.to_toml_string());
+        print!("{}", scenario.to_toml_string()?);
         return Ok(ExitCode::SUCCESS);
     }
     let scene = Scene::from_scenario(&scenario)?;

@@ -86,6 +86,10 @@ pub struct GaitParams {
     pub sole_length_m: f64,
     /// Sole width (HRP-4: 13 cm).
     pub sole_width_m: f64,
+    /// Fault injection, to test the regression tooling only: every foothold on a step is
+    /// moved this far along the ascent, metres (0: none). A planner with this set is broken
+    /// on purpose, and `regress --baseline` must say so.
+    pub test_foothold_shift_m: f64,
 }
 
 impl Default for GaitParams {
@@ -102,6 +106,7 @@ impl Default for GaitParams {
             side_overhang_m: 0.02,
             sole_length_m: crate::robot::hrp4::SOLE_SIZE_M[0],
             sole_width_m: crate::robot::hrp4::SOLE_SIZE_M[1],
+            test_foothold_shift_m: 0.0,
         }
     }
 }
@@ -195,7 +200,7 @@ pub fn footholds(start: &Stance, rects: &[PlaneSegment], p: &GaitParams) -> Resu
         if stride > p.max_stride_m || stride < 0.0 {
             return Err(PlanError::Stride { step: i, stride_m: stride, max_m: p.max_stride_m });
         }
-        out.push(stance_on(along, c, s.normal().into_inner(), Some(i)));
+        out.push(stance_on(along + p.test_foothold_shift_m, c, s.normal().into_inner(), Some(i)));
         prev_along = along;
     }
     Ok(out)

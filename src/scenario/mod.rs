@@ -10,7 +10,7 @@ mod validate;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-pub use validate::ScenarioError;
+pub use validate::{ScenarioError, ROBOT_HEADROOM_M, ROBOT_RADIUS_M};
 
 /// One bench case. Every field has a default; an empty file is the paper's Exp. 1 (§5).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -32,6 +32,32 @@ pub struct Scenario {
     pub robot: RobotStart,
     /// The tilting lidar.
     pub lidar: LidarSpec,
+    /// What the bench should do with this case, when known (`regress` writes it from the
+    /// ground truth and the planner's declared limits; `run` reports its verdict against it).
+    pub expect: Option<ExpectSpec>,
+}
+
+/// What the bench should do with a case.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ExpectedOutcome {
+    /// Climb to the top with no check violated.
+    Climb,
+    /// Refuse before a foot is set on the staircase (walking closer on the floor is allowed).
+    Refuse,
+    /// Within perception's tolerance of a declared limit: either of the above passes.
+    Either,
+}
+
+/// The expected outcome of a case and why.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExpectSpec {
+    /// The outcome.
+    pub outcome: ExpectedOutcome,
+    /// Why (the limit and the value that decide it).
+    #[serde(default)]
+    pub reason: String,
 }
 
 impl Default for Scenario {
@@ -46,6 +72,7 @@ impl Default for Scenario {
             boxes: Vec::new(),
             robot: RobotStart::default(),
             lidar: LidarSpec::default(),
+            expect: None,
         }
     }
 }
@@ -70,6 +97,9 @@ pub struct StaircaseSpec {
     pub landing_m: f64,
     /// Coulomb friction coefficient of the step surfaces.
     pub friction: f64,
+    /// Steps left out of the flight (1 = the lowest; not the top one): the tread before
+    /// the gap is followed by one two rises up, as on a stair with a missing step.
+    pub missing_steps: Vec<u32>,
 }
 
 impl Default for StaircaseSpec {
@@ -83,6 +113,7 @@ impl Default for StaircaseSpec {
             start_m: [0.60, 0.0],
             landing_m: 0.0,
             friction: 0.7,
+            missing_steps: Vec::new(),
         }
     }
 }
@@ -91,6 +122,25 @@ impl StaircaseSpec {
     /// Direction of ascent, radians.
     pub fn yaw_rad(&self) -> f64 {
         self.yaw_deg.to_radians()
+    }
+
+    /// Length of the flight along its ascent, landing included, metres.
+    pub fn length_m(&self) -> f64 {
+        self.tread_m * f64::from(self.steps) + self.landing_m
+    }
+
+    /// Height of the top tread, metres.
+    pub fn top_m(&self) -> f64 {
+        self.rise_m * f64::from(self.steps)
+    }
+
+    /// The flight's footprint on the floor, counter-clockwise from the first step's front
+    /// right corner (x, y), metres.
+    pub fn footprint_m(&self) -> [[f64; 2]; 4] {
+        let (c, s) = (self.yaw_rad().cos(), self.yaw_rad().sin());
+        let at = |a: f64, w: f64| [self.start_m[0] + a * c - w * s, self.start_m[1] + a * s + w * c];
+        let (l, h) = (self.length_m(), self.width_m / 2.0);
+        [at(0.0, -h), at(l, -h), at(l, h), at(0.0, h)]
     }
 }
 
@@ -240,8 +290,9 @@ impl Scenario {
     }
 
     /// The scenario as TOML (every field, defaults included), for records and `--help` users.
-    pub fn to_toml_string(&self) -> String {
-        toml::to_string_pretty(self).unwrap_or_default()
+    /// Fails only for a scenario validation refuses (a seed beyond TOML's integers).
+    pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
+        toml::to_string_pretty(self)
     }
 }
 

@@ -186,6 +186,12 @@ impl Scenario {
     /// Every problem with the scenario, in file order.
     pub fn issues(&self) -> Vec<Issue> {
         let mut v = Vec::new();
+        check(
+            &mut v,
+            i64::try_from(self.seed).is_ok(),
+            "seed",
+            format!("{} is beyond TOML's integers (at most {})", self.seed, i64::MAX),
+        );
         let s = &self.staircase;
         check(&mut v, s.steps >= 1, "staircase.steps", "must be at least 1");
         check(&mut v, s.steps <= 200, "staircase.steps", format!("{} steps is more than 200", s.steps));
@@ -196,6 +202,21 @@ impl Scenario {
         finite(&mut v, "staircase.start_m", &s.start_m);
         non_negative(&mut v, "staircase.landing_m", s.landing_m);
         positive(&mut v, "staircase.friction", s.friction);
+        for (k, &m) in s.missing_steps.iter().enumerate() {
+            let top = s.steps.saturating_sub(1);
+            check(
+                &mut v,
+                (1..=top).contains(&m),
+                "staircase.missing_steps",
+                format!("step {m} is not a step below the top (1 to {top})"),
+            );
+            check(
+                &mut v,
+                !s.missing_steps[..k].contains(&m),
+                "staircase.missing_steps",
+                format!("step {m} is listed twice"),
+            );
+        }
 
         let r = &self.room;
         if finite(&mut v, "room.size_m", &r.size_m) {
@@ -273,6 +294,107 @@ impl Scenario {
                 format!("a sweep of {rows:.0} rows is too long (at most 100000)"),
             );
         }
+        if v.is_empty() {
+            self.world_issues(&mut v);
+        }
         v
+    }
+
+    /// Whether the world can be built as described: the flight inside the room and under its
+    /// ceiling with headroom for the robot on the top step, the robot starting on free floor.
+    fn world_issues(&self, v: &mut Vec<Issue>) {
+        let (s, r) = (&self.staircase, &self.room);
+        let half = [r.size_m[0] / 2.0, r.size_m[1] / 2.0];
+        let inside = |p: &[f64; 2], margin: f64| {
+            (0..2).all(|k| (p[k] - r.center_m[k]).abs() <= half[k] - margin + 1e-9)
+        };
+        let room = format!(
+            "x in [{:.2}, {:.2}], y in [{:.2}, {:.2}] m",
+            r.center_m[0] - half[0],
+            r.center_m[0] + half[0],
+            r.center_m[1] - half[1],
+            r.center_m[1] + half[1]
+        );
+        if r.walls {
+            let corners = s.footprint_m();
+            if !inside(&s.start_m, 0.0) {
+                check(v, false, "staircase.start_m", format!("the flight starts outside the room ({room})"));
+            } else if let Some(c) = [corners[0], corners[3]].iter().find(|c| !inside(c, 0.0)) {
+                let why = format!(
+                    "the flight is wider than the room: its corner ({:.2}, {:.2}) m is outside ({room})",
+                    c[0], c[1]
+                );
+                check(v, false, "staircase.width_m", why);
+            } else if let Some(c) = [corners[1], corners[2]].iter().find(|c| !inside(c, 0.0)) {
+                let why = format!(
+                    "the flight runs out of the room: its far corner ({:.2}, {:.2}) m is outside ({room})",
+                    c[0], c[1]
+                );
+                check(v, false, "staircase.steps", why);
+            }
+            check(
+                v,
+                inside(&self.robot.position_m, ROBOT_RADIUS_M),
+                "robot.position_m",
+                format!("the robot must stand inside the room, {ROBOT_RADIUS_M} m from the walls ({room})"),
+            );
+        }
+        if r.ceiling {
+            let top = s.top_m();
+            check(
+                v,
+                top + ROBOT_HEADROOM_M <= r.size_m[2],
+                "staircase.steps",
+                format!(
+                    "the top step at {top:.2} m leaves a robot standing on it no headroom under the {:.2} m ceiling (it needs {ROBOT_HEADROOM_M} m)",
+                    r.size_m[2]
+                ),
+            );
+        }
+        let p = self.robot.position_m;
+        let flight = distance_to_rect(&p, &s.footprint_m());
+        check(
+            v,
+            flight >= ROBOT_RADIUS_M,
+            "robot.position_m",
+            format!("the robot starts {flight:.2} m from the staircase's footprint: its feet need {ROBOT_RADIUS_M} m of free floor"),
+        );
+        for (i, b) in self.boxes.iter().enumerate() {
+            let (c, sn) = (b.yaw_deg.to_radians().cos(), b.yaw_deg.to_radians().sin());
+            let at = |x: f64, y: f64| [b.center_m[0] + x * c - y * sn, b.center_m[1] + x * sn + y * c];
+            let (hx, hy) = (b.size_m[0] / 2.0, b.size_m[1] / 2.0);
+            let rect = [at(-hx, -hy), at(hx, -hy), at(hx, hy), at(-hx, hy)];
+            let d = distance_to_rect(&p, &rect);
+            check(v, d >= ROBOT_RADIUS_M, "robot.position_m", format!("the robot starts {d:.2} m from boxes[{i}]: its feet need {ROBOT_RADIUS_M} m of free floor"));
+        }
+    }
+}
+
+/// Room the robot's feet take on the floor around its start, metres (HRP-4's soles, 0.24 m
+/// long, about 0.2 m apart: a circle of 0.2 m holds them).
+pub const ROBOT_RADIUS_M: f64 = 0.2;
+
+/// Height a robot standing on the top step needs below the ceiling, metres (HRP-4 stands
+/// 1.51 m tall, the lidar on its head: models/hrp4/README.md).
+pub const ROBOT_HEADROOM_M: f64 = 1.6;
+
+/// Distance from `p` to the convex quadrilateral `rect` (counter-clockwise), 0 inside.
+fn distance_to_rect(p: &[f64; 2], rect: &[[f64; 2]; 4]) -> f64 {
+    let mut outside = false;
+    let mut nearest = f64::INFINITY;
+    for k in 0..4 {
+        let (a, b) = (rect[k], rect[(k + 1) % 4]);
+        let (ex, ey) = (b[0] - a[0], b[1] - a[1]);
+        let (px, py) = (p[0] - a[0], p[1] - a[1]);
+        if ex * py - ey * px < 0.0 {
+            outside = true;
+        }
+        let t = ((px * ex + py * ey) / (ex * ex + ey * ey).max(1e-18)).clamp(0.0, 1.0);
+        nearest = nearest.min(((px - t * ex).powi(2) + (py - t * ey).powi(2)).sqrt());
+    }
+    if outside {
+        nearest
+    } else {
+        0.0
     }
 }

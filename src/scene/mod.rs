@@ -72,6 +72,9 @@ impl Scene {
         let start = Vector2::new(st.start_m[0], st.start_m[1]);
         let mut steps = Vec::new();
         for i in 0..st.steps as usize {
+            if st.missing_steps.contains(&(i as u32 + 1)) {
+                continue;
+            }
             let depth = st.tread_m + if i + 1 == st.steps as usize { st.landing_m } else { 0.0 };
             let top = st.rise_m * (i + 1) as f64;
             let mid = start + along * (st.tread_m * i as f64 + depth / 2.0);
@@ -89,7 +92,14 @@ impl Scene {
             boxes.push(b);
         }
         for (i, b) in s.boxes.iter().enumerate() {
-            let name = if b.name.is_empty() { format!("box_{}", i + 1) } else { b.name.clone() };
+            // The scenario's own names get a prefix with the box's number: they can never
+            // collide with each other or with the generator's (`floor`, `wall_left`,
+            // `step_1`, ...), which MuJoCo would refuse.
+            let name = if b.name.is_empty() {
+                format!("box_{}", i + 1)
+            } else {
+                format!("box_{}_{}", i + 1, b.name)
+            };
             let half = Vector3::from(b.size_m) / 2.0;
             boxes.push(SceneBox::new(
                 &name,

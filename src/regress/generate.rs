@@ -1,0 +1,405 @@
+//! The generator: a suite's cases as scenarios. Case `i` draws its fields from a random
+//! stream seeded by (suite seed, `i`) alone, so a case is the same whatever the suite's size
+//! or the shard that runs it. A draw the world cannot hold (the flight out of the room or
+//! through the ceiling, the robot starting in a step or a box, a box beside the flight that
+//! cuts into it) is drawn again from the same stream; the suite counts these redraws.
+
+use super::expect::expect;
+use super::suite::{fnv1a, Default as FieldDefault, Dist, Field, Kind, Suite, Val, FIELDS};
+use crate::planning::footholds::GaitParams;
+use crate::scenario::{BoxSpec, ExpectSpec, Scenario};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::collections::BTreeMap;
+
+/// Most tries to draw a buildable case.
+const MAX_TRIES: usize = 1000;
+/// Free floor kept around the robot's start and the flight, metres.
+const ROOM_MARGIN_M: f64 = 1.0;
+/// Half width of the corridor the robot walks to the flight, kept free of clutter, metres.
+const CORRIDOR_HALF_M: f64 = 0.4;
+
+/// One generated case.
+#[derive(Debug, Clone)]
+pub struct Case {
+    /// Its id, `<suite>-0042`.
+    pub id: String,
+    /// Its index in the suite.
+    pub index: usize,
+    /// The explicit case's name, if it is one.
+    pub name: Option<String>,
+    /// The value of every field, as drawn.
+    pub values: BTreeMap<String, Val>,
+    /// Draws the world could not hold before this one.
+    pub redraws: usize,
+    /// The scenario (its seed is noise draw 0's; its expectation filled in).
+    pub scenario: Scenario,
+}
+
+/// Why a suite's cases could not be generated.
+#[derive(Debug, thiserror::Error)]
+#[error("{id}: no buildable draw in {MAX_TRIES} tries; the last was refused because {reason}")]
+pub struct GenerateError {
+    /// The case.
+    pub id: String,
+    /// Why the last draw was refused.
+    pub reason: String,
+}
+
+/// The robot the expectations are for: the planner's gait limits and where its feet stand.
+#[derive(Debug, Clone)]
+pub struct Robot {
+    /// The planner's declared limits.
+    pub gait: GaitParams,
+    /// Each sole's distance from the robot's middle line, metres.
+    pub feet_half_spacing_m: f64,
+}
+
+/// A case index's own random stream.
+fn stream(seed: u64, index: usize, salt: u64) -> ChaCha8Rng {
+    let mut bytes = seed.to_le_bytes().to_vec();
+    bytes.extend_from_slice(&(index as u64).to_le_bytes());
+    bytes.extend_from_slice(&salt.to_le_bytes());
+    ChaCha8Rng::seed_from_u64(fnv1a(&bytes))
+}
+
+/// The lidar noise seed of noise draw `draw` of case `index` (below 2^63: a TOML integer).
+pub fn noise_seed(suite_seed: u64, index: usize, draw: usize) -> u64 {
+    stream(suite_seed, index, 1 + draw as u64).random::<u64>() >> 1
+}
+
+/// Every case of `suite`, in order: the drawn ones, the grid's, the explicit ones.
+pub fn cases(suite: &Suite, robot: &Robot) -> Result<Vec<Case>, GenerateError> {
+    let drawn = (0..suite.cases).map(|_| Plan::default());
+    let grid = grid_combinations(&suite.grid).into_iter().map(|combo| Plan {
+        fixed: combo.into_iter().map(|(k, v)| (k, Dist::Value(v))).collect(),
+        ..Plan::default()
+    });
+    let explicit = suite.explicit.iter().map(|c| Plan {
+        name: Some(c.name.clone()),
+        fixed: c.fields.clone(),
+        by_hand: c.expect.clone(),
+    });
+    drawn
+        .chain(grid)
+        .chain(explicit)
+        .enumerate()
+        .map(|(index, plan)| one(suite, robot, index, &plan))
+        .collect()
+}
+
+/// What a case starts from: its name, the fields it fixes, an expectation set by hand.
+#[derive(Debug, Clone, Default)]
+struct Plan {
+    name: Option<String>,
+    fixed: BTreeMap<String, Dist>,
+    by_hand: Option<(crate::scenario::ExpectedOutcome, String)>,
+}
+
+/// Every combination of the grid's values, the first key varying slowest.
+fn grid_combinations(grid: &[(String, Vec<Val>)]) -> Vec<Vec<(String, Val)>> {
+    if grid.is_empty() {
+        return Vec::new();
+    }
+    grid.iter().fold(vec![Vec::new()], |acc, (k, vals)| {
+        acc.iter()
+            .flat_map(|prefix| {
+                vals.iter().map(move |v| {
+                    let mut p = prefix.clone();
+                    p.push((k.clone(), v.clone()));
+                    p
+                })
+            })
+            .collect()
+    })
+}
+
+fn one(suite: &Suite, robot: &Robot, index: usize, plan: &Plan) -> Result<Case, GenerateError> {
+    let Plan { name, fixed, by_hand } = plan;
+    let id = format!("{}-{index:04}", suite.name);
+    let mut rng = stream(suite.seed, index, 0);
+    let mut reason = String::new();
+    for redraws in 0..MAX_TRIES {
+        let mut values = BTreeMap::new();
+        for f in FIELDS.iter().filter(|f| f.key != "blondel_m") {
+            let dist = fixed.get(f.key).or_else(|| suite.draw.get(f.key));
+            values.insert(f.key.to_string(), draw(f, dist, &mut rng));
+        }
+        // The step rule constrains the drawn cases; a grid or an explicit case sets its
+        // rise and tread itself, and only its own `blondel_m` applies to it.
+        let blondel = match (name.is_some() || !fixed.is_empty(), fixed.get("blondel_m")) {
+            (true, own) => own,
+            (false, _) => suite.draw.get("blondel_m"),
+        };
+        match build(&id, &values, blondel, &mut rng) {
+            Ok(mut scenario) => {
+                scenario.seed = noise_seed(suite.seed, index, 0);
+                let expected = match by_hand {
+                    Some((outcome, why)) => {
+                        ExpectSpec { outcome: *outcome, reason: format!("set by the suite: {why}") }
+                    }
+                    None => expect(&scenario, &robot.gait, robot.feet_half_spacing_m),
+                };
+                scenario.expect = Some(expected);
+                scenario.description = format!(
+                    "suite {} (seed {}, hash {}), case {index}{}: drawn after {redraws} redraws",
+                    suite.name,
+                    suite.seed,
+                    suite.hash,
+                    name.as_deref().map(|n| format!(" `{n}`")).unwrap_or_default()
+                );
+                return Ok(Case { id, index, name: name.clone(), values, redraws, scenario });
+            }
+            Err(why) => reason = why,
+        }
+    }
+    Err(GenerateError { id, reason })
+}
+
+/// A value of `f` from `dist` (its default when the suite leaves it out).
+fn draw(f: &Field, dist: Option<&Dist>, rng: &mut ChaCha8Rng) -> Val {
+    let default = || match f.default {
+        FieldDefault::Num(x) => match f.kind {
+            Kind::Int { .. } => Val::Int(x as i64),
+            _ => Val::Float(x),
+        },
+        FieldDefault::Flag(b) => Val::Bool(b),
+        FieldDefault::Word(w) => Val::Text(w.to_string()),
+    };
+    match dist {
+        None => default(),
+        Some(Dist::Value(v)) => v.clone(),
+        Some(Dist::List(vals)) => vals[rng.random_range(0..vals.len())].clone(),
+        Some(Dist::Range { min, max }) => match f.kind {
+            Kind::Int { .. } => Val::Int(rng.random_range(min.round() as i64..=max.round() as i64)),
+            _ => Val::Float(min + (max - min) * rng.random::<f64>()),
+        },
+    }
+}
+
+fn num(values: &BTreeMap<String, Val>, key: &str) -> f64 {
+    values.get(key).and_then(Val::as_f64).unwrap_or(f64::NAN)
+}
+
+/// The scenario of one draw, or why the world cannot hold it.
+fn build(
+    id: &str,
+    v: &BTreeMap<String, Val>,
+    blondel: Option<&Dist>,
+    rng: &mut ChaCha8Rng,
+) -> Result<Scenario, String> {
+    let (rise, tread) = (num(v, "rise_m"), num(v, "tread_m"));
+    let step_rule = 2.0 * rise + tread;
+    let blondel_ok = match blondel {
+        None => true,
+        Some(Dist::Range { min, max }) => (*min..=*max).contains(&step_rule),
+        Some(Dist::Value(x)) => x.as_f64().is_some_and(|x| (step_rule - x).abs() <= 0.01),
+        Some(Dist::List(xs)) => xs.iter().filter_map(Val::as_f64).any(|x| (step_rule - x).abs() <= 0.01),
+    };
+    if !blondel_ok {
+        return Err(format!("2 x rise + tread = {step_rule:.3} m is outside blondel_m"));
+    }
+    let mut s = Scenario { name: id.to_string(), ..Scenario::default() };
+    let st = &mut s.staircase;
+    st.steps = num(v, "steps") as u32;
+    st.rise_m = rise;
+    st.tread_m = tread;
+    st.width_m = num(v, "width_m");
+    st.yaw_deg = num(v, "yaw_deg");
+    st.landing_m = num(v, "landing_m");
+    st.friction = num(v, "friction");
+    let missing = num(v, "missing_step") as u32;
+    if missing > 0 {
+        st.missing_steps = vec![missing];
+    }
+    let yaw = st.yaw_rad();
+    let (u, w) = ([yaw.cos(), yaw.sin()], [-yaw.sin(), yaw.cos()]);
+    // The robot at the origin; the flight's first riser `start_m` ahead along the ascent, its
+    // middle line `lateral_m` to the robot's right (the robot is left of it by that much).
+    let (start, lateral) = (num(v, "start_m"), num(v, "lateral_m"));
+    st.start_m = [u[0] * start - w[0] * lateral, u[1] * start - w[1] * lateral];
+    s.robot.position_m = [0.0, 0.0];
+    s.robot.yaw_deg = st.yaw_deg + num(v, "heading_deg");
+    s.lidar.noise_sigma_m = num(v, "noise_mm") / 1000.0;
+    s.lidar.dropout_probability = num(v, "dropout");
+
+    let origin = s.staircase.start_m;
+    let at = move |a: f64, l: f64| [origin[0] + u[0] * a + w[0] * l, origin[1] + u[1] * a + w[1] * l];
+    let (length, half_width, top) = (s.staircase.length_m(), s.staircase.width_m / 2.0, s.staircase.top_m());
+    if v.get("stairwell") == Some(&Val::Bool(true)) {
+        let gap = num(v, "stairwell_gap_m");
+        let height = top + 2.0;
+        for (side, name) in [(1.0, "stairwell_left"), (-1.0, "stairwell_right")] {
+            let c = at(length / 2.0, side * (half_width + gap + 0.05));
+            s.boxes.push(BoxSpec {
+                name: name.into(),
+                center_m: [c[0], c[1], height / 2.0],
+                size_m: [length, 0.1, height],
+                yaw_deg: s.staircase.yaw_deg,
+            });
+        }
+    }
+    let flight = s.staircase.footprint_m();
+    let size = num(v, "box_size_m");
+    let place = match v.get("box_place") {
+        Some(Val::Text(p)) => p.clone(),
+        _ => "beside".into(),
+    };
+    for k in 0..num(v, "boxes") as usize {
+        let side = if rng.random::<bool>() { 1.0 } else { -1.0 };
+        let gap = 0.05 + 0.25 * rng.random::<f64>();
+        let turn = s.staircase.yaw_deg + 30.0 * (2.0 * rng.random::<f64>() - 1.0);
+        let c = match place.as_str() {
+            "beside" => at(length * rng.random::<f64>(), side * (half_width + gap + size / 2.0)),
+            "ahead" => {
+                let a = -start + (start - 0.1) * rng.random::<f64>();
+                at(a, lateral + side * (CORRIDOR_HALF_M + gap + size / 2.0))
+            }
+            _ => at(
+                -start - (0.4 + gap + size / 2.0 + 0.8 * rng.random::<f64>()),
+                lateral + side * 0.5 * rng.random::<f64>(),
+            ),
+        };
+        let b = BoxSpec {
+            name: format!("clutter_{}", k + 1),
+            center_m: [c[0], c[1], 0.4 * size],
+            size_m: [size, 0.8 * size, 0.8 * size],
+            yaw_deg: turn,
+        };
+        if place != "behind" && overlaps(&box_footprint(&b), &flight) {
+            return Err(format!("clutter box {} {place} the flight cuts into it", k + 1));
+        }
+        if place == "ahead" && overlaps(&box_footprint(&b), &corridor(&s, CORRIDOR_HALF_M)) {
+            return Err(format!("clutter box {} ahead stands on the robot's path", k + 1));
+        }
+        s.boxes.push(b);
+    }
+    fit_room(&mut s);
+    let issues = s.issues();
+    match issues.first() {
+        Some(i) => Err(format!("`{}` {}", i.field, i.reason)),
+        None => Ok(s),
+    }
+}
+
+/// A box's footprint, counter-clockwise.
+fn box_footprint(b: &BoxSpec) -> [[f64; 2]; 4] {
+    let (c, s) = (b.yaw_deg.to_radians().cos(), b.yaw_deg.to_radians().sin());
+    let at = |x: f64, y: f64| [b.center_m[0] + x * c - y * s, b.center_m[1] + x * s + y * c];
+    let (hx, hy) = (b.size_m[0] / 2.0, b.size_m[1] / 2.0);
+    [at(-hx, -hy), at(hx, -hy), at(hx, hy), at(-hx, hy)]
+}
+
+/// The floor the robot walks from its start to the first riser, `half_m` either side.
+fn corridor(s: &Scenario, half_m: f64) -> [[f64; 2]; 4] {
+    let p = s.robot.position_m;
+    let q = s.staircase.start_m;
+    let l = ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)).sqrt().max(1e-9);
+    let n = [-(q[1] - p[1]) / l * half_m, (q[0] - p[0]) / l * half_m];
+    [
+        [p[0] - n[0], p[1] - n[1]],
+        [q[0] - n[0], q[1] - n[1]],
+        [q[0] + n[0], q[1] + n[1]],
+        [p[0] + n[0], p[1] + n[1]],
+    ]
+}
+
+/// Whether two convex quadrilaterals overlap (separating axes).
+fn overlaps(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> bool {
+    let separated = |p: &[[f64; 2]; 4], q: &[[f64; 2]; 4]| {
+        (0..4).any(|k| {
+            let (e0, e1) = (p[k], p[(k + 1) % 4]);
+            let n = [e0[1] - e1[1], e1[0] - e0[0]];
+            let proj = |r: &[f64; 2]| n[0] * r[0] + n[1] * r[1];
+            let (pmin, pmax) =
+                p.iter().map(proj).fold((f64::INFINITY, f64::NEG_INFINITY), |m, x| (m.0.min(x), m.1.max(x)));
+            let (qmin, qmax) =
+                q.iter().map(proj).fold((f64::INFINITY, f64::NEG_INFINITY), |m, x| (m.0.min(x), m.1.max(x)));
+            pmax < qmin || qmax < pmin
+        })
+    };
+    !separated(a, b) && !separated(b, a)
+}
+
+/// Sizes the room to hold the robot, the flight and every box with free floor around them,
+/// and the robot standing on the top step under its ceiling.
+fn fit_room(s: &mut Scenario) {
+    let mut pts: Vec<[f64; 2]> = s.staircase.footprint_m().to_vec();
+    let r = crate::scenario::ROBOT_RADIUS_M;
+    let p = s.robot.position_m;
+    pts.extend([[p[0] - r, p[1] - r], [p[0] + r, p[1] + r]]);
+    for b in &s.boxes {
+        pts.extend(box_footprint(b));
+    }
+    let lo = pts.iter().fold([f64::INFINITY; 2], |m, q| [m[0].min(q[0]), m[1].min(q[1])]);
+    let hi = pts.iter().fold([f64::NEG_INFINITY; 2], |m, q| [m[0].max(q[0]), m[1].max(q[1])]);
+    let top = s.staircase.top_m() + crate::scenario::ROBOT_HEADROOM_M + 0.5;
+    let tallest = s.boxes.iter().map(|b| b.center_m[2] + b.size_m[2] / 2.0 + 0.1).fold(0.0, f64::max);
+    s.room.center_m = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0];
+    s.room.size_m =
+        [hi[0] - lo[0] + 2.0 * ROOM_MARGIN_M, hi[1] - lo[1] + 2.0 * ROOM_MARGIN_M, top.max(tallest).max(3.0)];
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::regress::suite::parse;
+
+    fn robot() -> Robot {
+        Robot { gait: GaitParams::default(), feet_half_spacing_m: 0.1013 }
+    }
+
+    #[test]
+    fn a_case_is_the_same_whatever_the_suite_size_and_redraws_are_counted() {
+        let text = |n: usize| {
+            format!("seed = 5\ncases = {n}\n[draw]\nsteps = {{ min = 3, max = 6 }}\nrise_m = {{ min = 0.12, max = 0.18 }}\nboxes = {{ min = 0, max = 2 }}\nbox_place = [\"beside\", \"ahead\", \"behind\"]\n")
+        };
+        let small = cases(&parse(&text(3), "a", "t").expect("valid"), &robot()).expect("drawn");
+        let big = cases(&parse(&text(10), "b", "t").expect("valid"), &robot()).expect("drawn");
+        for (a, b) in small.iter().zip(&big) {
+            assert_eq!(a.values, b.values);
+            assert_eq!(a.scenario.staircase, b.scenario.staircase);
+        }
+        assert_eq!(big.len(), 10);
+        assert!(big.iter().all(|c| c.scenario.validate().is_ok()));
+        assert!(big.iter().all(|c| c.id.starts_with("t-00")));
+    }
+
+    #[test]
+    fn an_impossible_suite_is_an_error_naming_the_case_and_why() {
+        // 2 x rise + tread = 2.5 m is far beyond any step the default fields draw.
+        let s = parse("cases = 1\n[draw]\nblondel_m = 2.5\n", "s", "x").expect("valid");
+        let e = cases(&s, &robot()).expect_err("never buildable");
+        assert_eq!(e.id, "x-0000");
+        assert!(e.reason.contains("blondel"), "{e}");
+    }
+
+    #[test]
+    fn grids_give_every_combination_and_expectations_follow_the_limits() {
+        let s = parse("[grid]\nrise_m = [0.15, 0.40]\ntread_m = [0.18, 0.30]\n", "g", "g").expect("valid");
+        let c = cases(&s, &robot()).expect("drawn");
+        assert_eq!(c.len(), 4);
+        let outcome = |i: usize| c[i].scenario.expect.as_ref().map(|e| e.outcome);
+        use crate::scenario::ExpectedOutcome::*;
+        assert_eq!(
+            [outcome(0), outcome(1), outcome(2), outcome(3)],
+            [Some(Refuse), Some(Climb), Some(Refuse), Some(Refuse)]
+        );
+    }
+
+    #[test]
+    fn clutter_beside_the_flight_never_cuts_into_it() {
+        let s = parse(
+            "cases = 40\nseed = 3\n[draw]\nboxes = 3\nbox_size_m = { min = 0.3, max = 0.8 }\n",
+            "c",
+            "c",
+        )
+        .expect("valid");
+        for case in cases(&s, &robot()).expect("drawn") {
+            let flight = case.scenario.staircase.footprint_m();
+            for b in &case.scenario.boxes {
+                assert!(!overlaps(&box_footprint(b), &flight), "{}: {b:?}", case.id);
+            }
+        }
+    }
+}

@@ -1,0 +1,318 @@
+//! Running a suite's cases: in parallel (one climb per worker thread), each under a wall-time
+//! limit (a cancellation when it runs over), each finished run appended at once to
+//! `results.jsonl`, the runs already there skipped on `--resume`, and the failing runs kept as
+//! MCAP recordings on request. Every case's scenario file is written first, so any run can be
+//! reproduced alone with `stairbench run`.
+
+use super::generate::{noise_seed, Case};
+use super::results::{Appender, CaseResult};
+use super::verdict::{classify, Verdict};
+use crate::cancel::Cancel;
+use crate::climb::{Nobody, Observer, StageTimes};
+use crate::params::ClimbParams;
+use crate::record::Recorder;
+use crate::scenario::ExpectedOutcome;
+use std::collections::{BTreeSet, VecDeque};
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{channel, RecvTimeoutError};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// How to run.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// Climbs at once.
+    pub jobs: usize,
+    /// Wall-time limit of one run, seconds.
+    pub timeout_s: f64,
+    /// Noise draws per case.
+    pub seeds: usize,
+    /// Where everything goes.
+    pub out: PathBuf,
+    /// Skip the runs already in `out/results.jsonl` (else it starts afresh).
+    pub resume: bool,
+    /// Keep an MCAP recording of every failing run here.
+    pub record_failures: Option<PathBuf>,
+    /// Every parameter of the climbs.
+    pub params: ClimbParams,
+    /// The reproduce commands name this parameters file (when the parameters are not the
+    /// defaults).
+    pub params_file: Option<PathBuf>,
+}
+
+/// Why a suite could not be run.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// The output folder or a file in it.
+    #[error("{path}: {source}")]
+    Io {
+        /// The path.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The results already there.
+    #[error(transparent)]
+    Results(#[from] super::results::ResultsError),
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> RunError + '_ {
+    move |source| RunError::Io { path: path.display().to_string(), source }
+}
+
+/// The scenario file of a case, under `out`.
+pub fn case_file(out: &Path, id: &str) -> PathBuf {
+    out.join("cases").join(format!("{id}.toml"))
+}
+
+/// Writes every case's scenario file.
+pub fn write_cases(out: &Path, cases: &[Case]) -> Result<(), RunError> {
+    let dir = out.join("cases");
+    std::fs::create_dir_all(&dir).map_err(io(&dir))?;
+    for c in cases {
+        let path = case_file(out, &c.id);
+        let toml = c.scenario.to_toml_string().map_err(|e| RunError::Io {
+            path: path.display().to_string(),
+            source: std::io::Error::other(e.to_string()),
+        })?;
+        let expected = c.scenario.expect.as_ref().map(|e| format!("{:?}", e.outcome)).unwrap_or_default();
+        let text = format!(
+            "# {}\n# Expected: {expected}. Reproduce: stairbench run cases/{}.toml (in the suite's output folder)\n{toml}",
+            c.scenario.description, c.id
+        );
+        std::fs::write(&path, text).map_err(io(&path))?;
+    }
+    Ok(())
+}
+
+/// A run to do: a case under one noise draw.
+struct Job {
+    case: Arc<Case>,
+    seed_index: usize,
+}
+
+/// The suite-level fields every result carries.
+#[derive(Debug, Clone)]
+pub struct SuiteInfo {
+    /// Name.
+    pub name: String,
+    /// File hash.
+    pub hash: String,
+    /// Seed.
+    pub seed: u64,
+    /// Cases in the whole suite.
+    pub cases_total: usize,
+}
+
+/// Runs `cases` (this shard's) under `opt`; `on_done(result, done, total)` sees each run as it
+/// ends. Returns every result of the suite's runs here, the resumed ones included.
+pub fn run(
+    info: &SuiteInfo,
+    cases: &[Case],
+    opt: &Options,
+    on_done: &(dyn Fn(&CaseResult, usize, usize) + Sync),
+) -> Result<Vec<CaseResult>, RunError> {
+    std::fs::create_dir_all(&opt.out).map_err(io(&opt.out))?;
+    write_cases(&opt.out, cases)?;
+    let results_path = opt.out.join("results.jsonl");
+    let mut done: Vec<CaseResult> = Vec::new();
+    if opt.resume && results_path.exists() {
+        done = super::results::read(&results_path)?;
+    } else if results_path.exists() {
+        std::fs::remove_file(&results_path).map_err(io(&results_path))?;
+    }
+    if let Some(dir) = &opt.record_failures {
+        std::fs::create_dir_all(dir).map_err(io(dir))?;
+    }
+    let have: BTreeSet<(String, usize)> = done.iter().map(CaseResult::key).collect();
+    let jobs: VecDeque<Job> = cases
+        .iter()
+        .flat_map(|c| {
+            let c = Arc::new(c.clone());
+            (0..opt.seeds).map(move |k| Job { case: c.clone(), seed_index: k })
+        })
+        .filter(|j| !have.contains(&(j.case.id.clone(), j.seed_index)))
+        .collect();
+    let total = jobs.len();
+    let queue = Mutex::new(jobs);
+    let appender = Mutex::new(Appender::open(&results_path).map_err(io(&results_path))?);
+    let finished: Mutex<Vec<CaseResult>> = Mutex::new(Vec::new());
+    let write_error: Mutex<Option<RunError>> = Mutex::new(None);
+    std::thread::scope(|scope| {
+        for _ in 0..opt.jobs.max(1) {
+            scope.spawn(|| {
+                while let Some(job) = queue.lock().map(|mut q| q.pop_front()).unwrap_or(None) {
+                    let result = run_one(info, &job, opt);
+                    if let Ok(mut a) = appender.lock() {
+                        if let Err(e) = a.append(&result) {
+                            if let Ok(mut w) = write_error.lock() {
+                                w.get_or_insert(RunError::Io {
+                                    path: results_path.display().to_string(),
+                                    source: e,
+                                });
+                            }
+                        }
+                    }
+                    if let Ok(mut f) = finished.lock() {
+                        f.push(result.clone());
+                        on_done(&result, f.len(), total);
+                    }
+                }
+            });
+        }
+    });
+    if let Some(e) = write_error.into_inner().unwrap_or(None) {
+        return Err(e);
+    }
+    done.extend(finished.into_inner().unwrap_or_default());
+    done.sort_by_key(|r| (r.index, r.seed_index));
+    Ok(done)
+}
+
+/// The command that reproduces a run alone.
+fn reproduce(opt: &Options, case: &Case, seed_index: usize, seed: u64) -> String {
+    let mut cmd = format!("stairbench run {}", case_file(&opt.out, &case.id).display());
+    if seed_index > 0 {
+        cmd += &format!(" --seed {seed}");
+    }
+    if let Some(p) = &opt.params_file {
+        cmd += &format!(" --params {}", p.display());
+    }
+    cmd
+}
+
+/// One run: the climb under its time limit, its verdict, its recording kept if it failed.
+fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
+    let case = &job.case;
+    let seed = noise_seed(info.seed, case.index, job.seed_index);
+    let mut scenario = case.scenario.clone();
+    scenario.seed = seed;
+    let expect = scenario.expect.clone().map_or(ExpectedOutcome::Climb, |e| e.outcome);
+    let mut result = CaseResult {
+        suite: info.name.clone(),
+        suite_hash: info.hash.clone(),
+        cases_total: info.cases_total,
+        seeds: opt.seeds,
+        id: case.id.clone(),
+        index: case.index,
+        name: case.name.clone(),
+        seed_index: job.seed_index,
+        noise_seed: seed,
+        params: case.values.clone(),
+        expect,
+        expect_reason: scenario.expect.as_ref().map(|e| e.reason.clone()).unwrap_or_default(),
+        verdict: Verdict::Error,
+        pass: false,
+        stop: None,
+        first_violation: None,
+        message: None,
+        min_margin_m: None,
+        max_torque_ratio: 0.0,
+        torque_joint: String::new(),
+        max_friction_ratio: 0.0,
+        steps_climbed: 0,
+        steps_total: scenario.staircase.steps as usize - scenario.staircase.missing_steps.len(),
+        cycles: 0,
+        sim_s: 0.0,
+        wall_s: 0.0,
+        stage_times: StageTimes::default(),
+        reproduce: reproduce(opt, case, job.seed_index, seed),
+        error: None,
+    };
+    let started = Instant::now();
+    let cancel = Cancel::new();
+    let timed_out = std::sync::atomic::AtomicBool::new(false);
+    let recording =
+        opt.record_failures.as_ref().map(|d| d.join(format!("{}-draw{}.mcap", case.id, job.seed_index)));
+    let outcome = std::thread::scope(|scope| {
+        let (stop_timer, wait) = channel::<()>();
+        let limit = Duration::from_secs_f64(opt.timeout_s.max(0.0));
+        let (cancel_t, timed_out_t) = (cancel.clone(), &timed_out);
+        scope.spawn(move || {
+            if let Err(RecvTimeoutError::Timeout) = wait.recv_timeout(limit) {
+                timed_out_t.store(true, std::sync::atomic::Ordering::Relaxed);
+                cancel_t.cancel();
+            }
+        });
+        let climb = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            climb(&scenario, opt, &recording, &cancel)
+        }));
+        drop(stop_timer);
+        climb
+    });
+    result.wall_s = started.elapsed().as_secs_f64();
+    let timed_out = timed_out.into_inner();
+    match outcome {
+        Ok(Ok(report)) => {
+            result = result.with_report(&report);
+            result.verdict = classify(expect, &report, timed_out);
+            result.message = report.why_failed();
+        }
+        Ok(Err(e)) => {
+            result.error = Some(e.clone());
+            result.message = Some(e);
+        }
+        Err(panic) => {
+            let what = panic
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_default();
+            result.error = Some(format!("the climb panicked: {what}"));
+            result.message = result.error.clone();
+        }
+    }
+    if timed_out {
+        result.verdict = Verdict::Timeout;
+        result.message = Some(format!("ran over its {:.0} s wall-time limit", opt.timeout_s));
+    }
+    result.pass = result.verdict.pass();
+    if let Some(path) = &recording {
+        if result.pass {
+            let _ = std::fs::remove_file(path);
+        }
+    }
+    result
+}
+
+/// The climb of `scenario`, recorded to `recording` when given.
+fn climb(
+    scenario: &crate::scenario::Scenario,
+    opt: &Options,
+    recording: &Option<PathBuf>,
+    cancel: &Cancel,
+) -> Result<crate::climb::ClimbReport, String> {
+    let mut recorder = match recording {
+        Some(path) => {
+            let model = crate::robot::hrp4::model().map_err(|e| e.to_string())?;
+            let mut r = Recorder::create(path, &model).map_err(|e| e.to_string())?;
+            let meta = [
+                ("command".to_string(), "regress".to_string()),
+                ("scenario".to_string(), scenario.name.clone()),
+            ];
+            r.metadata("stairbench", meta.into_iter().collect());
+            r.attach(
+                "scenario.toml",
+                "application/toml",
+                scenario.to_toml_string().unwrap_or_default().as_bytes(),
+            );
+            r.attach(
+                "params.toml",
+                "application/toml",
+                toml::to_string(&opt.params).unwrap_or_default().as_bytes(),
+            );
+            Some(r)
+        }
+        None => None,
+    };
+    let observer: &mut dyn Observer = match recorder.as_mut() {
+        Some(r) => r,
+        None => &mut Nobody,
+    };
+    let report =
+        crate::sim::climb_scenario(scenario, &opt.params, observer, cancel).map_err(|e| e.to_string());
+    if let Some(r) = recorder {
+        r.finish().map_err(|e| e.to_string())?;
+    }
+    report
+}

@@ -1,0 +1,195 @@
+//! A case's verdict: what the climb did against what was expected. A case passes when it
+//! climbed clean, or when it was refused (or found nothing to climb) as expected before a
+//! foot was set on the staircase; walking closer on the floor to look is allowed.
+
+use crate::climb::{ClimbReport, Footing, StopReason};
+use crate::scenario::ExpectedOutcome;
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// The verdict classes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    /// Climbed to the top with no check violated.
+    ClimbedClean,
+    /// Refused (or found nothing to climb) as expected, before a foot was on the staircase.
+    RefusedAsExpected,
+    /// Refused although the staircase is within the planner's limits.
+    FalseRefusal,
+    /// A check was violated (the climb may have gone on).
+    CheckViolated,
+    /// The robot fell.
+    Fell,
+    /// A foot was set on a staircase the planner's limits say must be refused.
+    SteppedOntoUnclimbable,
+    /// Perception found no staircase to climb before the top.
+    NoStaircaseFound,
+    /// The bench failed (a setup or executor error, a sensor failure, unstable physics, the
+    /// loop giving up after its most cycles).
+    Error,
+    /// The case ran past its wall-time limit.
+    Timeout,
+}
+
+impl Verdict {
+    /// Every class, in report order.
+    pub const ALL: [Verdict; 9] = [
+        Verdict::ClimbedClean,
+        Verdict::RefusedAsExpected,
+        Verdict::FalseRefusal,
+        Verdict::CheckViolated,
+        Verdict::Fell,
+        Verdict::SteppedOntoUnclimbable,
+        Verdict::NoStaircaseFound,
+        Verdict::Error,
+        Verdict::Timeout,
+    ];
+
+    /// Whether this verdict passes.
+    pub fn pass(self) -> bool {
+        matches!(self, Verdict::ClimbedClean | Verdict::RefusedAsExpected)
+    }
+
+    /// Its name (as in JSON and JUnit failure types).
+    pub fn name(self) -> &'static str {
+        match self {
+            Verdict::ClimbedClean => "climbed_clean",
+            Verdict::RefusedAsExpected => "refused_as_expected",
+            Verdict::FalseRefusal => "false_refusal",
+            Verdict::CheckViolated => "check_violated",
+            Verdict::Fell => "fell",
+            Verdict::SteppedOntoUnclimbable => "stepped_onto_unclimbable",
+            Verdict::NoStaircaseFound => "no_staircase_found",
+            Verdict::Error => "error",
+            Verdict::Timeout => "timeout",
+        }
+    }
+}
+
+impl fmt::Display for Verdict {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.pad(&self.name().replace('_', " "))
+    }
+}
+
+/// The verdict of `report` against `expect`; `timed_out` when the runner cancelled it.
+pub fn classify(expect: ExpectedOutcome, report: &ClimbReport, timed_out: bool) -> Verdict {
+    if timed_out {
+        return Verdict::Timeout;
+    }
+    let stepped = report.cycles.iter().any(|c| c.to != Footing::Floor);
+    let fell = matches!(report.stop, Some(StopReason::Fell { .. }))
+        || report.cycles.iter().any(|c| c.execution.fell);
+    if fell {
+        return Verdict::Fell;
+    }
+    if matches!(
+        report.stop,
+        Some(
+            StopReason::SimulationUnstable { .. }
+                | StopReason::SensorFailed { .. }
+                | StopReason::PerceptionFailed { .. }
+                | StopReason::CyclesExhausted { .. }
+        )
+    ) {
+        return Verdict::Error;
+    }
+    if matches!(report.stop, Some(StopReason::StoppedByUser { .. })) {
+        return Verdict::Timeout;
+    }
+    let stopped_short =
+        matches!(report.stop, Some(StopReason::Refused { .. } | StopReason::NoStaircaseAhead { .. }));
+    match expect {
+        ExpectedOutcome::Refuse if stepped => Verdict::SteppedOntoUnclimbable,
+        ExpectedOutcome::Refuse if stopped_short => Verdict::RefusedAsExpected,
+        ExpectedOutcome::Refuse => Verdict::SteppedOntoUnclimbable,
+        ExpectedOutcome::Either if !stepped && stopped_short => Verdict::RefusedAsExpected,
+        _ if report.success => Verdict::ClimbedClean,
+        _ if report.first_violation().is_some() => Verdict::CheckViolated,
+        _ => match report.stop {
+            Some(StopReason::Refused { .. }) => Verdict::FalseRefusal,
+            Some(StopReason::NoStaircaseAhead { .. }) => Verdict::NoStaircaseFound,
+            _ => Verdict::Error,
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::climb::{CycleReport, Execution};
+    use crate::planning::PlanError;
+
+    fn report(cycles: &[Footing], stop: Option<StopReason>, violated: bool) -> ClimbReport {
+        let cycles: Vec<CycleReport> = cycles
+            .iter()
+            .enumerate()
+            .map(|(i, to)| {
+                let mut execution = Execution::empty();
+                if violated && i + 1 == cycles.len() {
+                    execution.violations.push(crate::climb::Violation {
+                        t_s: 1.0,
+                        cycle: i + 1,
+                        check: crate::climb::Check::Collision { geom: "knee".into(), other: "step_2".into() },
+                    });
+                }
+                CycleReport {
+                    cycle: i + 1,
+                    to: *to,
+                    pass: !violated,
+                    steps_seen: 3,
+                    scan_s: 0.0,
+                    perceive_s: 0.0,
+                    plan_s: 0.0,
+                    execute_s: 0.0,
+                    execution,
+                }
+            })
+            .collect();
+        let success = stop.is_none() && !violated;
+        ClimbReport {
+            scenario: "t".into(),
+            success,
+            steps_climbed: if success { 3 } else { 0 },
+            steps_total: 3,
+            stop,
+            cycles,
+            sim_s: 0.0,
+            wall_s: 0.0,
+        }
+    }
+
+    fn refused(cycle: usize) -> Option<StopReason> {
+        Some(StopReason::Refused { cycle, refusal: PlanError::NoSteps.refusal() })
+    }
+
+    #[test]
+    fn verdicts_follow_the_expectation_and_where_the_feet_went() {
+        use ExpectedOutcome::*;
+        use Footing::*;
+        let climbed = report(&[Floor, Step(1), Step(2), Step(3)], None, false);
+        assert_eq!(classify(Climb, &climbed, false), Verdict::ClimbedClean);
+        assert_eq!(classify(Refuse, &climbed, false), Verdict::SteppedOntoUnclimbable);
+        assert_eq!(classify(Climb, &climbed, true), Verdict::Timeout);
+        // Refused after walking closer on the floor: as expected, or a false refusal.
+        let looked = report(&[Floor, Floor], refused(3), false);
+        assert_eq!(classify(Refuse, &looked, false), Verdict::RefusedAsExpected);
+        assert_eq!(classify(Either, &looked, false), Verdict::RefusedAsExpected);
+        assert_eq!(classify(Climb, &looked, false), Verdict::FalseRefusal);
+        // Refused once on the stairs: an unclimbable staircase was stepped onto.
+        let late = report(&[Step(1)], refused(2), false);
+        assert_eq!(classify(Refuse, &late, false), Verdict::SteppedOntoUnclimbable);
+        assert_eq!(classify(Either, &late, false), Verdict::FalseRefusal);
+        let nothing = report(&[], Some(StopReason::NoStaircaseAhead { cycle: 1, last_view: None }), false);
+        assert_eq!(classify(Climb, &nothing, false), Verdict::NoStaircaseFound);
+        assert_eq!(classify(Refuse, &nothing, false), Verdict::RefusedAsExpected);
+        let hit = report(&[Floor, Step(1), Step(2), Step(3)], None, true);
+        assert_eq!(classify(Climb, &hit, false), Verdict::CheckViolated);
+        let fell = report(&[Step(1)], Some(StopReason::Fell { cycle: 1 }), true);
+        assert_eq!(classify(Climb, &fell, false), Verdict::Fell);
+        let gave_up = report(&[Floor], Some(StopReason::CyclesExhausted { cycles: 40 }), false);
+        assert_eq!(classify(Climb, &gave_up, false), Verdict::Error);
+        assert!(Verdict::ALL.iter().filter(|v| v.pass()).count() == 2);
+    }
+}
