@@ -203,7 +203,8 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
             failed.load(Ordering::Relaxed)
         ));
         if !quiet {
-            bar.println(format!(
+            // A line per run: above the bar on a terminal, as plain lines in a CI log.
+            let line = format!(
                 "{} {} draw {} {:<24} {:>5.1} s  {}",
                 if r.pass { "  ok  " } else { "  FAIL" },
                 r.id,
@@ -211,7 +212,12 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
                 r.verdict,
                 r.wall_s,
                 if r.pass { String::new() } else { r.message.clone().unwrap_or_default() }
-            ));
+            );
+            if bar.is_hidden() {
+                println!("{line}");
+            } else {
+                bar.println(line);
+            }
         }
     };
     let results = runner::run(&info, &cases, &opt, &on_done)?;
