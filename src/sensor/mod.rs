@@ -6,7 +6,12 @@
 //! [`RayCaster`], and the MuJoCo world is one.
 
 pub mod assemble;
+pub mod clock;
+pub mod dynamixel;
+pub mod hardware;
 pub mod lidar;
+pub mod link;
+pub mod scip;
 pub mod servo;
 pub mod simulated;
 
@@ -82,6 +87,30 @@ pub enum SensorError {
     Exhausted {
         /// Sweeps given before.
         given: usize,
+    },
+    /// The real lidar failed.
+    #[error(transparent)]
+    Lidar(#[from] scip::LidarError),
+    /// The real servo failed.
+    #[error(transparent)]
+    Servo(#[from] dynamixel::ServoError),
+    /// A sweep was cut short: the rows received before are kept.
+    #[error("the sweep was cut after {} rows: {why}", .partial.rows.len())]
+    Cut {
+        /// The sweep so far.
+        partial: Box<Sweep>,
+        /// Why.
+        why: String,
+    },
+    /// A hardware configuration file is wrong.
+    #[error("{origin}{}: {message}", .line.map(|l| format!(":{l}")).unwrap_or_default())]
+    Config {
+        /// The file.
+        origin: String,
+        /// 1-based line, when known.
+        line: Option<usize>,
+        /// What is wrong.
+        message: String,
     },
 }
 

@@ -76,6 +76,19 @@ impl<'w, C: RayCaster> SimLidar<'w, C> {
         (row, hits)
     }
 
+    /// The true hits of one row whose beam `i` leaves with the servo at `tilt_of(i)` (no
+    /// noise, no range limits): for a head whose servo does not follow the configured sweep
+    /// (an emulator's, moved by a driver).
+    pub fn hits_at(&self, tilt_of: &dyn Fn(usize) -> f64) -> Vec<Option<RayHit>> {
+        (0..self.lidar.beams())
+            .map(|i| {
+                let scanner = self.mount_to_world * self.lidar.scanner_in_mount(tilt_of(i));
+                let dir = scanner.rotation * self.lidar.beam_direction(i);
+                self.world.ray(&scanner.translation.vector.into(), &dir)
+            })
+            .collect()
+    }
+
     /// Casts row `k`, recording each beam's true hit in `hits` when given.
     fn cast_row(&self, k: usize, mut hits: Option<&mut Vec<Option<RayHit>>>) -> ScanRow {
         let stamp_s = self.sweep.row_stamp_s(k);

@@ -4,6 +4,7 @@
 //! together on a scenario ([`climb_scenario`], [`scan_scenario`]).
 
 pub mod checks;
+pub mod emulator;
 pub mod execute;
 pub mod lidar;
 pub mod world;
