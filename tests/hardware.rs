@@ -9,8 +9,10 @@ use stairbench::perception::{metrics, perceive, PerceptionParams};
 use stairbench::scenario::Scenario;
 use stairbench::sensor::dynamixel::Protocol;
 use stairbench::sensor::hardware::{standing_head_pose, HardwareConfig, HardwareSource};
-use stairbench::sensor::{AssembleParams, Source};
-use stairbench::sim::emulator::{Emulator, EmulatorConfig};
+use stairbench::sensor::{AssembleParams, SensorError, Source};
+use stairbench::sim::emulator::{
+    Emulator, EmulatorConfig, LidarFaults, LidarPort, SensorClock, ServoFaults, ServoSpec,
+};
 use std::sync::Mutex;
 
 static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
@@ -47,7 +49,7 @@ fn the_hardware_path_against_the_emulator_sees_the_steps_the_simulated_path_sees
         Emulator::start(&s, EmulatorConfig { start_tilt_deg: 0.0, ..EmulatorConfig::default() }).unwrap();
     let cfg = config(&emu, Protocol::One);
     let mut src = HardwareSource::new(&cfg, standing_head_pose().unwrap(), log);
-    let sweep = src.sweep(&Cancel::never(), &mut |_, _| {}).unwrap();
+    let sweep = swept(src.sweep(&Cancel::never(), &mut |_, _| {}));
     println!("{} rows", sweep.rows.len());
     assert!((230..=245).contains(&sweep.rows.len()), "about 240 rows of 25 ms over the 6 s sweep");
     let cloud = sweep.assemble(&AssembleParams::default()).unwrap();
@@ -70,6 +72,168 @@ fn the_hardware_path_against_the_emulator_sees_the_steps_the_simulated_path_sees
         assert!((heights[i] - truth.height_m).abs() < 0.01, "step {}: {} m", i + 1, heights[i]);
     }
     // A second sweep on the same connections.
-    let again = src.sweep(&Cancel::never(), &mut |_, _| {}).unwrap();
+    let again = swept(src.sweep(&Cancel::never(), &mut |_, _| {}));
     assert!(again.rows.len() > 200);
+}
+
+/// A config for `emu` with a quick sweep (10 to 40 deg at 30 deg/s: 1 s, 40 rows).
+fn quick(emu: &Emulator, protocol: Protocol) -> HardwareConfig {
+    let mut c = config(emu, protocol);
+    c.sweep.tilt_end_deg = 40.0;
+    c.sweep.tilt_speed_dps = 30.0;
+    c.lidar.reply_timeout_s = 0.3;
+    c
+}
+
+fn emulator(cfg: EmulatorConfig) -> Emulator {
+    Emulator::start(&scenario(), cfg).unwrap()
+}
+
+fn sweep_of(cfg: &HardwareConfig) -> Result<stairbench::sensor::Sweep, SensorError> {
+    HardwareSource::new(cfg, standing_head_pose().unwrap(), log).sweep(&Cancel::never(), &mut |_, _| {})
+}
+
+/// The sweep, or a panic with the error's message (not the partial sweep's every range).
+fn swept(r: Result<stairbench::sensor::Sweep, SensorError>) -> stairbench::sensor::Sweep {
+    r.unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn protocol_2_and_a_usb_lidar_on_a_pseudo_terminal_sweep_too() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let servo = ServoSpec { protocol: Protocol::Two, ..ServoSpec::default() };
+    let emu = emulator(EmulatorConfig { lidar: LidarPort::Pty, servo, ..EmulatorConfig::default() });
+    let sweep = swept(sweep_of(&quick(&emu, Protocol::Two)));
+    assert!((36..=42).contains(&sweep.rows.len()), "{} rows", sweep.rows.len());
+    let tilts: Vec<f64> = sweep.rows.iter().map(|r| r.tilt_rad.to_degrees()).collect();
+    assert!(tilts.windows(2).all(|w| w[1] >= w[0]), "the tilt grows through the sweep");
+    assert!(tilts[0] < 12.0 && *tilts.last().unwrap() > 38.0, "{tilts:?}");
+}
+
+#[test]
+fn a_cable_pulled_mid_sweep_keeps_the_rows_received_and_says_which_row() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    for port in [LidarPort::Tcp("127.0.0.1:0".into()), LidarPort::Pty] {
+        let faults = LidarFaults { cut_after_scans: Some(20), ..LidarFaults::default() };
+        let emu = emulator(EmulatorConfig {
+            lidar: port.clone(),
+            lidar_faults: faults,
+            ..EmulatorConfig::default()
+        });
+        let Err(SensorError::Cut { partial, why }) = sweep_of(&quick(&emu, Protocol::One)) else {
+            panic!("{port:?}: the sweep must be cut")
+        };
+        println!("{port:?}: {} rows kept: {why}", partial.rows.len());
+        assert!((15..=20).contains(&partial.rows.len()), "the rows before the cut are kept");
+        assert!(why.contains(&format!("row {}", partial.rows.len())) || why.contains("row 2"), "{why}");
+        assert!(why.contains("failed") || why.contains("closed") || why.contains("gone"), "{why}");
+    }
+}
+
+#[test]
+fn garbled_bytes_lose_their_scan_and_a_stream_of_them_ends_the_sweep() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let some = LidarFaults { garble_every: Some(5), ..LidarFaults::default() };
+    let emu = emulator(EmulatorConfig { lidar_faults: some, ..EmulatorConfig::default() });
+    let sweep = swept(sweep_of(&quick(&emu, Protocol::One)));
+    assert!((26..=36).contains(&sweep.rows.len()), "one scan in five lost: {} rows", sweep.rows.len());
+    drop(emu);
+    let all = LidarFaults { garble_every: Some(1), ..LidarFaults::default() };
+    let emu = emulator(EmulatorConfig { lidar_faults: all, ..EmulatorConfig::default() });
+    let Err(SensorError::Cut { partial, why }) = sweep_of(&quick(&emu, Protocol::One)) else { panic!("cut") };
+    assert!(partial.rows.is_empty() && why.contains("check character"), "{why}");
+}
+
+#[test]
+fn a_status_of_error_is_named_with_its_meaning() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let faults = LidarFaults { md_status: Some(*b"50"), ..LidarFaults::default() };
+    let emu = emulator(EmulatorConfig { lidar_faults: faults, ..EmulatorConfig::default() });
+    let e = sweep_of(&quick(&emu, Protocol::One)).map(|s| s.rows.len()).expect_err("refused").to_string();
+    assert!(e.contains("status 50") && e.contains("hardware trouble"), "{e}");
+}
+
+#[test]
+fn a_lidar_that_stops_sending_times_out_and_the_sweep_keeps_its_rows() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let faults = LidarFaults { silent_after_scans: Some(10), ..LidarFaults::default() };
+    let emu = emulator(EmulatorConfig { lidar_faults: faults, ..EmulatorConfig::default() });
+    let Err(SensorError::Cut { partial, why }) = sweep_of(&quick(&emu, Protocol::One)) else { panic!("cut") };
+    assert!(
+        (5..=10).contains(&partial.rows.len()) && why.contains("did not answer"),
+        "{} rows: {why}",
+        partial.rows.len()
+    );
+}
+
+#[test]
+fn a_servo_that_is_silent_overloaded_or_on_another_baud_rate_or_protocol_is_named() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let run = |servo: ServoSpec, protocol: Protocol| {
+        eprintln!("servo {servo:?} driver {protocol:?}");
+        let emu = emulator(EmulatorConfig { servo, ..EmulatorConfig::default() });
+        let r = sweep_of(&quick(&emu, protocol));
+        eprintln!("swept: {:?}", r.as_ref().map(|s| s.rows.len()).map_err(|e| e.to_string()));
+        r
+    };
+    let silent =
+        ServoSpec { faults: ServoFaults { silent: true, ..ServoFaults::default() }, ..ServoSpec::default() };
+    let e = run(silent, Protocol::One).map(|s| s.rows.len()).expect_err("silent").to_string();
+    assert!(e.contains("did not answer a ping"), "{e}");
+    let slow = ServoSpec { baud: 57_600, ..ServoSpec::default() };
+    let e = run(slow, Protocol::One).map(|s| s.rows.len()).expect_err("wrong baud").to_string();
+    assert!(e.contains("no packet") && e.contains("baud rate"), "{e}");
+    let two = ServoSpec { protocol: Protocol::Two, ..ServoSpec::default() };
+    let e = run(two, Protocol::One).map(|s| s.rows.len()).expect_err("wrong protocol").to_string();
+    assert!(e.contains("did not answer a ping"), "{e}");
+    // Overloaded half a second into the sweep: the sweep is cut, the error says overload.
+    let hot = ServoSpec {
+        faults: ServoFaults { overload_after_s: Some(1.5), ..ServoFaults::default() },
+        ..ServoSpec::default()
+    };
+    let emu = emulator(EmulatorConfig { servo: hot, ..EmulatorConfig::default() });
+    let mut cfg = quick(&emu, Protocol::One);
+    cfg.sweep.tilt_speed_dps = 15.0;
+    match sweep_of(&cfg) {
+        Err(SensorError::Cut { partial, why }) => {
+            println!("{} rows kept: {why}", partial.rows.len());
+            assert!(why.contains("overload"), "{why}");
+        }
+        Err(e) => assert!(e.to_string().contains("overload"), "{e}"),
+        Ok(s) => panic!("an overloaded servo swept {} rows", s.rows.len()),
+    }
+}
+
+#[test]
+fn a_lidar_that_never_answers_is_an_error_naming_its_address() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let emu = emulator(EmulatorConfig::default());
+    let mut cfg = quick(&emu, Protocol::One);
+    // Nothing listens there: the connection is refused.
+    let free = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().to_string();
+    cfg.lidar.address = Some(free.clone());
+    cfg.lidar.connect_tries = 2;
+    cfg.lidar.retry_delay_s = 0.05;
+    let e = sweep_of(&cfg).map(|s| s.rows.len()).expect_err("refused").to_string();
+    assert!(e.contains(&free) && e.contains("2 tries"), "{e}");
+    // A port that accepts and says nothing.
+    let mute = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    cfg.lidar.address = Some(mute.local_addr().unwrap().to_string());
+    let e = sweep_of(&cfg).map(|s| s.rows.len()).expect_err("mute").to_string();
+    assert!(e.contains("did not answer `VV`") && e.contains(&cfg.lidar.address.clone().unwrap()), "{e}");
+}
+
+#[test]
+fn the_sensor_clock_wrapping_during_a_sweep_changes_nothing() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    // The 24-bit millisecond counter wraps 2.5 s after the emulator starts: mid-sweep.
+    let clock = SensorClock { start_ms: (1 << 24) - 2_500, drift: 0.0 };
+    let emu = emulator(EmulatorConfig { clock, ..EmulatorConfig::default() });
+    let sweep = swept(sweep_of(&quick(&emu, Protocol::One)));
+    let stamps: Vec<f64> = sweep.rows.iter().map(|r| r.stamp_s).collect();
+    assert!(
+        stamps.windows(2).all(|w| (w[1] - w[0] - 0.025).abs() < 0.002),
+        "rows 25 ms apart across the wrap"
+    );
+    assert!((36..=42).contains(&sweep.rows.len()));
 }

@@ -323,7 +323,10 @@ impl Source for HardwareSource {
         let speed = self.cfg.sweep.tilt_speed_dps.to_radians();
         let expected_rows = ((end - start).abs() / speed / self.model.row_period_s()).round() as usize;
         self.go_to(start, self.cfg.sweep.return_speed_dps.to_radians(), cancel)?;
-        self.lidar()?.start()?;
+        // The clock relation is renewed before each sweep (its drift from the last one).
+        let lidar = self.lidar()?;
+        lidar.sync_clock()?;
+        lidar.start()?;
         if let Err(e) = self.servo()?.move_to(end, speed) {
             self.after_error(false, true);
             return Err(e.into());
@@ -337,24 +340,30 @@ impl Source for HardwareSource {
         let limit_s = (end - start).abs() / speed * 1.5 + 2.0;
         let (servo_result, lidar_result) = std::thread::scope(|scope| {
             let reader = scope.spawn(|| {
-                let Some(s) = servo.as_mut() else { return Ok(()) };
-                let started = Instant::now();
-                let mut at_end = 0;
-                while !done.load(Ordering::Relaxed) {
-                    let (tilt, t) = s.tilt()?;
-                    if let Ok(mut r) = readings.lock() {
-                        r.push((t, tilt));
+                let mut read = || {
+                    let Some(s) = servo.as_mut() else { return Ok(()) };
+                    let started = Instant::now();
+                    let mut at_end = 0;
+                    while !done.load(Ordering::Relaxed) {
+                        let (tilt, t) = s.tilt()?;
+                        if let Ok(mut r) = readings.lock() {
+                            r.push((t, tilt));
+                        }
+                        at_end = if (tilt - end).abs() <= tick { at_end + 1 } else { 0 };
+                        if at_end >= 3 || started.elapsed().as_secs_f64() > limit_s {
+                            break;
+                        }
                     }
-                    at_end = if (tilt - end).abs() <= tick { at_end + 1 } else { 0 };
-                    if at_end >= 3 || started.elapsed().as_secs_f64() > limit_s {
-                        break;
-                    }
-                }
+                    Ok::<(), super::dynamixel::ServoError>(())
+                };
+                let result = read();
+                // However the servo's side ended (its end reached, an error), the lidar's stops.
                 done.store(true, Ordering::Relaxed);
-                Ok::<(), super::dynamixel::ServoError>(())
+                result
             });
             let mut scans: Vec<(f64, Vec<f32>)> = Vec::new();
             let mut failure: Option<String> = None;
+            let mut last_timeout: Option<String> = None;
             if let Some(l) = lidar.as_mut() {
                 while !done.load(Ordering::Relaxed) {
                     if cancel.is_cancelled() {
@@ -370,8 +379,15 @@ impl Source for HardwareSource {
                             failure = Some(format!("row {}: {e}", scans.len()));
                             break;
                         }
-                        Err(_) => {}
+                        Err(e) => {
+                            let timed_out = matches!(e, super::scip::LidarError::Timeout { .. });
+                            last_timeout = timed_out.then(|| format!("row {}: {e}", scans.len()));
+                        }
                     }
+                }
+                // The servo finished while the lidar had stopped sending: the rows stop short.
+                if failure.is_none() && l.errors_in_a_row() > 0 {
+                    failure = last_timeout.take();
                 }
             }
             done.store(true, Ordering::Relaxed);

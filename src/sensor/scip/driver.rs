@@ -49,7 +49,7 @@ impl Default for LidarConfig {
             error_limit: 4,
             connect_tries: 4,
             retry_delay_s: 0.5,
-            time_exchanges: 10,
+            time_exchanges: 20,
         }
     }
 }

@@ -62,32 +62,16 @@ impl Pty {
         Ok(())
     }
 
-    /// The baud rate the slave is set to (what the driver asked for), if a standard one.
+    /// The baud rate the slave is set to (what the driver asked for), read with `TCGETS2`
+    /// (a driver may set any rate, as `serialport` does with `BOTHER`).
     pub fn baud(&self) -> Option<u32> {
         let fd = self.slave.as_raw_fd();
-        // SAFETY: as in make_raw.
-        let mut t: libc::termios = unsafe { std::mem::zeroed() };
-        if unsafe { libc::tcgetattr(fd, &mut t) } != 0 {
+        // SAFETY: termios2 is plain data; the ioctl fills it from a valid tty fd, or fails.
+        let mut t: libc::termios2 = unsafe { std::mem::zeroed() };
+        if unsafe { libc::ioctl(fd, libc::TCGETS2, &mut t) } != 0 {
             return None;
         }
-        // SAFETY: cfgetospeed reads the filled struct.
-        let speed = unsafe { libc::cfgetospeed(&t) };
-        let table = [
-            (libc::B9600, 9_600),
-            (libc::B19200, 19_200),
-            (libc::B38400, 38_400),
-            (libc::B57600, 57_600),
-            (libc::B115200, 115_200),
-            (libc::B230400, 230_400),
-            (libc::B460800, 460_800),
-            (libc::B500000, 500_000),
-            (libc::B921600, 921_600),
-            (libc::B1000000, 1_000_000),
-            (libc::B2000000, 2_000_000),
-            (libc::B3000000, 3_000_000),
-            (libc::B4000000, 4_000_000),
-        ];
-        table.iter().find(|(b, _)| *b == speed).map(|(_, n)| *n)
+        Some(t.c_ospeed)
     }
 
     /// Hangs up: the master and the emulator's slave are closed, the driver's next read fails
