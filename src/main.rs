@@ -37,6 +37,9 @@ enum Command {
     Regress(cli::regress::RegressArgs),
     /// Build a scenario's world: print its ground truth, optionally write the MJCF.
     Scene(cli::scene::SceneArgs),
+    /// The sensor head in software: a SCIP 2.0 lidar (TCP or pty) and an MX-64 (pty) seeing a
+    /// scenario's world, to try the hardware path (`--hardware`) without hardware.
+    Emulate(cli::emulate::EmulateArgs),
     /// Measure speed (rays per second of the simulated lidar, ...).
     Bench(cli::bench::BenchArgs),
 }
@@ -54,6 +57,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Scan(a) => cli::scan::run(a),
         Command::Scene(a) => cli::scene::run(a),
+        Command::Emulate(a) => cli::emulate::run(a),
         Command::Perceive(a) => cli::perceive::run(a),
         Command::Polygon(a) => cli::polygon::run(a),
         Command::Plan(a) => cli::plan::run(a),
@@ -65,8 +69,24 @@ fn main() -> ExitCode {
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_chain(&e));
             ExitCode::from(2)
         }
     }
+}
+
+/// An error and its causes, each cause left out where the message before already says it
+/// (errors that name their source in their own message would otherwise say it twice).
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if !out.contains(&text) {
+            if !out.is_empty() {
+                out.push_str(": ");
+            }
+            out.push_str(&text);
+        }
+    }
+    out
 }

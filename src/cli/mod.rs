@@ -2,10 +2,12 @@
 //! recordings).
 
 pub mod bench;
+pub mod emulate;
 pub mod perceive;
 pub mod plan;
 pub mod polygon;
 pub mod regress;
+pub mod rehearse;
 pub mod replay;
 pub mod run;
 pub mod scan;
@@ -62,7 +64,9 @@ fn resolve_scenario(arg: &Path) -> Result<PathBuf> {
     let known: Vec<String> = std::fs::read_dir(SCENARIO_DIR)
         .map(|d| {
             d.filter_map(|e| e.ok())
-                .filter_map(|e| e.path().file_stem().map(|s| s.to_string_lossy().into_owned()))
+                .map(|e| e.path())
+                .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+                .filter_map(|p| p.file_stem().map(|s| s.to_string_lossy().into_owned()))
                 .collect()
         })
         .unwrap_or_default();
@@ -104,16 +108,83 @@ pub fn start_recording(
     scenario: &Scenario,
     params: &impl serde::Serialize,
 ) -> Result<stairbench::record::Recorder> {
+    let attached = ("scenario.toml", toml::to_string(scenario)?);
+    open_recording(path, command, &scenario.name, attached, toml::to_string(params)?)
+}
+
+/// Opens a recording of the hardware path: the hardware file and the parameters attached.
+pub fn start_hardware_recording(
+    path: &Path,
+    command: &str,
+    hardware: &stairbench::sensor::hardware::HardwareConfig,
+    params: &impl serde::Serialize,
+) -> Result<stairbench::record::Recorder> {
+    let attached = ("hardware.toml", toml::to_string(hardware)?);
+    open_recording(path, command, "hardware", attached, toml::to_string(params)?)
+}
+
+/// A new recording: the command, version and `source` as metadata, `attached` (a file name
+/// and its TOML) and the parameters as attachments.
+fn open_recording(
+    path: &Path,
+    command: &str,
+    source: &str,
+    attached: (&str, String),
+    params_toml: String,
+) -> Result<stairbench::record::Recorder> {
     ensure_parent(path)?;
     let model = stairbench::robot::hrp4::model()?;
     let mut rec = stairbench::record::Recorder::create(path, &model)?;
     let meta = [
         ("command".to_string(), command.to_string()),
         ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
-        ("scenario".to_string(), scenario.name.clone()),
+        ("scenario".to_string(), source.to_string()),
     ];
     rec.metadata("stairbench", meta.into_iter().collect());
-    rec.attach("scenario.toml", "application/toml", toml::to_string(scenario)?.as_bytes());
-    rec.attach("params.toml", "application/toml", toml::to_string(params)?.as_bytes());
+    rec.attach(attached.0, "application/toml", attached.1.as_bytes());
+    rec.attach("params.toml", "application/toml", params_toml.as_bytes());
     Ok(rec)
+}
+
+/// One sweep of the real sensor head of the hardware file `path` (or of `stairbench emulate`),
+/// with a progress bar; Ctrl-C stops it. A sweep cut short is recorded as far as it went
+/// (when recording) and is an error naming the row and the cause.
+pub fn hardware_sweep(
+    path: &Path,
+    quiet: bool,
+    mut recorder: Option<&mut stairbench::record::Recorder>,
+) -> Result<(stairbench::sensor::hardware::HardwareConfig, stairbench::sensor::Sweep)> {
+    use stairbench::sensor::hardware::{standing_head_pose, HardwareConfig, HardwareSource};
+    use stairbench::sensor::{SensorError, Source};
+    let cfg = HardwareConfig::load(path)?;
+    let cancel = stairbench::cancel::Cancel::new();
+    let on_signal = cancel.clone();
+    if ctrlc::set_handler(move || on_signal.cancel()).is_err() {
+        eprintln!("warning: Ctrl-C will not stop the sweep cleanly");
+    }
+    let mut source = HardwareSource::new(&cfg, standing_head_pose()?, |m| eprintln!("{m}"));
+    let bar = progress_bar(0, "sweep", quiet);
+    let result = source.sweep(&cancel, &mut |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    });
+    bar.finish_and_clear();
+    match result {
+        Ok(sweep) => {
+            if let Some(rec) = recorder.as_deref_mut() {
+                let stamp_s = sweep.rows.last().map_or(0.0, |r| r.stamp_s);
+                rec.sweep(stamp_s, &sweep);
+            }
+            Ok((cfg, sweep))
+        }
+        Err(SensorError::Cut { partial, why }) => {
+            if let Some(rec) = recorder {
+                let stamp_s = partial.rows.last().map_or(0.0, |r| r.stamp_s);
+                rec.sweep(stamp_s, &partial);
+                eprintln!("the {} rows received are in the recording", partial.rows.len());
+            }
+            bail!("the sweep was cut after {} rows: {why}", partial.rows.len())
+        }
+        Err(e) => Err(e.into()),
+    }
 }

@@ -37,6 +37,10 @@ pub struct PerceiveArgs {
     /// Run the pipeline this many times and report the run of median total time.
     #[arg(long, default_value_t = 1)]
     repeat: usize,
+    /// Sweep the real sensor head of this hardware file (or `stairbench emulate`) and find
+    /// the steps in its cloud.
+    #[arg(long, value_name = "FILE.toml", conflicts_with = "input")]
+    hardware: Option<PathBuf>,
 }
 
 /// `--search` values.
@@ -54,6 +58,10 @@ enum Input {
 }
 
 fn load(a: &PerceiveArgs) -> Result<Input> {
+    if let Some(hw) = &a.hardware {
+        let (_, sweep) = super::hardware_sweep(hw, a.json, None)?;
+        return Ok(Input::Cloud(sweep.assemble(&AssembleParams::default())?));
+    }
     let ext =
         a.input.as_deref().and_then(Path::extension).and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match (a.input.as_deref(), ext.as_deref()) {

@@ -206,7 +206,8 @@ fn print_tables(p: &Plan, wall_s: f64) {
     );
 }
 
-fn write_csv(path: &Path, model: &RobotModel, traj: &JointTrajectory) -> Result<()> {
+/// Writes q(t) as CSV: t_s, the base x y z qw qx qy qz, then one column per joint.
+pub fn write_csv(path: &Path, model: &RobotModel, traj: &JointTrajectory) -> Result<()> {
     let mut f = std::io::BufWriter::new(
         std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?,
     );

@@ -54,6 +54,15 @@ pub struct RunArgs {
     /// Save what --rerun would show to this .rrd file (open it with `rerun FILE.rrd`).
     #[arg(long, value_name = "FILE.rrd")]
     rrd: Option<PathBuf>,
+    /// Rehearsal with the real sensors of this hardware file: one sweep, the steps perceived,
+    /// the climb planned and executed in MuJoCo on a world built from those steps with every
+    /// check; the trajectory is written (CSV, and MCAP with --record) only if it passes.
+    /// Nothing commands the robot's joints.
+    #[arg(long, value_name = "FILE.toml", conflicts_with_all = ["scenario", "speed_margin", "rerun", "rrd"])]
+    hardware: Option<PathBuf>,
+    /// With --hardware: where the rehearsed trajectory goes.
+    #[arg(long, value_name = "FILE.csv", default_value = "out/hardware/trajectory.csv")]
+    trajectory: PathBuf,
 }
 
 /// Runs `stairbench run`; exit code 0 when the climb succeeded (or, for a scenario with an
@@ -74,6 +83,9 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         a.speedup
     );
     params.plan = params.plan.faster(a.speedup);
+    if let Some(hw) = &a.hardware {
+        return super::rehearse::run(hw, &params, a.record.as_deref(), &a.trajectory);
+    }
     if a.speed_margin {
         return run_speed_margin(&scenario, &params, &a);
     }

@@ -26,10 +26,57 @@ pub struct ScanArgs {
     /// Also record the sweep (raw rows, the cloud) to this MCAP file.
     #[arg(long, value_name = "FILE.mcap")]
     record: Option<PathBuf>,
+    /// Sweep the real sensor head of this hardware file (a Hokuyo on TCP or serial and the
+    /// Dynamixel servo; or `stairbench emulate`) instead of a scenario's simulated one.
+    #[arg(long, value_name = "FILE.toml", conflicts_with_all = ["scenario", "noise_mm", "seed"])]
+    hardware: Option<PathBuf>,
+}
+
+/// `scan --hardware`: a sweep of the real head, to a cloud (and a recording).
+fn run_hardware(a: &ScanArgs, hardware: &std::path::Path) -> Result<ExitCode> {
+    let format = CloudFormat::from_path(&a.output)
+        .with_context(|| format!("{}: the extension must be .ply or .pcd", a.output.display()))?;
+    let hw = stairbench::sensor::hardware::HardwareConfig::load(hardware)?;
+    let mut rec = a
+        .record
+        .as_ref()
+        .map(|p| super::start_hardware_recording(p, "scan --hardware", &hw, &ClimbParams::default()))
+        .transpose()?;
+    let t0 = Instant::now();
+    let swept = super::hardware_sweep(hardware, a.quiet, rec.as_mut());
+    let (_, sweep) = match swept {
+        Ok(x) => x,
+        Err(e) => {
+            if let (Some(r), Some(p)) = (rec, &a.record) {
+                r.finish().with_context(|| format!("recording {} failed", p.display()))?;
+            }
+            return Err(e);
+        }
+    };
+    let cloud = sweep.assemble(&AssembleParams::default())?;
+    if let (Some(mut r), Some(p)) = (rec, &a.record) {
+        r.cloud(sweep.rows.last().map_or(0.0, |r| r.stamp_s), &cloud);
+        let n = r.finish().with_context(|| format!("recording {} failed", p.display()))?;
+        println!("recorded {n} messages to {}", p.display());
+    }
+    super::ensure_parent(&a.output)?;
+    write_cloud(&cloud, &a.output, format)?;
+    println!(
+        "hardware sweep: {} rows x {} beams in {:.2} s, {} points; cloud written to {}",
+        sweep.rows.len(),
+        sweep.lidar.beams(),
+        t0.elapsed().as_secs_f64(),
+        cloud.len(),
+        a.output.display()
+    );
+    Ok(ExitCode::SUCCESS)
 }
 
 /// Runs `stairbench scan`.
 pub fn run(a: ScanArgs) -> Result<ExitCode> {
+    if let Some(hw) = &a.hardware {
+        return run_hardware(&a, hw);
+    }
     let mut scenario = super::load_scenario(a.scenario.as_deref())?;
     a.noise.apply(&mut scenario);
     let format = CloudFormat::from_path(&a.output)

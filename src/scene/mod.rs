@@ -117,6 +117,52 @@ impl Scene {
         Ok(Self { name: s.name.clone(), boxes, steps, ascent_yaw_rad: yaw, robot_start })
     }
 
+    /// A world built from perceived steps, for rehearsing a plan before the real robot moves
+    /// (`run --hardware`): a floor, and under each rectangle a solid box from the floor to it,
+    /// turned with it; the robot at the origin facing +x (the frame the hardware path
+    /// perceives in). The rectangles are the ground truth the checks judge by. No walls, no
+    /// ceiling: only what perception saw stands there.
+    pub fn rehearsal(name: &str, steps: &[crate::perception::PlaneSegment], friction: f64) -> Self {
+        let mut boxes = Vec::new();
+        let extent = steps
+            .iter()
+            .flat_map(|s| s.corners().iter().map(|c| c.x.abs().max(c.y.abs())))
+            .fold(3.0_f64, f64::max)
+            + 2.0;
+        boxes.push(SceneBox::new(
+            "floor",
+            SurfaceRole::Floor,
+            Point3::new(0.0, 0.0, -SLAB_M / 2.0),
+            Vector3::new(extent, extent, SLAB_M / 2.0),
+            0.0,
+            0.8,
+        ));
+        let mut tops = Vec::new();
+        let mut by_height: Vec<&crate::perception::PlaneSegment> = steps.iter().collect();
+        by_height.sort_by(|a, b| a.height_m().total_cmp(&b.height_m()));
+        for (i, r) in by_height.iter().enumerate() {
+            let (c, along, h) = (r.center(), r.along(), r.height_m().max(0.005));
+            let b = SceneBox::new(
+                &format!("step_{}", i + 1),
+                SurfaceRole::Step(i),
+                Point3::new(c.x, c.y, h / 2.0),
+                Vector3::new(r.depth_m() / 2.0, r.width_m() / 2.0, h / 2.0),
+                along.y.atan2(along.x),
+                friction,
+            );
+            tops.push(StepTop::of_box(i, &b));
+            boxes.push(b);
+        }
+        let ascent_yaw_rad = by_height.first().map_or(0.0, |r| r.along().y.atan2(r.along().x));
+        Self {
+            name: name.to_string(),
+            boxes,
+            steps: tops,
+            ascent_yaw_rad,
+            robot_start: Isometry3::identity(),
+        }
+    }
+
     /// The scenario's name.
     pub fn name(&self) -> &str {
         &self.name

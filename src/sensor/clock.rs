@@ -17,6 +17,19 @@ pub fn host_now_s() -> f64 {
     ORIGIN.get_or_init(std::time::Instant::now).elapsed().as_secs_f64()
 }
 
+/// CPU time the calling thread has used, seconds (for the drivers' CPU share; NaN where the
+/// clock cannot be read).
+pub fn thread_cpu_s() -> f64 {
+    let mut t = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: clock_gettime writes one timespec through the pointer it is given, a local here.
+    let ok = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) } == 0;
+    if ok {
+        t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
+    } else {
+        f64::NAN
+    }
+}
+
 /// One time exchange.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Exchange {

@@ -9,6 +9,7 @@
 //! Gravity comes from the configuration (the robot standing still, §4.1), the mount's pose
 //! from the robot standing in half-sitting with its feet at the origin.
 
+use super::clock;
 use super::dynamixel::{Servo, ServoConfig};
 use super::scip::{Lidar, LidarConfig};
 use super::{LidarModel, ScanRow, SensorError, Source, Sweep};
@@ -162,6 +163,23 @@ pub struct HardwareSource {
     servo: Option<Servo>,
     head_to_world: Isometry3<f64>,
     log: fn(&str),
+    last: Option<SweepStats>,
+}
+
+/// How the drivers kept up during the last sweep's streaming (from the lidar's start to the
+/// servo's arrival at the end of the sweep).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SweepStats {
+    /// Scans received from the lidar.
+    pub scans: usize,
+    /// Positions read from the servo.
+    pub readings: usize,
+    /// Wall time the streaming took, seconds.
+    pub streaming_s: f64,
+    /// CPU time of the thread reading the servo, seconds.
+    pub servo_cpu_s: f64,
+    /// CPU time of the thread reading the lidar, seconds.
+    pub lidar_cpu_s: f64,
 }
 
 /// A servo reading: host time and tilt, seconds and radians.
@@ -194,7 +212,12 @@ impl HardwareSource {
     /// world); connects nothing yet (the first sweep does).
     pub fn new(cfg: &HardwareConfig, head_to_world: Isometry3<f64>, log: fn(&str)) -> Self {
         let model = LidarModel::from_spec(&cfg.lidar_spec());
-        Self { cfg: cfg.clone(), model, lidar: None, servo: None, head_to_world, log }
+        Self { cfg: cfg.clone(), model, lidar: None, servo: None, head_to_world, log, last: None }
+    }
+
+    /// How the drivers kept up during the last sweep (`None` before one streamed).
+    pub fn last_stats(&self) -> Option<SweepStats> {
+        self.last
     }
 
     /// The lidar model in use.
@@ -338,8 +361,10 @@ impl Source for HardwareSource {
         let mut lidar = self.lidar.take();
         let model = self.model.clone();
         let limit_s = (end - start).abs() / speed * 1.5 + 2.0;
+        let streaming = Instant::now();
         let (servo_result, lidar_result) = std::thread::scope(|scope| {
             let reader = scope.spawn(|| {
+                let cpu0_s = clock::thread_cpu_s();
                 let mut read = || {
                     let Some(s) = servo.as_mut() else { return Ok(()) };
                     let started = Instant::now();
@@ -359,8 +384,9 @@ impl Source for HardwareSource {
                 let result = read();
                 // However the servo's side ended (its end reached, an error), the lidar's stops.
                 done.store(true, Ordering::Relaxed);
-                result
+                (result, clock::thread_cpu_s() - cpu0_s)
             });
+            let cpu0_s = clock::thread_cpu_s();
             let mut scans: Vec<(f64, Vec<f32>)> = Vec::new();
             let mut failure: Option<String> = None;
             let mut last_timeout: Option<String> = None;
@@ -376,12 +402,13 @@ impl Source for HardwareSource {
                             on_rows(scans.len(), expected_rows);
                         }
                         Err(e) if e.link_lost() || l.should_reconnect() => {
-                            failure = Some(format!("row {}: {e}", scans.len()));
+                            failure = Some(format!("scan {} of the stream: {e}", scans.len() + 1));
                             break;
                         }
                         Err(e) => {
                             let timed_out = matches!(e, super::scip::LidarError::Timeout { .. });
-                            last_timeout = timed_out.then(|| format!("row {}: {e}", scans.len()));
+                            last_timeout =
+                                timed_out.then(|| format!("scan {} of the stream: {e}", scans.len() + 1));
                         }
                     }
                 }
@@ -391,13 +418,22 @@ impl Source for HardwareSource {
                 }
             }
             done.store(true, Ordering::Relaxed);
-            let servo_result = reader.join().unwrap_or(Ok(()));
-            (servo_result, (scans, failure))
+            let lidar_cpu_s = clock::thread_cpu_s() - cpu0_s;
+            let servo_result = reader.join().unwrap_or((Ok(()), f64::NAN));
+            (servo_result, (scans, failure, lidar_cpu_s))
         });
+        let streaming_s = streaming.elapsed().as_secs_f64();
         self.servo = servo;
         self.lidar = lidar;
-        let (scans, lidar_failure) = lidar_result;
+        let ((servo_result, servo_cpu_s), (scans, lidar_failure, lidar_cpu_s)) = (servo_result, lidar_result);
         let readings = readings.into_inner().unwrap_or_default();
+        self.last = Some(SweepStats {
+            scans: scans.len(),
+            readings: readings.len(),
+            streaming_s,
+            servo_cpu_s,
+            lidar_cpu_s,
+        });
         let rows = self.rows(&scans, &readings);
         let why = match (servo_result, lidar_failure) {
             (Err(e), _) => Some((format!("servo: {e}"), false, true)),

@@ -8,6 +8,7 @@
 pub mod assemble;
 pub mod clock;
 pub mod dynamixel;
+pub mod fuzz;
 pub mod hardware;
 pub mod lidar;
 pub mod link;

@@ -2,6 +2,8 @@
 //! process, printed as a Markdown table and optionally written into BENCHMARKS.md.
 
 mod climb;
+mod fuzz;
+mod hardware;
 mod lidar;
 mod perceive;
 mod plan;
@@ -34,6 +36,12 @@ pub struct BenchArgs {
     /// the same exported cloud. Default: /tmp/peers/build/pcl_pipeline when it exists.
     #[arg(long)]
     pcl: Option<PathBuf>,
+    /// Fuzz: inputs per parser.
+    #[arg(long, default_value_t = 1_000_000)]
+    inputs: u64,
+    /// Fuzz: the seed of the inputs (a failure names its chunk and index under it).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
 }
 
 /// The benchmarks.
@@ -53,17 +61,30 @@ pub enum BenchWhat {
     Climb,
     /// The robot's kinematics (FK, Jacobians, CoM) against MuJoCo's, and simulation speed.
     Robot,
+    /// The device parsers (SCIP 2.0, Dynamixel 1.0 and 2.0) on --inputs seeded mutated and
+    /// arbitrary inputs each: failures (panics, loops) and speed. Exits non-zero on a failure.
+    Fuzz,
+    /// The hardware drivers against the emulator (a child process): rows and servo readings per
+    /// second against the devices' rates, and the CPU share of the driver threads.
+    Hardware,
 }
 
 /// Runs `stairbench bench`.
 pub fn run(a: BenchArgs) -> Result<ExitCode> {
     let repeat = a.repeat.max(1);
+    let mut passed = true;
     let (key, table) = match a.what {
         BenchWhat::Lidar => ("lidar", lidar::run(repeat)?),
         BenchWhat::Robot => ("robot", robot::run(repeat)?),
         BenchWhat::Polygon => ("polygon", polygon::run(repeat)?),
         BenchWhat::Plan => ("plan", plan::run(repeat)?),
         BenchWhat::Climb => ("climb", climb::run(repeat)?),
+        BenchWhat::Hardware => ("hardware", hardware::run(repeat)?),
+        BenchWhat::Fuzz => {
+            let (table, ok) = fuzz::run(a.inputs, a.seed)?;
+            passed = ok;
+            ("fuzz", table)
+        }
         BenchWhat::Perceive => {
             let plot =
                 a.plot.clone().or_else(|| a.write.as_ref().map(|w| w.with_file_name("fig5-perception.png")));
@@ -75,7 +96,7 @@ pub fn run(a: BenchArgs) -> Result<ExitCode> {
         write_section(&path, key, &table)?;
         println!("written to {}", path.display());
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(if passed { ExitCode::SUCCESS } else { ExitCode::FAILURE })
 }
 
 /// Median wall time of `f` over `repeat` runs, seconds.

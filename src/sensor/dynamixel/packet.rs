@@ -226,23 +226,27 @@ impl PacketReader {
             }
             self.echo = None;
         }
-        loop {
+        // Bytes passed over are dropped at once at the end (not one shift of the buffer each).
+        let mut at = 0;
+        let packet = loop {
             let found = match self.protocol {
-                Protocol::One => find1(&self.buf),
-                Protocol::Two => find2(&self.buf),
+                Protocol::One => find1(&self.buf[at..]),
+                Protocol::Two => find2(&self.buf[at..]),
             };
             match found {
                 Found::Packet(p, n) => {
-                    self.buf.drain(..n);
-                    return Some(p);
+                    at += n;
+                    break Some(p);
                 }
                 Found::Skip => {
-                    self.buf.remove(0);
+                    at += 1;
                     self.dropped += 1;
                 }
-                Found::More => return None,
+                Found::More => break None,
             }
-        }
+        };
+        self.buf.drain(..at);
+        packet
     }
 }
 

@@ -66,6 +66,9 @@ pub enum MessageError {
 #[derive(Debug, Default)]
 pub struct Reader {
     buf: Vec<u8>,
+    /// The front of `buf` already searched for a reply's end (a reply arriving a byte at a
+    /// time is searched once, not once per byte).
+    searched: usize,
 }
 
 impl Reader {
@@ -87,6 +90,7 @@ impl Reader {
     /// Drops everything held (after a reconnection).
     pub fn clear(&mut self) {
         self.buf.clear();
+        self.searched = 0;
     }
 
     /// The next whole reply, an error for a bad one (its bytes are consumed), or `None` when
@@ -96,15 +100,20 @@ impl Reader {
         let start = self.buf.iter().position(|&b| b != b'\n' && b != b'\r').unwrap_or(self.buf.len());
         if start > 0 {
             self.buf.drain(..start);
+            self.searched = self.searched.saturating_sub(start);
         }
-        let Some(end) = self.buf.windows(2).position(|w| w == b"\n\n") else {
+        // The last byte searched may be the first of the end.
+        let from = self.searched.saturating_sub(1);
+        let Some(end) = self.buf[from..].windows(2).position(|w| w == b"\n\n").map(|e| e + from) else {
             if self.buf.len() > MAX_MESSAGE_BYTES {
                 let bytes = self.buf.len();
-                self.buf.clear();
+                self.clear();
                 return Some(Err(MessageError::Overlong { bytes }));
             }
+            self.searched = self.buf.len();
             return None;
         };
+        self.searched = 0;
         let raw: Vec<u8> = self.buf.drain(..end + 2).collect();
         Some(parse(&raw[..end]))
     }
