@@ -3,6 +3,7 @@
 //! what it reached (CoM, feet) and how closely it tracked.
 
 use super::clearance::{self, Limb};
+use super::footholds::Foot;
 use super::gait::{Segment, Swing};
 use super::ik::{self, Task};
 use super::PlanError;
@@ -233,6 +234,177 @@ fn clearance_rows(
     least
 }
 
+/// What one IK tick tracks: the CoM (position, velocity), the free foot (pose, twist), and the
+/// feet held in contact (their poses).
+#[derive(Debug, Clone)]
+pub struct Targets<'a> {
+    /// CoM wanted, world frame.
+    pub com: Point3<f64>,
+    /// CoM velocity wanted (feed-forward), m/s.
+    pub com_velocity: nalgebra::Vector3<f64>,
+    /// The free foot, its pose and twist (linear, angular; world).
+    pub swing: Option<(Foot, Isometry3<f64>, Vector6<f64>)>,
+    /// The feet held in contact and where.
+    pub support: &'a [(Foot, Isometry3<f64>)],
+}
+
+/// The QP IK of §6.1 as a stream of ticks from a configuration: the planner runs it over the
+/// gait ([`track`]), the stabilizer online with corrected targets. It keeps its own
+/// configuration (integrated from the velocities it solves, as a robot's controller does).
+pub struct Tracker<'m> {
+    model: &'m RobotModel,
+    p: IkParams,
+    kin: Kinematics<'m>,
+    feet: [usize; 2],
+    q: Vec<f64>,
+    q_ref: Vec<f64>,
+    upper: Vec<bool>,
+    limbs: Vec<Limb>,
+    blocks: Vec<SceneBox>,
+    base_ref: nalgebra::UnitQuaternion<f64>,
+    com_jac: nalgebra::Matrix3xX<f64>,
+    frame_jac: nalgebra::Matrix6xX<f64>,
+    qp: ik::Solver,
+    legs: ik::Inequality,
+    least: Option<(f64, usize, usize)>,
+}
+
+impl<'m> Tracker<'m> {
+    /// A tracker from configuration `q0` (whose joints are also the posture term's reference
+    /// and whose base orientation the base task holds), keeping the legs `p.leg_clearance_m`
+    /// off `blocks`.
+    pub fn new(
+        model: &'m RobotModel,
+        q0: &[f64],
+        blocks: &[SceneBox],
+        p: &IkParams,
+    ) -> Result<Self, PlanError> {
+        let mut kin = Kinematics::new(model);
+        kin.update(q0)?;
+        let feet = hrp4::sole_frames(model)?;
+        let upper = upper_body_mask(model, &feet);
+        let limbs = clearance::limbs(model, &feet);
+        let base_ref = kin.link_pose(0).rotation;
+        let (com_jac, frame_jac) = (kin.new_com_jacobian(), kin.new_frame_jacobian());
+        let legs = ik::Inequality {
+            jacobian: nalgebra::DMatrix::zeros(limbs.len(), model.nv()),
+            bound: nalgebra::DVector::zeros(limbs.len()),
+        };
+        let mut t = Self {
+            model,
+            p: p.clone(),
+            kin,
+            feet,
+            q: q0.to_vec(),
+            q_ref: q0[Q_JOINTS..].to_vec(),
+            upper,
+            limbs,
+            blocks: blocks.to_vec(),
+            base_ref,
+            com_jac,
+            frame_jac,
+            qp: ik::Solver::with_tolerance(model.nv(), p.damping, p.qp_tolerance),
+            legs,
+            least: None,
+        };
+        t.least = clearance_rows(&t.kin, &mut t.frame_jac, &t.limbs, &t.blocks, &t.p, &mut t.legs);
+        Ok(t)
+    }
+
+    /// The configuration reached.
+    pub fn q(&self) -> &[f64] {
+        &self.q
+    }
+
+    /// The kinematics at the configuration reached.
+    pub fn kinematics(&self) -> &Kinematics<'m> {
+        &self.kin
+    }
+
+    /// The sole frames, right then left.
+    pub fn sole_frames(&self) -> [usize; 2] {
+        self.feet
+    }
+
+    /// The least clearance between a leg capsule and a step at the configuration reached,
+    /// with the capsule's index and the step's (`None` when none is within range).
+    pub fn least_clearance(&self) -> Option<(f64, usize, usize)> {
+        self.least
+    }
+
+    /// The leg capsules' names, by index.
+    pub fn limb_name(&self, limb: usize) -> &str {
+        &self.limbs[limb].name
+    }
+
+    /// One QP toward `targets`, integrated over `dt_s`.
+    pub fn tick(&mut self, targets: &Targets, dt_s: f64) -> Result<(), ik::IkError> {
+        let p = &self.p;
+        let mut tasks: Vec<Task> = vec![ik::com_task(
+            &self.kin,
+            &mut self.com_jac,
+            &targets.com,
+            &targets.com_velocity,
+            p.task_gain_per_s,
+            p.weight_com,
+        )];
+        if let Some((foot, pose, twist)) = &targets.swing {
+            tasks.push(ik::frame_task(
+                &self.kin,
+                &mut self.frame_jac,
+                self.feet[foot.index()],
+                pose,
+                twist,
+                p.task_gain_per_s,
+                p.weight_free_foot,
+            ));
+        }
+        tasks.push(ik::posture_task(
+            self.model,
+            &self.q,
+            &self.q_ref,
+            &self.upper,
+            p.posture_gain_per_s,
+            p.weight_posture,
+        ));
+        tasks.push(ik::base_orientation_task(
+            &self.kin,
+            &mut self.frame_jac,
+            &self.base_ref,
+            p.posture_gain_per_s,
+            p.weight_posture,
+        ));
+        let equalities: Vec<ik::Equality> = targets
+            .support
+            .iter()
+            .map(|(f, pose)| {
+                ik::contact(&self.kin, &mut self.frame_jac, self.feet[f.index()], pose, p.contact_gain_per_s)
+            })
+            .collect();
+        let bounds = [ik::joint_limits(self.model, &self.q, p.max_joint_speed_rad_s, p.limit_gain_per_s)];
+        let qd = self.qp.solve(&tasks, &equalities, std::slice::from_ref(&self.legs), &bounds)?;
+        ik::integrate(&mut self.q, qd.as_slice(), dt_s);
+        self.kin.update(&self.q).map_err(|e| ik::IkError::Setup(e.to_string()))?;
+        self.least =
+            clearance_rows(&self.kin, &mut self.frame_jac, &self.limbs, &self.blocks, p, &mut self.legs);
+        Ok(())
+    }
+}
+
+/// The free foot's target at fraction `tau` of segment `seg` (`None` without one).
+pub fn swing_target(seg: &Segment, tau: f64) -> Option<(Foot, Isometry3<f64>, Vector6<f64>)> {
+    seg.swing.as_ref().map(|sw| {
+        let (pose, twist) = along_path(sw, tau, seg.duration_s);
+        (sw.foot, pose, twist)
+    })
+}
+
+/// The CoM's position and velocity at fraction `tau` of segment `seg`.
+pub fn com_target(seg: &Segment, tau: f64) -> (Point3<f64>, nalgebra::Vector3<f64>) {
+    let (s, ds) = ease(tau);
+    (seg.com_start + (seg.com_end - seg.com_start) * s, (seg.com_end - seg.com_start) * ds / seg.duration_s)
+}
+
 /// Tracks `segments` from configuration `q0`: one QP per sample at `p.rate_hz`, keeping the
 /// legs `p.leg_clearance_m` off the `blocks` (the steps, see [`clearance::step_blocks`]).
 pub fn track(
@@ -242,19 +414,10 @@ pub fn track(
     blocks: &[SceneBox],
     p: &IkParams,
 ) -> Result<(JointTrajectory, Tracking), PlanError> {
-    let mut kin = Kinematics::new(model);
-    kin.update(q0)?;
-    let feet = hrp4::sole_frames(model)?;
-    let q_ref: Vec<f64> = q0[Q_JOINTS..].to_vec();
-    let upper = upper_body_mask(model, &feet);
-    let limbs = clearance::limbs(model, &feet);
-    let base_ref = kin.link_pose(0).rotation;
+    let mut tracker = Tracker::new(model, q0, blocks, p)?;
+    let feet = tracker.sole_frames();
     let dt = 1.0 / p.rate_hz;
-    let mut q = q0.to_vec();
-    let mut com_jac = kin.new_com_jacobian();
-    let mut frame_jac = kin.new_frame_jacobian();
     let mut stats = Tracking::default();
-    let mut qp = ik::Solver::with_tolerance(model.nv(), p.damping, p.qp_tolerance);
     let sample = |kin: &Kinematics, q: &[f64], t_s: f64, com_ref: Point3<f64>, segment: usize| Sample {
         t_s,
         q: q.to_vec(),
@@ -263,12 +426,7 @@ pub fn track(
         feet: [kin.frame_pose(feet[0]), kin.frame_pose(feet[1])],
         segment,
     };
-    let mut samples = vec![sample(&kin, &q, 0.0, kin.com(), 0)];
-    let mut legs = ik::Inequality {
-        jacobian: nalgebra::DMatrix::zeros(limbs.len(), model.nv()),
-        bound: nalgebra::DVector::zeros(limbs.len()),
-    };
-    clearance_rows(&kin, &mut frame_jac, &limbs, blocks, p, &mut legs);
+    let mut samples = vec![sample(tracker.kinematics(), tracker.q(), 0.0, tracker.kinematics().com(), 0)];
     let mut t0 = 0.0;
     let mut tick = 0usize;
     let mut worst_com_segment = 0;
@@ -277,62 +435,31 @@ pub fn track(
         while (tick + 1) as f64 * dt <= end + 1e-9 {
             let t = (tick + 1) as f64 * dt;
             let tau = ((t - t0) / seg.duration_s).clamp(0.0, 1.0);
-            let (s, ds) = ease(tau);
-            let com_ref = seg.com_start + (seg.com_end - seg.com_start) * s;
-            let com_v = (seg.com_end - seg.com_start) * ds / seg.duration_s;
+            let (com_ref, com_v) = com_target(seg, tau);
             let started = Instant::now();
-            let mut tasks: Vec<Task> =
-                vec![ik::com_task(&kin, &mut com_jac, &com_ref, &com_v, p.task_gain_per_s, p.weight_com)];
-            if let Some(sw) = &seg.swing {
-                let (pose, twist) = along_path(sw, tau, seg.duration_s);
-                let f = feet[sw.foot.index()];
-                tasks.push(ik::frame_task(
-                    &kin,
-                    &mut frame_jac,
-                    f,
-                    &pose,
-                    &twist,
-                    p.task_gain_per_s,
-                    p.weight_free_foot,
-                ));
-            }
-            tasks.push(ik::posture_task(model, &q, &q_ref, &upper, p.posture_gain_per_s, p.weight_posture));
-            tasks.push(ik::base_orientation_task(
-                &kin,
-                &mut frame_jac,
-                &base_ref,
-                p.posture_gain_per_s,
-                p.weight_posture,
-            ));
-            let equalities: Vec<ik::Equality> = seg
-                .support
-                .iter()
-                .map(|(f, pose)| {
-                    ik::contact(&kin, &mut frame_jac, feet[f.index()], pose, p.contact_gain_per_s)
-                })
-                .collect();
-            let bounds = [ik::joint_limits(model, &q, p.max_joint_speed_rad_s, p.limit_gain_per_s)];
-            let qd = qp
-                .solve(&tasks, &equalities, std::slice::from_ref(&legs), &bounds)
-                .map_err(|error| PlanError::Ik { t_s: t, segment: si, error })?;
-            ik::integrate(&mut q, qd.as_slice(), dt);
-            kin.update(&q)?;
+            let targets = Targets {
+                com: com_ref,
+                com_velocity: com_v,
+                swing: swing_target(seg, tau),
+                support: &seg.support,
+            };
+            tracker.tick(&targets, dt).map_err(|error| PlanError::Ik { t_s: t, segment: si, error })?;
             stats.ik_time_s += started.elapsed().as_secs_f64();
             stats.ik_ticks += 1;
             tick += 1;
-            let least = clearance_rows(&kin, &mut frame_jac, &limbs, blocks, p, &mut legs);
-            if let Some((d, limb, block)) = least {
+            if let Some((d, limb, block)) = tracker.least_clearance() {
                 stats.min_leg_clearance_m = Some(stats.min_leg_clearance_m.map_or(d, |m: f64| m.min(d)));
                 if d < 0.0 {
                     return Err(PlanError::LimbTouchesStep {
                         segment: si,
-                        limb: limbs[limb].name.clone(),
+                        limb: tracker.limb_name(limb).to_string(),
                         step: block,
                         depth_m: -d,
                         t_s: t,
                     });
                 }
             }
+            let kin = tracker.kinematics();
             let com_error = (kin.com() - com_ref).norm();
             if com_error > stats.max_com_error_m {
                 stats.max_com_error_m = com_error;
@@ -343,12 +470,12 @@ pub fn track(
                 stats.max_contact_drift_m =
                     stats.max_contact_drift_m.max((at.translation.vector - pose.translation.vector).norm());
             }
-            samples.push(sample(&kin, &q, t, com_ref, si));
+            samples.push(sample(kin, tracker.q(), t, com_ref, si));
         }
         if let Some(sw) = &seg.swing {
             let f = feet[sw.foot.index()];
             let target = sw.path[sw.path.len() - 1].translation.vector;
-            let err = (kin.frame_pose(f).translation.vector - target).norm();
+            let err = (tracker.kinematics().frame_pose(f).translation.vector - target).norm();
             stats.max_touchdown_error_m = stats.max_touchdown_error_m.max(err);
             if err > p.foot_tolerance_m {
                 return Err(PlanError::FootMisses {
