@@ -13,6 +13,7 @@
 pub mod cancel;
 pub mod climb;
 pub mod cloud;
+pub mod control;
 pub mod geom2d;
 pub mod params;
 pub mod perception;

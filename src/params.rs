@@ -4,11 +4,13 @@
 //! settings. Fields left out keep their defaults; unknown fields are refused.
 
 use crate::climb::{LoopParams, RunParams};
+use crate::control::StabilizerParams;
 use crate::perception::step_map::StepMapParams;
 use crate::perception::PerceptionParams;
 use crate::planning::PlanParams;
 use crate::sim::checks::CheckParams;
 use crate::sim::execute::ServoParams;
+use crate::sim::sensors::SensorParams;
 
 /// Every parameter of a climb.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -22,6 +24,10 @@ pub struct ClimbParams {
     pub plan: PlanParams,
     /// The simulated robot's servos.
     pub servo: ServoParams,
+    /// The simulated robot's force/torque sensors, IMU and encoders.
+    pub sensors: SensorParams,
+    /// The stabilizer between the plan and the servos.
+    pub stabilizer: StabilizerParams,
     /// The checks.
     pub checks: CheckParams,
     /// Loop settings.

@@ -9,7 +9,6 @@ use stairbench::climb::{Check, CheckKind, ClimbReport, Execution, Footing, Nobod
 use stairbench::params::ClimbParams;
 use stairbench::perception::PlaneSegment;
 use stairbench::planning::clearance::step_blocks;
-use stairbench::planning::dd::DdParams;
 use stairbench::planning::gait::Phase;
 use stairbench::planning::motion::track;
 use stairbench::planning::RefusalKind;
@@ -18,7 +17,7 @@ use stairbench::robot::{hrp4, RobotModel};
 use stairbench::scenario::Scenario;
 use stairbench::scene::Scene;
 use stairbench::sim::checks::CheckParams;
-use stairbench::sim::execute::{execute, ServoParams};
+use stairbench::sim::execute::execute;
 use stairbench::sim::{climb_scenario, World};
 
 /// The closed loop on `s` with `p`, nothing observing.
@@ -150,21 +149,11 @@ fn settled_exp1() -> (Scene, RobotModel, World, Vec<f64>) {
     (scene, model, world, q0)
 }
 
-/// `plan` executed in `world` with the default servos and checks; its violations printed.
+/// `plan` executed in `world` with the default servos, stabilizer and checks; its
+/// violations printed.
 fn execute_checked(world: &mut World, model: &RobotModel, scene: &Scene, plan: &Plan) -> Execution {
-    let (servo, checks) = (ServoParams::default(), CheckParams::default());
-    let ex = execute(
-        world,
-        model,
-        scene,
-        plan,
-        &servo,
-        &checks,
-        &DdParams::default(),
-        &mut Nobody,
-        &Cancel::never(),
-    )
-    .expect("the world runs");
+    let ex = execute(world, model, scene, plan, &ClimbParams::default(), &mut Nobody, &Cancel::never())
+        .expect("the world runs");
     for v in &ex.violations {
         println!("t = {:.3} s {}: {}", v.t_s, v.check.kind(), v.check);
     }

@@ -120,17 +120,7 @@ pub fn run(
         Some(r) => r,
         None => &mut Nobody,
     };
-    let ex = execute(
-        &mut world,
-        &model,
-        &scene,
-        &planned,
-        &params.servo,
-        &params.checks,
-        &params.plan.step.dd,
-        observer,
-        &Cancel::never(),
-    )?;
+    let ex = execute(&mut world, &model, &scene, &planned, params, observer, &Cancel::never())?;
     for v in &ex.violations {
         println!("  t = {:.3} s  {}: {}", v.t_s, v.check.kind(), v.check);
     }

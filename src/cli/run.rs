@@ -20,10 +20,15 @@ pub struct RunArgs {
     /// The scenario (file or name in scenarios/; default: the paper's Exp. 1).
     scenario: Option<PathBuf>,
     /// Parameters as TOML: sections [perception], [step_map], [plan.gait], [plan.step]
-    /// (with [plan.step.dd]), [plan.ik], [servo], [checks], [run]; fields left out keep
-    /// their defaults, unknown fields are refused.
+    /// (with [plan.step.dd]), [plan.ik], [servo], [sensors], [stabilizer], [checks], [run];
+    /// fields left out keep their defaults, unknown fields are refused.
     #[arg(long)]
     params: Option<PathBuf>,
+    /// The stabilizer between the plan and the servos (force/torque and IMU feedback, §6.3's
+    /// future work): `on`, or `off` for the planned q(t) open loop as the paper ran it.
+    /// Overrides [stabilizer] enabled of --params.
+    #[arg(long, value_name = "on|off")]
+    stabilizer: Option<OnOff>,
     #[command(flatten)]
     noise: super::NoiseArgs,
     /// Speed the planned motion up by this factor (CoM and foot speeds, shortest
@@ -65,6 +70,15 @@ pub struct RunArgs {
     trajectory: PathBuf,
 }
 
+/// A switch's two positions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum OnOff {
+    /// On.
+    On,
+    /// Off.
+    Off,
+}
+
 /// Runs `stairbench run`; exit code 0 when the climb succeeded (or, for a scenario with an
 /// expected outcome, when the verdict passes), 1 when it failed, 130 when interrupted.
 pub fn run(a: RunArgs) -> Result<ExitCode> {
@@ -83,6 +97,9 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         a.speedup
     );
     params.plan = params.plan.faster(a.speedup);
+    if let Some(s) = a.stabilizer {
+        params.stabilizer.enabled = s == OnOff::On;
+    }
     if let Some(hw) = &a.hardware {
         return super::rehearse::run(hw, &params, a.record.as_deref(), &a.trajectory);
     }

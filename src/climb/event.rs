@@ -7,6 +7,7 @@
 use super::outcome::Violation;
 use super::report::CycleReport;
 use crate::cloud::PointCloud;
+use crate::control::TickRecord;
 use crate::perception::{Perception, PerceptionError, PlaneSegment};
 use crate::planning::Plan;
 use crate::scene::Scene;
@@ -76,6 +77,13 @@ pub enum Event<'a> {
         stamp_s: f64,
         /// The state.
         state: &'a RobotState<'a>,
+    },
+    /// A tick of the stabilizer: the wrenches it wanted and measured, its foot offsets.
+    Control {
+        /// When.
+        stamp_s: f64,
+        /// The tick.
+        tick: &'a TickRecord,
     },
     /// A check's violation (at `stamp_s`; the violation carries its time on the plan's clock).
     Violation {

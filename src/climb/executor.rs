@@ -49,6 +49,17 @@ pub struct Execution {
     pub unstable: Option<SimWarning>,
     /// The execution was cancelled before its end.
     pub cancelled: bool,
+    /// The stabilizer's cost, when it ran.
+    pub control: Option<ControlCost>,
+}
+
+/// What the stabilizer cost over an execution.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ControlCost {
+    /// Its ticks.
+    pub ticks: usize,
+    /// Their wall time, seconds.
+    pub wall_s: f64,
 }
 
 impl Execution {
@@ -68,6 +79,7 @@ impl Execution {
             fell: false,
             unstable: None,
             cancelled: false,
+            control: None,
         }
     }
 

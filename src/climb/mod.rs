@@ -13,7 +13,7 @@ pub mod report;
 pub mod speed_margin;
 
 pub use event::{Each, Event, Nobody, Observer, RobotState, Watch};
-pub use executor::{Execution, Executor, Touchdown};
+pub use executor::{ControlCost, Execution, Executor, Touchdown};
 pub use outcome::{Check, CheckKind, SimWarning, StopReason, Violation};
 pub use report::{ClimbReport, CycleReport, Footing, StageTimes};
 

@@ -117,6 +117,7 @@ pub struct Solver {
     damping: f64,
     tolerance: f64,
     qp: Option<(Shape, DefaultSolver<f64>)>,
+    fast_path: bool,
     h: DMatrix<f64>,
     c: DVector<f64>,
     p_values: Vec<f64>,
@@ -139,12 +140,60 @@ impl Solver {
             damping,
             tolerance,
             qp: None,
+            fast_path: false,
             h: DMatrix::zeros(nv, nv),
             c: DVector::zeros(nv),
             p_values: Vec::new(),
             a_values: Vec::new(),
             b: Vec::new(),
         }
+    }
+
+    /// The same solver trying the equality-constrained least squares first (one dense KKT
+    /// solve): when its solution meets every inequality and bound, it is the QP's optimum
+    /// (the inequalities are inactive), found exactly instead of to the interior-point
+    /// tolerance; otherwise clarabel solves the QP as before. For online use, where most
+    /// ticks have no active limit.
+    pub fn with_fast_path(mut self) -> Self {
+        self.set_fast_path(true);
+        self
+    }
+
+    /// Turns the fast path of [`Solver::with_fast_path`] on or off.
+    pub fn set_fast_path(&mut self, on: bool) {
+        self.fast_path = on;
+    }
+
+    /// The minimizer of 0.5 x'Hx + c'x subject to the equalities alone, if it meets every
+    /// inequality and bound (then it is the QP's solution).
+    fn unconstrained(
+        &self,
+        equalities: &[Equality],
+        inequalities: &[Inequality],
+        bounds: &[Bounds],
+    ) -> Option<DVector<f64>> {
+        let nv = self.nv;
+        let m: usize = equalities.iter().map(|e| e.jacobian.nrows()).sum();
+        let mut kkt = DMatrix::zeros(nv + m, nv + m);
+        let mut rhs = DVector::zeros(nv + m);
+        kkt.view_mut((0, 0), (nv, nv)).copy_from(&self.h);
+        rhs.rows_mut(0, nv).copy_from(&(-&self.c));
+        let mut row = nv;
+        for e in equalities {
+            let r = e.jacobian.nrows();
+            kkt.view_mut((row, 0), (r, nv)).copy_from(&e.jacobian);
+            kkt.view_mut((0, row), (nv, r)).copy_from(&e.jacobian.transpose());
+            rhs.rows_mut(row, r).copy_from(&e.velocity);
+            row += r;
+        }
+        let x = kkt.lu().solve(&rhs)?.rows(0, nv).into_owned();
+        const SLACK: f64 = 1e-9;
+        let inside = x.iter().all(|v| v.is_finite())
+            && inequalities.iter().all(|g| (&g.jacobian * &x - &g.bound).iter().all(|v| *v <= SLACK))
+            && bounds
+                .iter()
+                .all(|b| (0..nv).all(|i| x[i] <= b.upper[i] + SLACK && x[i] >= b.lower[i] - SLACK));
+        inside.then_some(x)
     }
 
     /// One QP (see the module's documentation).
@@ -177,6 +226,15 @@ impl Solver {
         }
         let mut shape =
             Shape { equality_rows, inequality_rows: self.b.len() - equality_rows, bound_rows: Vec::new() };
+        if self.fast_path {
+            for bd in bounds {
+                check(nv, bd.lower.len())?;
+                check(nv, bd.upper.len())?;
+            }
+            if let Some(x) = self.unconstrained(equalities, inequalities, bounds) {
+                return Ok(x);
+            }
+        }
         for bd in bounds {
             check(nv, bd.lower.len())?;
             check(nv, bd.upper.len())?;

@@ -284,7 +284,11 @@ impl<'m> Tracker<'m> {
         let feet = hrp4::sole_frames(model)?;
         let upper = upper_body_mask(model, &feet);
         let limbs = clearance::limbs(model, &feet);
-        let base_ref = kin.link_pose(0).rotation;
+        // The base held upright at its starting heading: a reference taken from q0 as it is
+        // would keep whatever tilt the last motion left, and the tilts of successive plans
+        // would add up (Exp. 2 ended its 11 steps pitched 14 deg forward).
+        let (_, _, yaw) = kin.link_pose(0).rotation.euler_angles();
+        let base_ref = nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, yaw);
         let (com_jac, frame_jac) = (kin.new_com_jacobian(), kin.new_frame_jacobian());
         let legs = ik::Inequality {
             jacobian: nalgebra::DMatrix::zeros(limbs.len(), model.nv()),
@@ -309,6 +313,14 @@ impl<'m> Tracker<'m> {
         };
         t.least = clearance_rows(&t.kin, &mut t.frame_jac, &t.limbs, &t.blocks, &t.p, &mut t.legs);
         Ok(t)
+    }
+
+    /// The tracker for online use: each tick tries the equality-constrained least squares
+    /// first and calls the interior-point solver only when a limit binds
+    /// ([`ik::Solver::with_fast_path`]).
+    pub fn online(mut self) -> Self {
+        self.qp.set_fast_path(true);
+        self
     }
 
     /// The configuration reached.

@@ -10,6 +10,7 @@ use crate::perception::PlaneSegment;
 use crate::robot::hrp4;
 use crate::robot::model::RobotModel;
 use crate::robot::Kinematics;
+use crate::scene::SceneBox;
 use std::time::Instant;
 
 /// How far below the feet the step solids of the clearance check reach, metres (the legs
@@ -56,6 +57,8 @@ pub struct Plan {
     pub tracking: Tracking,
     /// Wall time of footholds and polygons (seconds).
     pub gait_time_s: f64,
+    /// The steps as solids the legs were kept off (an online IK keeps them off the same).
+    pub blocks: Vec<SceneBox>,
 }
 
 impl Plan {
@@ -108,5 +111,5 @@ pub fn plan(
     let feet_z = start.right.translation.z.min(start.left.translation.z);
     let blocks = step_blocks(rects, feet_z - BLOCK_DEPTH_M);
     let (trajectory, tracking) = track(model, q0, &segs, &blocks, &p.ik)?;
-    Ok(Plan { start, stances, segments: segs, trajectory, tracking, gait_time_s })
+    Ok(Plan { start, stances, segments: segs, trajectory, tracking, gait_time_s, blocks })
 }

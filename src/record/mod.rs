@@ -131,6 +131,13 @@ fn topics() -> Vec<(&'static str, String, String)> {
         ("/robot/joints", own("stairbench.JointState", "Joint positions, base pose and foot forces")),
         ("/tf", fox("foxglove.FrameTransform", foxglove::frame_transform_schema())),
         ("/checks", own("stairbench.Violation", "A violated check of the execution")),
+        (
+            "/control",
+            own(
+                "stairbench.ControlTick",
+                "A stabilizer tick: per foot the wanted and measured ground wrench, the admittance offsets",
+            ),
+        ),
         ("/run/cycle", own("stairbench.Cycle", "One scan-plan-execute cycle's report")),
     ];
     list.into_iter().map(|(t, (n, s))| (t, n, s)).collect()
@@ -413,6 +420,7 @@ impl Observer for Recorder {
             Event::Plan { stamp_s, steps, plan } => self.plan(stamp_s, steps, plan),
             Event::State { stamp_s, state } => self.state(stamp_s, state),
             Event::Violation { stamp_s, violation } => self.log("/checks", stamp_s, violation),
+            Event::Control { stamp_s, tick } => self.log("/control", stamp_s, tick),
             Event::Cycle { stamp_s, report } => {
                 self.log("/run/cycle", stamp_s, report);
                 self.flush();

@@ -11,6 +11,7 @@
 
 use crate::climb::{Event, Observer, RobotState, Violation};
 use crate::cloud::PointCloud;
+use crate::control::TickRecord;
 use crate::perception::PerceptionError;
 use crate::perception::{Perception, PlaneSegment};
 use crate::planning::Plan;
@@ -259,6 +260,27 @@ impl RerunLogger<'_> {
         self.log("metrics/torque_ratio", &rerun::Scalars::single(state.max_torque_ratio));
     }
 
+    /// The stabilizer's wanted and measured forces per foot (normal and tangential), as plots.
+    fn control(&mut self, stamp_s: f64, tick: &TickRecord) {
+        self.at(stamp_s);
+        for (k, foot) in ["right", "left"].iter().enumerate() {
+            let m = &tick.measured[k].force_n;
+            self.log(&format!("control/{foot}/normal_n/measured"), &rerun::Scalars::single(m.z));
+            self.log(
+                &format!("control/{foot}/tangential_n/measured"),
+                &rerun::Scalars::single(m.xy().norm()),
+            );
+            if let Some(w) = &tick.wanted[k] {
+                let w = &w.force_n;
+                self.log(&format!("control/{foot}/normal_n/wanted"), &rerun::Scalars::single(w.z));
+                self.log(
+                    &format!("control/{foot}/tangential_n/wanted"),
+                    &rerun::Scalars::single(w.xy().norm()),
+                );
+            }
+        }
+    }
+
     fn violation(&mut self, stamp_s: f64, v: &Violation) {
         self.at(stamp_s);
         self.log("checks", &rerun::TextLog::new(format!("{}: {}", v.check.kind(), v.check)));
@@ -276,6 +298,7 @@ impl Observer for RerunLogger<'_> {
             Event::Plan { stamp_s, steps, plan } => self.plan(stamp_s, steps, plan),
             Event::State { stamp_s, state } => self.state(stamp_s, state),
             Event::Violation { stamp_s, violation } => self.violation(stamp_s, violation),
+            Event::Control { stamp_s, tick } => self.control(stamp_s, tick),
             Event::Cycle { .. } => {}
         }
     }

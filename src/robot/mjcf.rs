@@ -1,7 +1,10 @@
 //! The simulator's robot, generated from the [`RobotModel`] (itself read from the URDF), so
 //! the MJCF can never disagree with the kinematics: one body per link with the same
 //! placements, inertias and joint axes, one position servo per joint whose force range is the
-//! joint's torque limit, box soles at the exact sole size, capsules elsewhere.
+//! joint's torque limit, box soles at the exact sole size, capsules elsewhere, and the
+//! sensors the real robot has: a 6-axis force/torque sensor at each ankle (at the origin of
+//! the link carrying the sole) and an IMU (accelerometer, gyro) at the waist (the root link's
+//! origin). Sites and sensors have no mass and no geometry: they change nothing in the physics.
 
 use super::model::{RobotError, RobotModel, Shape, Q_JOINTS};
 use crate::scene::mjcf::{RobotFragment, ROBOT_GEOM_GROUP};
@@ -25,6 +28,15 @@ pub const SOLE_FRICTION: f64 = 1.0;
 /// as for the soles, the surface's friction applies).
 pub const BODY_FRICTION: f64 = 0.5;
 
+/// Name of the force/torque sensor site on the link carrying sole frame `sole`; its force
+/// and torque sensors are `<site>_force` and `<site>_torque`.
+pub fn ft_site(sole: &str) -> String {
+    format!("{sole}_FT")
+}
+
+/// Name of the IMU site at the root link's origin; its sensors are `IMU_accel`, `IMU_gyro`.
+pub const IMU_SITE: &str = "IMU";
+
 fn fmt_pose(p: &Isometry3<f64>) -> String {
     let t = p.translation.vector;
     let q: &UnitQuaternion<f64> = &p.rotation;
@@ -46,8 +58,21 @@ pub fn fragment(model: &RobotModel, q: &[f64], sole_frames: &[&str]) -> Result<R
             children[p].push(i);
         }
     }
+    // The sensors, and their sites by link.
+    let mut sites: Vec<Vec<String>> = vec![Vec::new(); links.len()];
+    let mut sensors = String::from("  <sensor>\n");
+    sites[0].push(IMU_SITE.to_string());
+    let _ = writeln!(sensors, r#"    <accelerometer name="{IMU_SITE}_accel" site="{IMU_SITE}"/>"#);
+    let _ = writeln!(sensors, r#"    <gyro name="{IMU_SITE}_gyro" site="{IMU_SITE}"/>"#);
+    for f in sole_frames {
+        let site = ft_site(f);
+        sites[model.frames()[model.frame_id(f)?].link].push(site.clone());
+        let _ = writeln!(sensors, r#"    <force name="{site}_force" site="{site}"/>"#);
+        let _ = writeln!(sensors, r#"    <torque name="{site}_torque" site="{site}"/>"#);
+    }
+    sensors += "  </sensor>\n";
     let mut body = String::new();
-    write_body(model, 0, &children, &soles, q, 2, &mut body);
+    write_body(model, 0, &children, &soles, &sites, q, 2, &mut body);
     let mut extras = String::from("  <actuator>\n");
     for j in model.joints() {
         let kp = KP_PER_EFFORT * j.effort_nm;
@@ -63,6 +88,7 @@ pub fn fragment(model: &RobotModel, q: &[f64], sole_frames: &[&str]) -> Result<R
         );
     }
     extras += "  </actuator>\n";
+    extras += &sensors;
     let qs: Vec<String> = q.iter().map(|x| format!("{x:?}")).collect();
     let ctrl: Vec<String> = q[Q_JOINTS..].iter().map(|x| format!("{x:?}")).collect();
     let _ = write!(
@@ -74,11 +100,13 @@ pub fn fragment(model: &RobotModel, q: &[f64], sole_frames: &[&str]) -> Result<R
     Ok(RobotFragment { body_xml: body.trim_end().to_string(), extras_xml: extras })
 }
 
+#[allow(clippy::too_many_arguments)]
 fn write_body(
     model: &RobotModel,
     i: usize,
     children: &[Vec<usize>],
     soles: &[bool],
+    sites: &[Vec<String>],
     q: &[f64],
     depth: usize,
     out: &mut String,
@@ -148,8 +176,11 @@ fn write_body(
     for f in model.frames().iter().filter(|f| f.link == i) {
         let _ = writeln!(out, r#"{pad}  <site name="{}" {} size="0.01"/>"#, f.name, fmt_pose(&f.placement));
     }
+    for s in &sites[i] {
+        let _ = writeln!(out, r#"{pad}  <site name="{s}" size="0.005"/>"#);
+    }
     for &c in &children[i] {
-        write_body(model, c, children, soles, q, depth + 1, out);
+        write_body(model, c, children, soles, sites, q, depth + 1, out);
     }
     let _ = writeln!(out, "{pad}</body>");
 }

@@ -187,19 +187,30 @@ pub fn slip_check(foot: Foot, at: &Vector3<f64>, from: &Vector3<f64>, p: &CheckP
     (slip_m > p.slip_tolerance_m).then_some(Check::Slip { foot, slip_m, limit_m: p.slip_tolerance_m })
 }
 
-/// A contact at `at` (world) between the swinging `sw` and the world's geom `other`, the
-/// sole being planned at `planned`: a strike when the planned sole is above its target by
-/// more than the strike height, and was at lift-off too (so not a landing, not a lift).
+/// Cosine of the largest angle from vertical of a contact normal that is a sole meeting a
+/// level surface (20 deg): an early landing, not a strike.
+const LEVEL_CONTACT_COS: f64 = 0.9397;
+
+/// A contact at `at` (world, its normal `normal`) between the swinging `sw` and the world's
+/// geom `other`, the sole being planned at `planned`: a strike when the planned sole is above
+/// its target by more than the strike height, and was at lift-off too (so not a landing, not
+/// a lift), against a surface that is not level (a riser, a nose's edge, a wall: a sole that
+/// meets a level tread early, on a step higher than perceived, has landed; what that does is
+/// judged by the friction, slip and off-step checks).
 pub fn strike_check(
     sw: &Swing,
     planned: &Isometry3<f64>,
     at: &Point3<f64>,
+    normal: &Vector3<f64>,
     other: &str,
     p: &CheckParams,
 ) -> Option<Check> {
     let above = |pose: &Isometry3<f64>| planned.translation.z - pose.translation.z;
     let above_target_m = above(&sw.path[sw.path.len() - 1]);
-    if above_target_m <= p.strike_height_m || above(&sw.path[0]) <= p.strike_height_m {
+    if above_target_m <= p.strike_height_m
+        || above(&sw.path[0]) <= p.strike_height_m
+        || normal.z.abs() >= LEVEL_CONTACT_COS
+    {
         return None;
     }
     let local = planned.inverse_transform_point(at);
@@ -424,9 +435,14 @@ impl<'a> Monitor<'a> {
             if let Some((sw, planned)) = swing.filter(|(sw, _)| sw.foot.index() == foot) {
                 let other =
                     if world.geom_group(c.geom1 as usize) == ROBOT_GEOM_GROUP { c.geom2 } else { c.geom1 };
-                if let Some(check) =
-                    strike_check(sw, planned, &Point3::from(c.pos), world.geom_name(other as usize), self.p)
-                {
+                if let Some(check) = strike_check(
+                    sw,
+                    planned,
+                    &Point3::from(c.pos),
+                    &axis(0),
+                    world.geom_name(other as usize),
+                    self.p,
+                ) {
                     self.report(now, check);
                 }
             }
@@ -692,12 +708,25 @@ mod tests {
         let path = vec![at(0.0, -0.1, 0.0), at(0.2, -0.1, 0.3), at(0.27, -0.1, 0.2)];
         let sw = Swing { foot: Foot::Right, path, shares: vec![0.5, 0.5], natural_s: 2.0 };
         let hit = Point3::new(0.2, -0.1, 0.2);
-        let c = strike_check(&sw, &at(0.2, -0.1, 0.25), &hit, "step_1", &p()).expect("mid-swing fires");
+        let riser = Vector3::new(-1.0, 0.0, 0.0);
+        let c =
+            strike_check(&sw, &at(0.2, -0.1, 0.25), &hit, &riser, "step_1", &p()).expect("mid-swing fires");
         assert!(
             matches!(&c, Check::Strike { foot: Foot::Right, geom, above_target_m, .. } if geom == "step_1" && (above_target_m - 0.05).abs() < 1e-12)
         );
-        assert_eq!(strike_check(&sw, &at(0.27, -0.1, 0.205), &hit, "step_1", &p()), None, "landing");
-        assert_eq!(strike_check(&sw, &at(0.0, -0.1, 0.005), &hit, "floor", &p()), None, "lift-off");
+        let nose = Vector3::new(-0.7, 0.0, 0.7).normalize();
+        assert!(
+            strike_check(&sw, &at(0.2, -0.1, 0.25), &hit, &nose, "step_1", &p()).is_some(),
+            "on the nose"
+        );
+        assert_eq!(strike_check(&sw, &at(0.27, -0.1, 0.205), &hit, &riser, "step_1", &p()), None, "landing");
+        assert_eq!(strike_check(&sw, &at(0.0, -0.1, 0.005), &hit, &riser, "floor", &p()), None, "lift-off");
+        let level = Vector3::new(0.05, 0.0, -1.0).normalize();
+        assert_eq!(
+            strike_check(&sw, &at(0.27, -0.1, 0.22), &hit, &level, "step_1", &p()),
+            None,
+            "early on the tread"
+        );
     }
 
     #[test]

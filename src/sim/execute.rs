@@ -1,12 +1,16 @@
 //! Execution of a planned trajectory in MuJoCo: the robot's position servos track q(t) at
 //! the physics rate, on MuJoCo's own contacts and friction, and the [`Monitor`] checks every
-//! physics step. [`SimRobot`] is the simulated HRP-4 as the closed loop's [`Executor`].
+//! physics step. With the stabilizer on, the servos' set points come from it instead, at its
+//! control rate (interpolated in between), from the robot's own sensors. [`SimRobot`] is the
+//! simulated HRP-4 as the closed loop's [`Executor`].
 
-use super::checks::{CheckParams, Ids, Monitor};
+use super::checks::{Ids, Monitor};
+use super::sensors::SimSensors;
 use super::world::{SimError, World};
 use crate::cancel::Cancel;
-use crate::climb::{Event, Execution, Executor, Observer, RobotState};
-use crate::planning::dd::DdParams;
+use crate::climb::{ControlCost, Event, Execution, Executor, Observer, RobotState};
+use crate::control::Stabilizer;
+use crate::params::ClimbParams;
 use crate::planning::Plan;
 use crate::robot::hrp4;
 use crate::robot::model::{RobotModel, Q_JOINTS, V_JOINTS};
@@ -64,21 +68,20 @@ impl Servos {
 }
 
 /// Runs `plan` in `world` (whose robot stands where the plan starts) and checks it against
-/// `scene` (the true step tops) with limits `p`, the polygons by double description with
-/// `dd`. `observer` sees the robot's state after every physics step; a cancelled `cancel`
+/// `scene` (the true step tops) with the checks of `params`, the polygons by its double
+/// description, the servos, sensors and stabilizer of `params` too. `observer` sees the
+/// robot's state after every physics step (and each stabilizer tick); a cancelled `cancel`
 /// ends the execution at the next step. The violations come back with cycle 0.
-#[allow(clippy::too_many_arguments)]
 pub fn execute(
     world: &mut World,
     model: &RobotModel,
     scene: &Scene,
     plan: &Plan,
-    servo: &ServoParams,
-    p: &CheckParams,
-    dd: &DdParams,
+    params: &ClimbParams,
     observer: &mut dyn Observer,
     cancel: &Cancel,
 ) -> Result<Execution, SimError> {
+    let (servo, p, dd) = (&params.servo, &params.checks, &params.plan.step.dd);
     let dt = world.model().opt().timestep;
     let t_start = world.data().time();
     let base_z0 = world.data().qpos()[2];
@@ -105,9 +108,25 @@ pub fn execute(
     let mut seg = 0usize;
     let mut landed = vec![false; plan.segments.len()];
     let mut q = vec![0.0; model.nq()];
+    let mut control = match params.stabilizer.enabled {
+        true => Some(Control {
+            stabilizer: Stabilizer::new(model, plan, &params.plan, &params.stabilizer)?,
+            sensors: SimSensors::new(world, [hrp4::R_SOLE, hrp4::L_SOLE], &params.sensors)?,
+            from: plan.trajectory.sample_at(0.0).q.clone(),
+            to: plan.trajectory.sample_at(0.0).q.clone(),
+            tick_s: 0.0,
+            next_s: 0.0,
+            wall_s: 0.0,
+            ticks: 0,
+        }),
+        false => None,
+    };
     for k in 1..=(traj.duration_s() / dt).round() as usize {
         let t = k as f64 * dt;
-        traj.q_at(t, &mut q);
+        match control.as_mut() {
+            Some(c) => c.set_point(world, t - dt, dt, &mut q, observer)?,
+            None => traj.q_at(t, &mut q),
+        }
         servos.command(world, &q, dt);
         world.data_mut().step();
         let now = world.data().time() - t_start;
@@ -148,7 +167,57 @@ pub fn execute(
         }
     }
     mon.ex.sim_s = world.data().time() - t_start;
+    if let Some(c) = control {
+        mon.ex.control = Some(ControlCost { ticks: c.ticks, wall_s: c.wall_s });
+    }
     Ok(mon.ex)
+}
+
+/// The stabilizer in the physics loop: its ticks at its own rate, the set points
+/// interpolated between them.
+struct Control<'m> {
+    stabilizer: Stabilizer<'m>,
+    sensors: SimSensors,
+    from: Vec<f64>,
+    to: Vec<f64>,
+    tick_s: f64,
+    next_s: f64,
+    wall_s: f64,
+    ticks: usize,
+}
+
+impl Control<'_> {
+    /// The set points for the physics step from `t_s` (plan time) to `t_s + dt_s`, into `q`;
+    /// a tick runs first when one is due, on what the sensors read now.
+    fn set_point(
+        &mut self,
+        world: &World,
+        t_s: f64,
+        dt_s: f64,
+        q: &mut [f64],
+        observer: &mut dyn Observer,
+    ) -> Result<(), SimError> {
+        while t_s >= self.next_s - dt_s / 2.0 {
+            let m = self.sensors.read(world);
+            let next = self
+                .stabilizer
+                .tick(self.next_s, &m)
+                .map_err(|error| SimError::Stabilizer { t_s: self.next_s, error })?;
+            std::mem::swap(&mut self.from, &mut self.to);
+            self.to.copy_from_slice(next);
+            self.tick_s = self.next_s;
+            self.next_s += self.stabilizer.period_s();
+            let record = self.stabilizer.record();
+            self.wall_s += record.wall_s;
+            self.ticks += 1;
+            observer.event(&Event::Control { stamp_s: world.data().time(), tick: record });
+        }
+        let s = ((t_s + dt_s - self.tick_s) / self.stabilizer.period_s()).clamp(0.0, 1.0);
+        for (o, (a, b)) in q.iter_mut().zip(self.from.iter().zip(&self.to)) {
+            *o = a + (b - a) * s;
+        }
+        Ok(())
+    }
 }
 
 /// Holds the robot at its commanded posture for `seconds`.
@@ -166,22 +235,19 @@ pub struct SimRobot<'a> {
     world: &'a RefCell<World>,
     model: &'a RobotModel,
     scene: &'a Scene,
-    servo: ServoParams,
-    checks: CheckParams,
-    dd: DdParams,
+    params: ClimbParams,
 }
 
 impl<'a> SimRobot<'a> {
-    /// The robot of `world` (built from `scene`, the ground truth the checks judge against).
+    /// The robot of `world` (built from `scene`, the ground truth the checks judge against),
+    /// its servos, sensors, stabilizer and checks from `params`.
     pub fn new(
         world: &'a RefCell<World>,
         model: &'a RobotModel,
         scene: &'a Scene,
-        servo: &ServoParams,
-        checks: &CheckParams,
-        dd: &DdParams,
+        params: &ClimbParams,
     ) -> Self {
-        Self { world, model, scene, servo: servo.clone(), checks: checks.clone(), dd: *dd }
+        Self { world, model, scene, params: params.clone() }
     }
 }
 
@@ -208,16 +274,6 @@ impl Executor for SimRobot<'_> {
         cancel: &Cancel,
     ) -> Result<Execution, SimError> {
         let mut world = self.world.borrow_mut();
-        execute(
-            &mut world,
-            self.model,
-            self.scene,
-            plan,
-            &self.servo,
-            &self.checks,
-            &self.dd,
-            observer,
-            cancel,
-        )
+        execute(&mut world, self.model, self.scene, plan, &self.params, observer, cancel)
     }
 }

@@ -7,6 +7,7 @@ pub mod checks;
 pub mod emulator;
 pub mod execute;
 pub mod lidar;
+pub mod sensors;
 pub mod world;
 
 pub use execute::SimRobot;
@@ -53,7 +54,7 @@ pub fn climb_scenario(
     let model = crate::robot::hrp4::model()?;
     let world = RefCell::new(World::for_scene(&scene)?);
     let mut source = SimSource::new(&world, &scenario.lidar, scenario.seed)?;
-    let mut robot = SimRobot::new(&world, &model, &scene, &p.servo, &p.checks, &p.plan.step.dd);
+    let mut robot = SimRobot::new(&world, &model, &scene, p);
     let bench = Bench { source: &mut source, robot: &mut robot, model: &model, truth: &scene };
     Ok(climb::run(bench, p.loop_params(), observer, cancel)?)
 }

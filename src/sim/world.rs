@@ -22,6 +22,20 @@ pub enum SimError {
     /// A body the bench needs is missing from the model.
     #[error("the world has no body named `{0}`")]
     MissingBody(String),
+    /// A sensor the bench needs is missing from the model.
+    #[error("the world has no sensor named `{0}`")]
+    MissingSensor(String),
+    /// The stabilizer could not be set up for a plan.
+    #[error("the stabilizer could not start: {0}")]
+    StabilizerSetup(#[from] crate::planning::PlanError),
+    /// The stabilizer's online IK found no solution during an execution.
+    #[error("the stabilizer's IK failed at t = {t_s:.3} s of the plan: {error}")]
+    Stabilizer {
+        /// Plan time of the tick, seconds.
+        t_s: f64,
+        /// The QP's failure.
+        error: crate::planning::ik::IkError,
+    },
     /// The robot model could not be placed in the world.
     #[error(transparent)]
     Robot(#[from] crate::robot::RobotError),
@@ -98,6 +112,15 @@ impl World {
         self.model
             .name_to_id(MjtObjBase::mjOBJ_BODY, name)
             .ok_or_else(|| SimError::MissingBody(name.to_string()))
+    }
+
+    /// Address of a sensor's first value in the sensor data, by name.
+    pub fn sensor_adr(&self, name: &str) -> Result<usize, SimError> {
+        let id = self
+            .model
+            .name_to_id(MjtObjBase::mjOBJ_SENSOR, name)
+            .ok_or_else(|| SimError::MissingSensor(name.to_string()))?;
+        Ok(self.model.sensor_adr()[id] as usize)
     }
 
     /// World pose of a site, from the last forward kinematics.

@@ -1,0 +1,154 @@
+//! Foot admittance: each foot's reference pose yields to the difference between the wrench
+//! its sensor measures and the one the distribution wants (Caron et al. 2019, §IV; hrpsys's
+//! foot force difference control). A rate per unit of error, clamped, with a leak back to
+//! the plan so that offsets never accumulate.
+
+use super::measurement::SoleWrench;
+use super::params::StabilizerParams;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+/// A foot's correction to its planned pose: a translation (world) and a roll and pitch about
+/// the sole's own axes, at the sole's centre.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct FootOffset {
+    /// Translation, metres, world frame.
+    pub translation_m: Vector3<f64>,
+    /// Rotation about the sole's x, rad.
+    pub roll_rad: f64,
+    /// Rotation about the sole's y, rad.
+    pub pitch_rad: f64,
+}
+
+impl FootOffset {
+    /// `planned` moved by the offset.
+    pub fn apply(&self, planned: &Isometry3<f64>) -> Isometry3<f64> {
+        let tilt = UnitQuaternion::from_euler_angles(self.roll_rad, self.pitch_rad, 0.0);
+        Isometry3::from_parts(
+            Translation3::from(planned.translation.vector + self.translation_m),
+            planned.rotation * tilt,
+        )
+    }
+
+    /// The offset scaled by `s` (0 = none).
+    pub fn scaled(&self, s: f64) -> Self {
+        Self {
+            translation_m: self.translation_m * s,
+            roll_rad: self.roll_rad * s,
+            pitch_rad: self.pitch_rad * s,
+        }
+    }
+}
+
+/// One step of `x` at rate `rate` (clamped at `max_rate`) with a leak toward 0 of time
+/// constant `leak_s`, clamped at `max`.
+fn integrate(x: f64, rate: f64, max_rate: f64, max: f64, leak_s: f64, dt_s: f64) -> f64 {
+    let rate = rate.clamp(-max_rate, max_rate) - x / leak_s;
+    (x + rate * dt_s).clamp(-max, max)
+}
+
+/// Foot damping: the ankle rolls and pitches with the torque error about the sole's centre,
+/// moving the centre of pressure to where the distribution wants it (a torque above the
+/// wanted one means the ground presses that edge too hard: the foot yields to it).
+pub fn cop_damping(
+    offset: &mut FootOffset,
+    measured: &SoleWrench,
+    wanted: &SoleWrench,
+    p: &StabilizerParams,
+    dt_s: f64,
+) {
+    let a = p.cop_admittance_rad_per_nm_s;
+    let e = measured.torque_nm - wanted.torque_nm;
+    let step = |x, e: f64| integrate(x, a * e, p.cop_max_rate_rad_s, p.cop_max_rad, p.leak_time_s, dt_s);
+    offset.roll_rad = step(offset.roll_rad, e.x);
+    offset.pitch_rad = step(offset.pitch_rad, e.y);
+}
+
+/// Vertical force difference control in double support: the feet's height difference
+/// follows the error of their normal force difference (a foot carrying less than wanted
+/// goes down, the other up, by the same amount).
+pub fn force_difference(
+    offsets: &mut [FootOffset; 2],
+    measured: [f64; 2],
+    wanted: [f64; 2],
+    p: &StabilizerParams,
+    dt_s: f64,
+) {
+    let error = (wanted[1] - wanted[0]) - (measured[1] - measured[0]);
+    let d = offsets[1].translation_m.z - offsets[0].translation_m.z;
+    let next = integrate(
+        d,
+        -p.dfz_admittance_m_per_n_s * error,
+        p.max_offset_rate_m_s,
+        p.max_offset_m,
+        p.leak_time_s,
+        dt_s,
+    );
+    let mid = (offsets[1].translation_m.z + offsets[0].translation_m.z) / 2.0;
+    offsets[0].translation_m.z = mid - next / 2.0;
+    offsets[1].translation_m.z = mid + next / 2.0;
+}
+
+/// Tangential admittance in double support: each sole's horizontal offset follows its
+/// tangential force error (world x, y), relaxing the internal force the closed chain of the
+/// two legs builds from any kinematic mismatch.
+pub fn tangential(
+    offset: &mut FootOffset,
+    measured: &Vector3<f64>,
+    wanted: &Vector3<f64>,
+    p: &StabilizerParams,
+    dt_s: f64,
+) {
+    for k in 0..2 {
+        offset.translation_m[k] = integrate(
+            offset.translation_m[k],
+            p.tangential_admittance_m_per_n_s * (measured[k] - wanted[k]),
+            p.max_offset_rate_m_s,
+            p.max_offset_m,
+            p.leak_time_s,
+            dt_s,
+        );
+    }
+}
+
+/// The offsets' return to zero alone (a foot whose wrench is not controlled this tick).
+pub fn leak(offset: &mut FootOffset, p: &StabilizerParams, dt_s: f64) {
+    let k = (1.0 - dt_s / p.leak_time_s).max(0.0);
+    *offset = offset.scaled(k);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_foot_pressed_on_its_left_edge_rolls_to_unload_it() {
+        let p = StabilizerParams::default();
+        let mut off = FootOffset::default();
+        // CoP at +y: torque about x = y f_z > 0, wanted 0.
+        let measured =
+            SoleWrench { force_n: Vector3::new(0.0, 0.0, 200.0), torque_nm: Vector3::new(4.0, 0.0, 0.0) };
+        cop_damping(&mut off, &measured, &SoleWrench::default(), &p, 0.005);
+        let pose = off.apply(&Isometry3::identity());
+        // The foot's +y edge goes up.
+        assert!((pose * nalgebra::Point3::new(0.0, 0.06, 0.0)).z > 0.0);
+    }
+
+    #[test]
+    fn the_lighter_foot_goes_down() {
+        let p = StabilizerParams::default();
+        let mut offs = [FootOffset::default(); 2];
+        force_difference(&mut offs, [300.0, 100.0], [200.0, 200.0], &p, 0.005);
+        assert!(offs[1].translation_m.z < 0.0 && offs[0].translation_m.z > 0.0);
+        assert!((offs[0].translation_m.z + offs[1].translation_m.z).abs() < 1e-15);
+    }
+
+    #[test]
+    fn offsets_stay_within_their_travel() {
+        let p = StabilizerParams::default();
+        let mut off = FootOffset::default();
+        for _ in 0..100_000 {
+            tangential(&mut off, &Vector3::new(1e6, -1e6, 0.0), &Vector3::zeros(), &p, 0.005);
+        }
+        assert!(off.translation_m.x <= p.max_offset_m && off.translation_m.y >= -p.max_offset_m);
+    }
+}

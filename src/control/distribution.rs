@@ -1,0 +1,101 @@
+//! Wrench distribution: the net contact wrench the CoM needs, split over the feet in
+//! contact by one small QP (Caron et al. 2019, §III-B), each foot's wrench inside its contact
+//! wrench cone (the 16 faces of `planning::contact`), the tangential forces and ankle torques
+//! as small as the net wrench allows, and the normal force shared as the pressure ratio says.
+//!
+//! Unknowns: each foot's ground wrench in its sole frame at its centre (6 per foot).
+//!
+//!   minimize  w_net ||sum_i G_i x_i - w||^2 + w_p (pressure ratio)^2
+//!             + w_t sum_i ||x_i tangential||^2 + w_a sum_i ||x_i torque||^2
+//!   subject to  F_i x_i <= 0  (each foot's cone)
+
+use super::measurement::SoleWrench;
+use super::params::StabilizerParams;
+use crate::planning::contact::Contact;
+use crate::planning::ik::{self, IkError, Inequality, Task};
+use nalgebra::{DMatrix, DVector, Matrix6, Point3, Vector6};
+
+/// A foot the distribution may load: its contact (sole pose, size, friction) and its wanted
+/// share of the total normal force (0..1; the shares of all feet need not sum to 1, the
+/// QP's pressure term uses the first foot's against the others').
+#[derive(Debug, Clone)]
+pub struct Support {
+    /// The sole as a contact.
+    pub contact: Contact,
+    /// Wanted share of the normal force.
+    pub share: f64,
+}
+
+/// Maps a sole-frame wrench at the sole's centre to the world wrench about `point`.
+fn to_world(contact: &Contact, point: &Point3<f64>) -> Matrix6<f64> {
+    let r = contact.pose().rotation.to_rotation_matrix().into_inner();
+    let arm = (contact.pose().translation.vector - point.coords).cross_matrix();
+    let mut g = Matrix6::zeros();
+    g.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
+    g.fixed_view_mut::<3, 3>(3, 0).copy_from(&(arm * r));
+    g.fixed_view_mut::<3, 3>(3, 3).copy_from(&r);
+    g
+}
+
+/// The feet's wrenches (sole frames, in `supports`' order) closest to producing `wanted`
+/// (world force, and torque about `point`).
+pub fn distribute(
+    supports: &[Support],
+    wanted: &Vector6<f64>,
+    point: &Point3<f64>,
+    p: &StabilizerParams,
+) -> Result<Vec<SoleWrench>, IkError> {
+    let n = supports.len();
+    if n == 0 {
+        return Ok(Vec::new());
+    }
+    let nv = 6 * n;
+    let mut net = DMatrix::zeros(6, nv);
+    let mut cones = Inequality { jacobian: DMatrix::zeros(16 * n, nv), bound: DVector::zeros(16 * n) };
+    let mut regular = DMatrix::zeros(nv, nv);
+    let mut diag = Vector6::zeros();
+    for (k, v) in [
+        p.weight_tangential,
+        p.weight_tangential,
+        0.0,
+        p.weight_ankle_torque,
+        p.weight_ankle_torque,
+        p.weight_ankle_torque,
+    ]
+    .iter()
+    .enumerate()
+    {
+        diag[k] = v.sqrt();
+    }
+    for (i, s) in supports.iter().enumerate() {
+        net.view_mut((0, 6 * i), (6, 6)).copy_from(&to_world(&s.contact, point));
+        cones.jacobian.view_mut((16 * i, 6 * i), (16, 6)).copy_from(&s.contact.local_faces());
+        regular.view_mut((6 * i, 6 * i), (6, 6)).copy_from(&Matrix6::from_diagonal(&diag));
+    }
+    let mut tasks = vec![
+        Task {
+            jacobian: net,
+            velocity: DVector::from_column_slice(wanted.as_slice()),
+            weight: p.weight_net_wrench,
+        },
+        Task { jacobian: regular, velocity: DVector::zeros(nv), weight: 1.0 },
+    ];
+    if n > 1 {
+        // (1 - rho) f_z,0 - rho sum_{i>0} f_z,i = 0, each normal force along its sole's normal.
+        let rho = supports[0].share.clamp(0.0, 1.0);
+        let mut row = DMatrix::zeros(1, nv);
+        row[(0, 2)] = 1.0 - rho;
+        for i in 1..n {
+            row[(0, 6 * i + 2)] = -rho;
+        }
+        tasks.push(Task { jacobian: row, velocity: DVector::zeros(1), weight: p.weight_pressure });
+    }
+    let x =
+        ik::Solver::new(nv, 1e-9).with_fast_path().solve(&tasks, &[], std::slice::from_ref(&cones), &[])?;
+    Ok((0..n).map(|i| SoleWrench::from_vector(&x.fixed_rows::<6>(6 * i).into_owned())).collect())
+}
+
+/// The world wrench (force, torque about `point`) of sole-frame wrenches on `contacts`.
+pub fn net_wrench(contacts: &[&Contact], wrenches: &[SoleWrench], point: &Point3<f64>) -> Vector6<f64> {
+    contacts.iter().zip(wrenches).map(|(c, w)| to_world(c, point) * w.to_vector()).sum()
+}

@@ -1,0 +1,99 @@
+//! The stabilizer's parameters (`[stabilizer]` of a params file), each with its unit and the
+//! source of its default. Defaults follow Caron et al. (ICRA 2019) and hrpsys's foot force
+//! difference control, scaled to this bench's stiff position servos.
+
+/// Every parameter of the stabilizer.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StabilizerParams {
+    /// Whether the stabilizer runs (`run --stabilizer on|off`); off executes the planned
+    /// q(t) open loop, as the paper did (§6.3).
+    pub enabled: bool,
+    /// Control rate, Hz: sensors read, wrenches distributed, offsets updated and the QP IK
+    /// solved once per tick.
+    pub rate_hz: f64,
+    /// Gain of the CoM position feedback in the wanted net force, 1/s^2 (Caron 2019's DCM
+    /// feedback reduced to the quasi-static case; 0 turns it off).
+    pub com_stiffness_per_s2: f64,
+    /// Gain of the CoM velocity feedback, 1/s.
+    pub com_damping_per_s: f64,
+    /// Weight of the net wrench in the distribution QP (it must be met when it can be).
+    pub weight_net_wrench: f64,
+    /// Weight of the pressure ratio (each foot's share of the normal force, from where the
+    /// CoM is between the feet): shifts the weight smoothly before a lift-off and after a
+    /// touchdown.
+    pub weight_pressure: f64,
+    /// Weight of the tangential forces (smaller: more friction margin).
+    pub weight_tangential: f64,
+    /// Weight of the ankle torques, per N m (smaller: centres of pressure nearer the soles'
+    /// centres).
+    pub weight_ankle_torque: f64,
+    /// Foot damping: ankle roll/pitch rate per N m of torque error, rad/(N m s) (Caron 2019:
+    /// 0.01 with HRP-4's own compliance; smaller here, the servos being stiffer).
+    pub cop_admittance_rad_per_nm_s: f64,
+    /// Largest ankle correction rate, rad/s.
+    pub cop_max_rate_rad_s: f64,
+    /// Largest ankle correction, rad.
+    pub cop_max_rad: f64,
+    /// Vertical force difference control: foot height difference rate per newton of
+    /// difference error, m/(N s) (mc_rtc's dfz admittance 1e-4; hrpsys's damping 1/3500).
+    pub dfz_admittance_m_per_n_s: f64,
+    /// Tangential admittance in double support: each sole's horizontal offset rate per
+    /// newton of tangential force error, m/(N s). hrpsys uses 1/35000 on HRP-2's compliant
+    /// ankles; a leg of this bench's stiff servos resists a sole's sideways shift with about
+    /// 8 kN/m, so 1/500 gives the internal force a time constant near 0.06 s, ten control
+    /// periods (1/1000 left the touchdown's internal force at 0.41 of the friction cone on
+    /// Exp. 1, 1/500 at 0.27).
+    pub tangential_admittance_m_per_n_s: f64,
+    /// Largest foot offset rate, m/s.
+    pub max_offset_rate_m_s: f64,
+    /// Largest foot offset (each axis), metres (hrpsys: 0.025).
+    pub max_offset_m: f64,
+    /// Time constant of the offsets' return to zero, seconds (hrpsys: 1.5).
+    pub leak_time_s: f64,
+    /// A foot's normal force above which it is in contact, N (touchdown, seek).
+    pub contact_force_n: f64,
+    /// A swinging foot's normal force from which it has met the ground, N (low, to stop the
+    /// descent before the impact builds up; above the force sensor's noise).
+    pub touchdown_force_n: f64,
+    /// Fraction of the swing's last piece (the descent) from which a contact stops the foot.
+    pub touchdown_window: f64,
+    /// Height above its planned landing from which a swinging foot descends no faster than
+    /// `approach_speed_m_s`, metres (a ground a little higher than perceived is met slowly,
+    /// not at the swing's speed).
+    pub approach_height_m: f64,
+    /// Largest descent speed in the approach, m/s; a foot whose swing ends before it meets
+    /// the ground goes on down at this speed.
+    pub approach_speed_m_s: f64,
+    /// How far below its planned height a late foot may seek the ground, metres.
+    pub max_seek_m: f64,
+}
+
+impl Default for StabilizerParams {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            rate_hz: 200.0,
+            com_stiffness_per_s2: 0.0,
+            com_damping_per_s: 0.0,
+            weight_net_wrench: 1.0,
+            weight_pressure: 0.1,
+            weight_tangential: 1e-3,
+            weight_ankle_torque: 1e-2,
+            cop_admittance_rad_per_nm_s: 0.005,
+            cop_max_rate_rad_s: 0.2,
+            cop_max_rad: 0.1,
+            dfz_admittance_m_per_n_s: 1.0 / 10000.0,
+            tangential_admittance_m_per_n_s: 1.0 / 500.0,
+            max_offset_rate_m_s: 0.05,
+            max_offset_m: 0.025,
+            leak_time_s: 1.5,
+            contact_force_n: 30.0,
+            touchdown_force_n: 10.0,
+            touchdown_window: 0.0,
+            approach_height_m: 0.01,
+            approach_speed_m_s: 0.05,
+            max_seek_m: 0.03,
+        }
+    }
+}

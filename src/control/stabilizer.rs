@@ -1,0 +1,374 @@
+//! The stabilizer's tick: read the sensors, estimate the CoM, distribute the wanted net
+//! wrench over the feet the plan has in contact, move each foot's reference by admittance,
+//! stop a landing foot where it meets the ground, and solve the QP IK online toward the
+//! corrected targets. The joint angles it returns are the servos' set points.
+
+use super::admittance::{self, FootOffset};
+use super::distribution::{distribute, Support};
+use super::measurement::{FootSensor, Measurement, SoleWrench, GRAVITY_M_S2};
+use super::params::StabilizerParams;
+use crate::planning::contact::Contact;
+use crate::planning::gait::Segment;
+use crate::planning::ik::IkError;
+use crate::planning::motion::{com_target, swing_target, Targets, Tracker};
+use crate::planning::{Foot, Plan, PlanError, PlanParams};
+use crate::robot::model::{RobotModel, Q_JOINTS};
+use crate::robot::{hrp4, Kinematics};
+use nalgebra::{Isometry3, Point3, Vector3, Vector6};
+use std::time::Instant;
+
+/// What one tick wanted and measured, for recording and plots.
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
+pub struct TickRecord {
+    /// Time of the tick from the plan's start, seconds.
+    pub t_s: f64,
+    /// The distribution's wrench per foot (`None`: not in the plan's contacts).
+    pub wanted: [Option<SoleWrench>; 2],
+    /// The measured ground wrench per foot.
+    pub measured: [SoleWrench; 2],
+    /// The admittance offsets per foot.
+    pub offsets: [FootOffset; 2],
+    /// Where each foot landed, when the stabilizer holds it there instead of its planned
+    /// place (world, metres).
+    pub held_m: [Option<Vector3<f64>>; 2],
+    /// The estimated CoM's error from the plan's, metres.
+    pub com_error_m: Vector3<f64>,
+    /// Wall time of the tick, seconds.
+    pub wall_s: f64,
+}
+
+/// The stabilizer over one plan.
+pub struct Stabilizer<'m> {
+    p: StabilizerParams,
+    friction: f64,
+    sole_half_m: [[f64; 2]; 2],
+    tracker: Tracker<'m>,
+    estimate: Kinematics<'m>,
+    sensors: [FootSensor; 2],
+    soles: [usize; 2],
+    mass_kg: f64,
+    segments: Vec<Segment>,
+    starts_s: Vec<f64>,
+    segment: usize,
+    offsets: [FootOffset; 2],
+    held: [Option<Isometry3<f64>>; 2],
+    lifted: [FootOffset; 2],
+    approach_z: Option<f64>,
+    seeking: [Option<f64>; 2],
+    com_prev: Option<Point3<f64>>,
+    q_est: Vec<f64>,
+    record: TickRecord,
+}
+
+impl<'m> Stabilizer<'m> {
+    /// A stabilizer for `plan` (whose trajectory starts at the robot's configuration),
+    /// keeping the legs off the plan's step solids with the plan's IK parameters.
+    pub fn new(
+        model: &'m RobotModel,
+        plan: &Plan,
+        plan_params: &PlanParams,
+        p: &StabilizerParams,
+    ) -> Result<Self, PlanError> {
+        let q0 = plan.trajectory.sample_at(0.0).q.clone();
+        let soles = hrp4::sole_frames(model)?;
+        let sensors = [FootSensor::of(model, soles[0])?, FootSensor::of(model, soles[1])?];
+        let starts_s = plan
+            .segments
+            .iter()
+            .scan(0.0, |t, s| {
+                let start = *t;
+                *t += s.duration_s;
+                Some(start)
+            })
+            .collect();
+        Ok(Self {
+            p: p.clone(),
+            friction: plan_params.step.friction,
+            sole_half_m: hrp4::sole_half_m(model)?,
+            tracker: Tracker::new(model, &q0, &plan.blocks, &plan_params.ik)?.online(),
+            estimate: Kinematics::new(model),
+            sensors,
+            soles,
+            mass_kg: model.total_mass_kg(),
+            segments: plan.segments.clone(),
+            starts_s,
+            segment: 0,
+            offsets: [FootOffset::default(); 2],
+            held: [None; 2],
+            lifted: [FootOffset::default(); 2],
+            approach_z: None,
+            seeking: [None; 2],
+            com_prev: None,
+            q_est: q0,
+            record: TickRecord::default(),
+        })
+    }
+
+    /// The control period, seconds.
+    pub fn period_s(&self) -> f64 {
+        1.0 / self.p.rate_hz
+    }
+
+    /// What the last tick wanted and measured.
+    pub fn record(&self) -> &TickRecord {
+        &self.record
+    }
+
+    /// The segment at plan time `t_s` and the fraction of it done.
+    fn segment_at(&self, t_s: f64) -> (usize, f64) {
+        let i = self.starts_s.partition_point(|&s| s <= t_s).saturating_sub(1);
+        let seg = &self.segments[i];
+        (i, ((t_s - self.starts_s[i]) / seg.duration_s).clamp(0.0, 1.0))
+    }
+
+    /// Handles the passage to segment `next`: a foot whose swing ended short of the ground
+    /// goes on seeking it; a foot lifting off takes its difference from the plan into the
+    /// swing (it fades out over it).
+    fn enter(&mut self, next: usize) {
+        while self.segment < next {
+            if let Some(sw) = &self.segments[self.segment].swing {
+                let k = sw.foot.index();
+                if self.held[k].is_none() {
+                    let planned = sw.path[sw.path.len() - 1].translation.z;
+                    self.seeking[k] = Some(self.approach_z.unwrap_or(planned));
+                }
+            }
+            self.approach_z = None;
+            self.segment += 1;
+            if let Some(sw) = &self.segments[self.segment].swing {
+                let k = sw.foot.index();
+                let mut lift = self.offsets[k];
+                if let Some(held) = self.held[k] {
+                    lift.translation_m += held.translation.vector - sw.path[0].translation.vector;
+                }
+                self.lifted[k] = lift;
+                self.offsets[k] = FootOffset::default();
+                self.held[k] = None;
+                self.seeking[k] = None;
+            }
+        }
+    }
+
+    /// A support foot's target: where it landed (or, before it has, its planned pose) with
+    /// the admittance's offsets.
+    fn corrected(&self, foot: Foot, planned: &Isometry3<f64>) -> Isometry3<f64> {
+        let k = foot.index();
+        self.offsets[k].apply(self.held[k].as_ref().unwrap_or(planned))
+    }
+
+    /// Where foot `k` met the ground: its measured position (`at`, world), its planned
+    /// orientation (flat on the tread).
+    fn land(&mut self, k: usize, at: Vector3<f64>, planned: &Isometry3<f64>) {
+        self.held[k] = Some(Isometry3::from_parts(at.into(), planned.rotation));
+        self.seeking[k] = None;
+    }
+
+    /// The kinematics from the encoders, the commanded base moved so the first planned
+    /// support sole is where the stabilizer holds it: the CoM, and the shift to add to any
+    /// frame of `self.estimate` to have it in the world.
+    fn estimate_com(
+        &mut self,
+        m: &Measurement,
+        anchor: Option<(usize, Isometry3<f64>)>,
+    ) -> Result<(Point3<f64>, Vector3<f64>), IkError> {
+        self.q_est[..Q_JOINTS].copy_from_slice(&self.tracker.q()[..Q_JOINTS]);
+        self.q_est[Q_JOINTS..].copy_from_slice(&m.joints_rad);
+        self.estimate.update(&self.q_est).map_err(|e| IkError::Setup(e.to_string()))?;
+        let shift = anchor.map_or(Vector3::zeros(), |(k, held)| {
+            held.translation.vector - self.estimate.frame_pose(self.soles[k]).translation.vector
+        });
+        Ok((self.estimate.com() + shift, shift))
+    }
+
+    /// One tick at plan time `t_s` with measurement `m`: the servos' set points for time
+    /// `t_s` + one period (a configuration; the joints from `Q_JOINTS`).
+    pub fn tick(&mut self, t_s: f64, m: &Measurement) -> Result<&[f64], IkError> {
+        let started = Instant::now();
+        let dt = self.period_s();
+        let (si, tau) = self.segment_at(t_s + dt);
+        self.enter(si);
+        let seg = self.segments[si].clone();
+        let mut supports: Vec<(Foot, Isometry3<f64>)> = seg
+            .support
+            .iter()
+            .filter(|(f, _)| self.seeking[f.index()].is_none())
+            .map(|(f, pose)| (*f, self.corrected(*f, pose)))
+            .collect();
+        // Measured ground wrenches, the feet's orientations from the encoders.
+        let anchor = supports.first().map(|(f, pose)| (f.index(), *pose));
+        let (com, shift) = self.estimate_com(m, anchor)?;
+        let measured: [SoleWrench; 2] = [0, 1].map(|k| {
+            let rotation = self.estimate.link_pose(self.sensors[k].link).rotation;
+            self.sensors[k].ground_wrench(&m.ft[k], &rotation)
+        });
+        // The swing: its planned path with the lift-off offsets fading; from the moment it
+        // meets the ground in its descent, a contact held where it landed (compliant
+        // touchdown: not pushed on to the planned height).
+        let mut swing = None;
+        let sole_at: [Vector3<f64>; 2] =
+            [0, 1].map(|k| self.estimate.frame_pose(self.soles[k]).translation.vector + shift);
+        if let (Some(sw), Some((foot, pose, twist))) = (&seg.swing, swing_target(&seg, tau)) {
+            let k = foot.index();
+            let last = sw.path[sw.path.len() - 1];
+            let descent = 1.0 - sw.shares[sw.shares.len() - 1] * (1.0 - self.p.touchdown_window);
+            if self.held[k].is_none() && tau >= descent && measured[k].force_n.z > self.p.touchdown_force_n {
+                self.land(k, sole_at[k], &last);
+            }
+            match self.held[k] {
+                Some(_) => supports.push((foot, self.corrected(foot, &last))),
+                None => {
+                    let (mut target, mut twist) = (self.lifted[k].scaled(1.0 - tau).apply(&pose), twist);
+                    // The approach: the last `approach_height_m` above the planned height at
+                    // no more than `approach_speed_m_s`, on below it to meet a lower ground.
+                    let final_z = last.translation.z;
+                    let z = target.translation.z;
+                    if tau >= descent && (z - final_z < self.p.approach_height_m || self.approach_z.is_some())
+                    {
+                        let slowest = self.approach_z.map_or(z, |a| a - self.p.approach_speed_m_s * dt);
+                        let lowest = final_z - self.p.max_seek_m;
+                        let next = if tau >= 1.0 { slowest.max(lowest) } else { slowest.max(z) };
+                        if next > z || tau >= 1.0 {
+                            twist[2] = -self.p.approach_speed_m_s;
+                        }
+                        target.translation.z = next;
+                        self.approach_z = Some(next);
+                    }
+                    swing = Some((foot, target, twist));
+                }
+            }
+        }
+        // A foot whose swing ended before it met the ground: on down at the approach's
+        // speed, still free (not pulled to its planned place as a held contact would be).
+        for (f, pose) in &seg.support {
+            let k = f.index();
+            let Some(z) = self.seeking[k] else { continue };
+            if measured[k].force_n.z > self.p.touchdown_force_n {
+                self.land(k, sole_at[k], pose);
+                supports.push((*f, self.corrected(*f, pose)));
+            } else if swing.is_none() {
+                let next = (z - self.p.approach_speed_m_s * dt).max(pose.translation.z - self.p.max_seek_m);
+                self.seeking[k] = Some(next);
+                let mut target = *pose;
+                target.translation.z = next;
+                let descending = if next < z { -self.p.approach_speed_m_s } else { 0.0 };
+                swing = Some((*f, target, Vector6::new(0.0, 0.0, descending, 0.0, 0.0, 0.0)));
+            }
+        }
+        // The wanted net wrench: quasi-static, with the CoM feedback.
+        let (now, _) = self.segment_at(t_s);
+        let tau_now = ((t_s - self.starts_s[now]) / self.segments[now].duration_s).clamp(0.0, 1.0);
+        let (com_ref, com_v) = com_target(&self.segments[now], tau_now);
+        let com_velocity = self.com_prev.map_or(Vector3::zeros(), |c| (com - c) / dt);
+        self.com_prev = Some(com);
+        let (_, v_next) = com_target(&seg, tau);
+        let accel = (v_next - com_v) / dt;
+        let force = self.mass_kg
+            * (Vector3::new(0.0, 0.0, GRAVITY_M_S2)
+                + accel
+                + self.p.com_stiffness_per_s2 * (com_ref - com)
+                + self.p.com_damping_per_s * (com_v - com_velocity));
+        let wanted_net = Vector6::new(force.x, force.y, force.z, 0.0, 0.0, 0.0);
+        // Each support's share of the normal force from where the CoM is between the feet.
+        let share = |k: usize| -> f64 {
+            if supports.len() < 2 {
+                return 1.0;
+            }
+            let (a, b) = (supports[0].1.translation.vector.xy(), supports[1].1.translation.vector.xy());
+            let ab = b - a;
+            let s = ((com_ref.coords.xy() - a).dot(&ab) / ab.norm_squared().max(1e-9)).clamp(0.0, 1.0);
+            if k == 0 {
+                1.0 - s
+            } else {
+                s
+            }
+        };
+        let contacts: Vec<Support> = supports
+            .iter()
+            .enumerate()
+            .map(|(i, (f, pose))| {
+                let [hx, hy] = self.sole_half_m[f.index()];
+                let contact = Contact::new(*pose, hx, hy, self.friction).map_err(IkError::Setup)?;
+                Ok(Support { contact, share: share(i) })
+            })
+            .collect::<Result<_, IkError>>()?;
+        let wanted = distribute(&contacts, &wanted_net, &com_ref, &self.p)?;
+        let mut wanted_by_foot = [None; 2];
+        for ((f, _), w) in supports.iter().zip(&wanted) {
+            wanted_by_foot[f.index()] = Some(*w);
+        }
+        self.admit(&supports, &measured, &wanted_by_foot, dt);
+        let (com_next, com_v_next) = com_target(&seg, tau);
+        let targets = Targets { com: com_next, com_velocity: com_v_next, swing, support: &supports };
+        self.tracker.tick(&targets, dt)?;
+        self.record = TickRecord {
+            t_s,
+            wanted: wanted_by_foot,
+            measured,
+            offsets: self.offsets,
+            held_m: [0, 1].map(|k| self.held[k].map(|h| h.translation.vector)),
+            com_error_m: com - com_ref,
+            wall_s: started.elapsed().as_secs_f64(),
+        };
+        Ok(self.tracker.q())
+    }
+
+    /// The admittance laws over the feet the plan has in contact.
+    fn admit(
+        &mut self,
+        supports: &[(Foot, Isometry3<f64>)],
+        measured: &[SoleWrench; 2],
+        wanted: &[Option<SoleWrench>; 2],
+        dt: f64,
+    ) {
+        let p = &self.p;
+        let loaded = |k: usize| measured[k].force_n.z > p.contact_force_n;
+        for (f, _) in supports {
+            let k = f.index();
+            let _ = k;
+        }
+        if let [(a, pa), (b, pb)] = supports {
+            let (i, j) = (a.index(), b.index());
+            if let (true, true, Some(wi), Some(wj)) = (loaded(i), loaded(j), wanted[i], wanted[j]) {
+                let mut pair = [self.offsets[0], self.offsets[1]];
+                let mut fz_w = [0.0; 2];
+                fz_w[i] = wi.force_n.z;
+                fz_w[j] = wj.force_n.z;
+                admittance::force_difference(
+                    &mut pair,
+                    [measured[0].force_n.z, measured[1].force_n.z],
+                    fz_w,
+                    p,
+                    dt,
+                );
+                // The ankles' torque errors, less their common part: a common error is the
+                // CoM's (only moving the CoM changes it), the rest is how the two soles
+                // share the load, which the ankles do change.
+                let world = |pose: &Isometry3<f64>, v: &Vector3<f64>| pose.rotation * v;
+                let common = (world(pa, &(measured[i].torque_nm - wi.torque_nm))
+                    + world(pb, &(measured[j].torque_nm - wj.torque_nm)))
+                    / 2.0;
+                for (k, pose, w) in [(i, pa, wi), (j, pb, wj)] {
+                    admittance::tangential(
+                        &mut pair[k],
+                        &world(pose, &measured[k].force_n),
+                        &world(pose, &w.force_n),
+                        p,
+                        dt,
+                    );
+                    let own = SoleWrench {
+                        torque_nm: measured[k].torque_nm - pose.rotation.inverse() * common,
+                        ..measured[k]
+                    };
+                    admittance::cop_damping(&mut pair[k], &own, &w, p, dt);
+                }
+                self.offsets = pair;
+                return;
+            }
+        }
+        // One foot down (or none loaded): its CoP is where the CoM puts it; the offsets
+        // return to the plan.
+        for (f, _) in supports {
+            admittance::leak(&mut self.offsets[f.index()], p, dt);
+        }
+    }
+}

@@ -1,0 +1,117 @@
+//! The simulated robot's own sensors as the stabilizer reads them: the ankles' 6-axis
+//! force/torque sensors and the waist IMU (MuJoCo `force`, `torque`, `accelerometer` and
+//! `gyro` sensors on the sites of `robot::mjcf`), the joint encoders, each with a bias and
+//! Gaussian noise from a seeded generator. The checks never read these: they judge from
+//! MuJoCo's contact list.
+
+use super::world::{SimError, World};
+use crate::control::{ForceTorque, Imu, Measurement};
+use crate::robot::mjcf::{ft_site, IMU_SITE};
+use crate::robot::model::Q_JOINTS;
+use nalgebra::Vector3;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+/// Noise and bias of the simulated sensors (`[sensors]` of a params file). Defaults are of
+/// the order of a six-axis ankle sensor's and a MEMS IMU's data sheets.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SensorParams {
+    /// Standard deviation of each force axis, N.
+    pub force_noise_n: f64,
+    /// Standard deviation of each torque axis, N m.
+    pub torque_noise_nm: f64,
+    /// Bias of the force axes (sensor frame), N, the same on both ankles.
+    pub force_bias_n: [f64; 3],
+    /// Bias of the torque axes, N m.
+    pub torque_bias_nm: [f64; 3],
+    /// Standard deviation of each accelerometer axis, m/s^2.
+    pub accel_noise_m_s2: f64,
+    /// Standard deviation of each gyro axis, rad/s.
+    pub gyro_noise_rad_s: f64,
+    /// Standard deviation of each joint encoder, rad.
+    pub encoder_noise_rad: f64,
+    /// Seed of the noise.
+    pub seed: u64,
+}
+
+impl Default for SensorParams {
+    fn default() -> Self {
+        Self {
+            force_noise_n: 1.0,
+            torque_noise_nm: 0.1,
+            force_bias_n: [0.0; 3],
+            torque_bias_nm: [0.0; 3],
+            accel_noise_m_s2: 0.05,
+            gyro_noise_rad_s: 0.005,
+            encoder_noise_rad: 1e-4,
+            seed: 0,
+        }
+    }
+}
+
+/// Where each sensor's values are in MuJoCo's sensor data.
+pub struct SimSensors {
+    /// Addresses: accelerometer, gyro, then force and torque of each sole, `[right, left]`.
+    adr: [usize; 6],
+    joints: usize,
+    p: SensorParams,
+    rng: ChaCha8Rng,
+}
+
+impl SimSensors {
+    /// The sensors of `world`'s robot, whose soles are the frames `soles` (`[right, left]`).
+    pub fn new(world: &World, soles: [&str; 2], p: &SensorParams) -> Result<Self, SimError> {
+        let [r, l] = soles.map(ft_site);
+        let names = [
+            format!("{IMU_SITE}_accel"),
+            format!("{IMU_SITE}_gyro"),
+            format!("{r}_force"),
+            format!("{r}_torque"),
+            format!("{l}_force"),
+            format!("{l}_torque"),
+        ];
+        let mut adr = [0; 6];
+        for (a, n) in adr.iter_mut().zip(&names) {
+            *a = world.sensor_adr(n)?;
+        }
+        Ok(Self {
+            adr,
+            joints: world.model().ffi().nu as usize,
+            p: p.clone(),
+            rng: ChaCha8Rng::seed_from_u64(p.seed),
+        })
+    }
+
+    /// What the sensors read now (after the last physics step).
+    pub fn read(&mut self, world: &World) -> Measurement {
+        let d = world.data();
+        let data = d.sensordata();
+        let rng = &mut self.rng;
+        let mut noisy = |adr: usize, sigma: f64, bias: [f64; 3]| -> Vector3<f64> {
+            let n = Normal::new(0.0, sigma.max(0.0)).unwrap_or(Normal::new(0.0, 0.0).expect("sigma 0"));
+            Vector3::new(
+                data[adr] + bias[0] + n.sample(rng),
+                data[adr + 1] + bias[1] + n.sample(rng),
+                data[adr + 2] + bias[2] + n.sample(rng),
+            )
+        };
+        let p = &self.p;
+        let imu = Imu {
+            accel_m_s2: noisy(self.adr[0], p.accel_noise_m_s2, [0.0; 3]),
+            gyro_rad_s: noisy(self.adr[1], p.gyro_noise_rad_s, [0.0; 3]),
+        };
+        let ft = [0, 1].map(|k| ForceTorque {
+            force_n: noisy(self.adr[2 + 2 * k], p.force_noise_n, p.force_bias_n),
+            torque_nm: noisy(self.adr[3 + 2 * k], p.torque_noise_nm, p.torque_bias_nm),
+        });
+        let enc =
+            Normal::new(0.0, p.encoder_noise_rad.max(0.0)).unwrap_or(Normal::new(0.0, 0.0).expect("sigma 0"));
+        let joints_rad = d.qpos()[Q_JOINTS..Q_JOINTS + self.joints]
+            .iter()
+            .map(|q| q + enc.sample(&mut self.rng))
+            .collect();
+        Measurement { ft, imu, joints_rad }
+    }
+}
