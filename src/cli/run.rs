@@ -273,5 +273,19 @@ fn print_summary(r: &ClimbReport) {
             r.execution_speed(),
             r.worst_think_s()
         );
+        let (ticks, tick_s) = r
+            .cycles
+            .iter()
+            .filter_map(|c| c.execution.control)
+            .fold((0, 0.0), |(n, s), c| (n + c.ticks, s + c.wall_s));
+        match ticks {
+            0 => println!("stabilizer: off (the planned q(t) open loop)"),
+            _ => println!(
+                "stabilizer: {ticks} ticks, {:.0} us each on average ({:.1} s of the wall time); friction ratio at most {:.2}",
+                1e6 * tick_s / ticks as f64,
+                tick_s,
+                r.max_friction_ratio()
+            ),
+        }
     }
 }

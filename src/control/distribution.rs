@@ -37,17 +37,47 @@ fn to_world(contact: &Contact, point: &Point3<f64>) -> Matrix6<f64> {
     g
 }
 
+/// Why no distribution was found.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DistributionError {
+    /// The QP failed (a solver status or a malformed problem).
+    #[error(transparent)]
+    Solver(#[from] IkError),
+    /// No wrench in the feet's cones makes the wanted one: the closest misses it by this much
+    /// (a CoM outside the support, a pull on the ground, no foot in contact).
+    #[error("the wanted wrench is outside the feet's cones: the closest misses it by {force_n:.1} N and {torque_nm:.1} N m")]
+    Infeasible {
+        /// Force residual, N.
+        force_n: f64,
+        /// Torque residual, N m.
+        torque_nm: f64,
+    },
+}
+
+/// A residual of the net wrench above which a request counts as infeasible: this fraction of
+/// the wanted force (the regularization alone leaves about 0.5 %), and this torque per
+/// newton of it (metres: the CoP off by this much).
+const INFEASIBLE_FORCE_FRACTION: f64 = 0.02;
+const INFEASIBLE_ARM_M: f64 = 0.005;
+
 /// The feet's wrenches (sole frames, in `supports`' order) closest to producing `wanted`
-/// (world force, and torque about `point`).
+/// (world force, and torque about `point`); an error when even the closest misses it.
 pub fn distribute(
     supports: &[Support],
     wanted: &Vector6<f64>,
     point: &Point3<f64>,
     p: &StabilizerParams,
-) -> Result<Vec<SoleWrench>, IkError> {
+) -> Result<Vec<SoleWrench>, DistributionError> {
     let n = supports.len();
+    let force = wanted.fixed_rows::<3>(0).norm();
     if n == 0 {
-        return Ok(Vec::new());
+        return match force > 0.0 {
+            true => Err(DistributionError::Infeasible {
+                force_n: force,
+                torque_nm: wanted.fixed_rows::<3>(3).norm(),
+            }),
+            false => Ok(Vec::new()),
+        };
     }
     let nv = 6 * n;
     let mut net = DMatrix::zeros(6, nv);
@@ -92,7 +122,15 @@ pub fn distribute(
     }
     let x =
         ik::Solver::new(nv, 1e-9).with_fast_path().solve(&tasks, &[], std::slice::from_ref(&cones), &[])?;
-    Ok((0..n).map(|i| SoleWrench::from_vector(&x.fixed_rows::<6>(6 * i).into_owned())).collect())
+    let wrenches: Vec<SoleWrench> =
+        (0..n).map(|i| SoleWrench::from_vector(&x.fixed_rows::<6>(6 * i).into_owned())).collect();
+    let contacts: Vec<&Contact> = supports.iter().map(|s| &s.contact).collect();
+    let miss = net_wrench(&contacts, &wrenches, point) - wanted;
+    let (force_n, torque_nm) = (miss.fixed_rows::<3>(0).norm(), miss.fixed_rows::<3>(3).norm());
+    if force_n > INFEASIBLE_FORCE_FRACTION * force || torque_nm > INFEASIBLE_ARM_M * force {
+        return Err(DistributionError::Infeasible { force_n, torque_nm });
+    }
+    Ok(wrenches)
 }
 
 /// The world wrench (force, torque about `point`) of sole-frame wrenches on `contacts`.

@@ -4,7 +4,7 @@
 //! corrected targets. The joint angles it returns are the servos' set points.
 
 use super::admittance::{self, FootOffset};
-use super::distribution::{distribute, Support};
+use super::distribution::{distribute, DistributionError, Support};
 use super::measurement::{FootSensor, Measurement, SoleWrench, GRAVITY_M_S2};
 use super::params::StabilizerParams;
 use crate::planning::contact::Contact;
@@ -31,6 +31,9 @@ pub struct TickRecord {
     /// Where each foot landed, when the stabilizer holds it there instead of its planned
     /// place (world, metres).
     pub held_m: [Option<Vector3<f64>>; 2],
+    /// When the wanted wrench was beyond the feet's cones: how far the closest missed it
+    /// (force N, torque N m); the offsets only leaked that tick.
+    pub infeasible: Option<[f64; 2]>,
     /// The estimated CoM's error from the plan's, metres.
     pub com_error_m: Vector3<f64>,
     /// Wall time of the tick, seconds.
@@ -56,6 +59,9 @@ pub struct Stabilizer<'m> {
     approach_z: Option<f64>,
     seeking: [Option<f64>; 2],
     com_prev: Option<Point3<f64>>,
+    t_s: f64,
+    held_s: f64,
+    pressed_ticks: [usize; 2],
     q_est: Vec<f64>,
     record: TickRecord,
 }
@@ -99,6 +105,9 @@ impl<'m> Stabilizer<'m> {
             approach_z: None,
             seeking: [None; 2],
             com_prev: None,
+            t_s: 0.0,
+            held_s: 0.0,
+            pressed_ticks: [0; 2],
             q_est: q0,
             record: TickRecord::default(),
         })
@@ -180,12 +189,24 @@ impl<'m> Stabilizer<'m> {
         Ok((self.estimate.com() + shift, shift))
     }
 
-    /// One tick at plan time `t_s` with measurement `m`: the servos' set points for time
-    /// `t_s` + one period (a configuration; the joints from `Q_JOINTS`).
-    pub fn tick(&mut self, t_s: f64, m: &Measurement) -> Result<&[f64], IkError> {
+    /// Where the stabilizer is on the plan's clock, seconds. It runs with the robot's clock
+    /// except while a foot that should be down has not met the ground yet: the plan then
+    /// waits for it (at most `max_hold_s` over the plan), so the CoM does not move toward
+    /// a foot in the air.
+    pub fn plan_time_s(&self) -> f64 {
+        self.t_s
+    }
+
+    /// One tick with measurement `m`: the servos' set points one period later (a
+    /// configuration; the joints from `Q_JOINTS`).
+    pub fn tick(&mut self, m: &Measurement) -> Result<&[f64], IkError> {
         let started = Instant::now();
         let dt = self.period_s();
-        let (si, tau) = self.segment_at(t_s + dt);
+        let t_s = self.t_s;
+        let hold = self.seeking.iter().any(Option::is_some) && self.held_s + dt <= self.p.max_hold_s;
+        let step_s = if hold { 0.0 } else { dt };
+        self.held_s += dt - step_s;
+        let (si, tau) = self.segment_at(t_s + step_s);
         self.enter(si);
         let seg = self.segments[si].clone();
         let mut supports: Vec<(Foot, Isometry3<f64>)> = seg
@@ -204,6 +225,12 @@ impl<'m> Stabilizer<'m> {
         // The swing: its planned path with the lift-off offsets fading; from the moment it
         // meets the ground in its descent, a contact held where it landed (compliant
         // touchdown: not pushed on to the planned height).
+        // A sole meets the ground when its normal force stays above the threshold for
+        // `touchdown_ticks` ticks (see the parameter: one by default).
+        for (ticks, w) in self.pressed_ticks.iter_mut().zip(&measured) {
+            *ticks = if w.force_n.z > self.p.touchdown_force_n { *ticks + 1 } else { 0 };
+        }
+        let touching = self.pressed_ticks.map(|n| n >= self.p.touchdown_ticks.max(1));
         let mut swing = None;
         let sole_at: [Vector3<f64>; 2] =
             [0, 1].map(|k| self.estimate.frame_pose(self.soles[k]).translation.vector + shift);
@@ -211,7 +238,7 @@ impl<'m> Stabilizer<'m> {
             let k = foot.index();
             let last = sw.path[sw.path.len() - 1];
             let descent = 1.0 - sw.shares[sw.shares.len() - 1] * (1.0 - self.p.touchdown_window);
-            if self.held[k].is_none() && tau >= descent && measured[k].force_n.z > self.p.touchdown_force_n {
+            if self.held[k].is_none() && tau >= descent && touching[k] {
                 self.land(k, sole_at[k], &last);
             }
             match self.held[k] {
@@ -242,7 +269,7 @@ impl<'m> Stabilizer<'m> {
         for (f, pose) in &seg.support {
             let k = f.index();
             let Some(z) = self.seeking[k] else { continue };
-            if measured[k].force_n.z > self.p.touchdown_force_n {
+            if touching[k] {
                 self.land(k, sole_at[k], pose);
                 supports.push((*f, self.corrected(*f, pose)));
             } else if swing.is_none() {
@@ -261,6 +288,7 @@ impl<'m> Stabilizer<'m> {
         let com_velocity = self.com_prev.map_or(Vector3::zeros(), |c| (com - c) / dt);
         self.com_prev = Some(com);
         let (_, v_next) = com_target(&seg, tau);
+        let (com_v, v_next) = if hold { (Vector3::zeros(), Vector3::zeros()) } else { (com_v, v_next) };
         let accel = (v_next - com_v) / dt;
         let force = self.mass_kg
             * (Vector3::new(0.0, 0.0, GRAVITY_M_S2)
@@ -291,13 +319,28 @@ impl<'m> Stabilizer<'m> {
                 Ok(Support { contact, share: share(i) })
             })
             .collect::<Result<_, IkError>>()?;
-        let wanted = distribute(&contacts, &wanted_net, &com_ref, &self.p)?;
+        // No distribution (the CoM outside what the feet down can hold): the offsets only
+        // leak back to the plan this tick, and the record says so.
         let mut wanted_by_foot = [None; 2];
-        for ((f, _), w) in supports.iter().zip(&wanted) {
-            wanted_by_foot[f.index()] = Some(*w);
-        }
-        self.admit(&supports, &measured, &wanted_by_foot, dt);
+        let infeasible = match distribute(&contacts, &wanted_net, &com_ref, &self.p) {
+            Ok(wanted) => {
+                for ((f, _), w) in supports.iter().zip(&wanted) {
+                    wanted_by_foot[f.index()] = Some(*w);
+                }
+                self.admit(&supports, &measured, &wanted_by_foot, dt);
+                None
+            }
+            Err(DistributionError::Infeasible { force_n, torque_nm }) => {
+                for (f, _) in &supports {
+                    admittance::leak(&mut self.offsets[f.index()], &self.p, dt);
+                }
+                Some([force_n, torque_nm])
+            }
+            Err(DistributionError::Solver(e)) => return Err(e),
+        };
         let (com_next, com_v_next) = com_target(&seg, tau);
+        let com_v_next = if hold { Vector3::zeros() } else { com_v_next };
+        self.t_s = t_s + step_s;
         let targets = Targets { com: com_next, com_velocity: com_v_next, swing, support: &supports };
         self.tracker.tick(&targets, dt)?;
         self.record = TickRecord {
@@ -306,6 +349,7 @@ impl<'m> Stabilizer<'m> {
             measured,
             offsets: self.offsets,
             held_m: [0, 1].map(|k| self.held[k].map(|h| h.translation.vector)),
+            infeasible,
             com_error_m: com - com_ref,
             wall_s: started.elapsed().as_secs_f64(),
         };

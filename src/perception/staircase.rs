@@ -69,8 +69,14 @@ pub fn extract(
                 continue;
             }
             let voxels: Vec<u32> = svs.iter().flat_map(|&s| members[s as usize].iter().copied()).collect();
+            // Filter 3's rule (§4.2) on each plane's part of a cluster too: RANSAC may split
+            // a cluster, and a leftover whose footprint is smaller than the sole is not a
+            // foothold (seen: 6 voxels of a step's tread, 5 deg off level, 1.5 cm above it,
+            // taken for another step turned 90 deg).
             if let Some(c) = candidate(vc, voxels, plane.normal.cast()) {
-                cands.push(c);
+                if geom2d::area(&c.hull) >= p.foot_length_m * p.foot_width_m {
+                    cands.push(c);
+                }
             }
         }
     }

@@ -547,6 +547,34 @@ mod tests {
         assert!((x[0]).abs() < 1e-6 && (x[1] - 1.0).abs() < 1e-6, "{x}");
     }
 
+    /// The fast path gives the interior-point solution when no limit binds (exactly the
+    /// equality-constrained least squares), and the same as clarabel when one does.
+    #[test]
+    fn the_fast_path_agrees_with_the_interior_point_solver() {
+        let t = [Task {
+            jacobian: DMatrix::from_row_slice(3, 3, &[1.0, 0.5, 0.0, 0.0, 2.0, 0.1, 0.3, 0.0, 1.0]),
+            velocity: DVector::from_vec(vec![1.0, 2.0, -0.5]),
+            weight: 1.0,
+        }];
+        let e = [Equality {
+            jacobian: DMatrix::from_row_slice(1, 3, &[1.0, 1.0, 1.0]),
+            velocity: DVector::from_element(1, 0.5),
+        }];
+        let b =
+            |hi: f64| Bounds { lower: DVector::from_element(3, -10.0), upper: DVector::from_element(3, hi) };
+        for hi in [10.0, 0.2] {
+            let g = [Inequality {
+                jacobian: DMatrix::from_row_slice(1, 3, &[1.0, -1.0, 0.0]),
+                bound: DVector::from_element(1, 5.0),
+            }];
+            let slow = Solver::new(3, 1e-9).solve(&t, &e, &g, &[b(hi)]).unwrap();
+            let fast = Solver::new(3, 1e-9).with_fast_path().solve(&t, &e, &g, &[b(hi)]).unwrap();
+            assert!((&slow - &fast).norm() < 1e-5, "bound {hi}: {slow} against {fast}");
+            assert!(fast.iter().all(|v| *v <= hi + 1e-9), "the bound holds: {fast}");
+            assert!((fast.sum() - 0.5).abs() < 1e-9, "the equality holds: {fast}");
+        }
+    }
+
     #[test]
     fn a_kept_solver_gives_what_a_fresh_one_gives() {
         let task = |v: [f64; 2], w: f64| Task {

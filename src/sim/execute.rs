@@ -114,6 +114,9 @@ pub fn execute(
             sensors: SimSensors::new(world, [hrp4::R_SOLE, hrp4::L_SOLE], &params.sensors)?,
             from: plan.trajectory.sample_at(0.0).q.clone(),
             to: plan.trajectory.sample_at(0.0).q.clone(),
+            plan_from_s: 0.0,
+            plan_to_s: 0.0,
+            plan_s: 0.0,
             tick_s: 0.0,
             next_s: 0.0,
             wall_s: 0.0,
@@ -121,11 +124,24 @@ pub fn execute(
         }),
         false => None,
     };
-    for k in 1..=(traj.duration_s() / dt).round() as usize {
-        let t = k as f64 * dt;
-        match control.as_mut() {
-            Some(c) => c.set_point(world, t - dt, dt, &mut q, observer)?,
-            None => traj.q_at(t, &mut q),
+    // Physics steps until the plan's clock reaches its end: with the stabilizer, that clock
+    // may wait for a late foot (at most its `max_hold_s`), so the steps are counted on it.
+    let steps = (traj.duration_s() / dt).round() as usize;
+    let last_step = steps + (params.stabilizer.max_hold_s / dt).ceil() as usize + 1;
+    for k in 1..=last_step {
+        // The step from k - 1 to k, and where it ends on the plan's clock.
+        let t = match control.as_mut() {
+            Some(c) => {
+                c.set_point(world, (k - 1) as f64 * dt, dt, &mut q, observer)?;
+                c.plan_time_s()
+            }
+            None => {
+                traj.q_at(k as f64 * dt, &mut q);
+                k as f64 * dt
+            }
+        };
+        if t > steps as f64 * dt + dt / 2.0 {
+            break;
         }
         servos.command(world, &q, dt);
         world.data_mut().step();
@@ -180,6 +196,9 @@ struct Control<'m> {
     sensors: SimSensors,
     from: Vec<f64>,
     to: Vec<f64>,
+    plan_from_s: f64,
+    plan_to_s: f64,
+    plan_s: f64,
     tick_s: f64,
     next_s: f64,
     wall_s: f64,
@@ -187,8 +206,8 @@ struct Control<'m> {
 }
 
 impl Control<'_> {
-    /// The set points for the physics step from `t_s` (plan time) to `t_s + dt_s`, into `q`;
-    /// a tick runs first when one is due, on what the sensors read now.
+    /// The set points for the physics step from `t_s` (the execution's time) to `t_s + dt_s`,
+    /// into `q`; a tick runs first when one is due, on what the sensors read now.
     fn set_point(
         &mut self,
         world: &World,
@@ -199,12 +218,14 @@ impl Control<'_> {
     ) -> Result<(), SimError> {
         while t_s >= self.next_s - dt_s / 2.0 {
             let m = self.sensors.read(world);
+            self.plan_from_s = self.stabilizer.plan_time_s();
             let next = self
                 .stabilizer
-                .tick(self.next_s, &m)
-                .map_err(|error| SimError::Stabilizer { t_s: self.next_s, error })?;
+                .tick(&m)
+                .map_err(|error| SimError::Stabilizer { t_s: self.plan_from_s, error })?;
             std::mem::swap(&mut self.from, &mut self.to);
             self.to.copy_from_slice(next);
+            self.plan_to_s = self.stabilizer.plan_time_s();
             self.tick_s = self.next_s;
             self.next_s += self.stabilizer.period_s();
             let record = self.stabilizer.record();
@@ -216,7 +237,13 @@ impl Control<'_> {
         for (o, (a, b)) in q.iter_mut().zip(self.from.iter().zip(&self.to)) {
             *o = a + (b - a) * s;
         }
+        self.plan_s = self.plan_from_s + (self.plan_to_s - self.plan_from_s) * s;
         Ok(())
+    }
+
+    /// The plan's clock at the end of the last step set, seconds.
+    fn plan_time_s(&self) -> f64 {
+        self.plan_s
     }
 }
 

@@ -1,8 +1,10 @@
-//! `bench climb`: the closed loop on Exp. 1 and on the paper's 24 cm step. The simulated time
-//! is the baseline: the whole loop's and the execution's speed as multiples of real time, and
-//! the perception plus planning each cycle waits for (issue 6's goals: the simulation faster
-//! than 10 x real time, perception and planning under 1 s); and the cost of recording the
-//! climb to MCAP, against the same climb unrecorded (issue 7's goal: under 10 %).
+//! `bench climb`: the closed loop on Exp. 1 and on the paper's 24 cm step, with the
+//! stabilizer and without it (the same climbs in the same process). The simulated time is the
+//! baseline: the whole loop's and the execution's speed as multiples of real time, and the
+//! perception plus planning each cycle waits for (issue 6's goals: the simulation faster than
+//! 10 x real time, perception and planning under 1 s); the stabilizer's tick and its share of
+//! the execution (issue 18); and the cost of recording the climb to MCAP, against the same
+//! climb unrecorded (issue 7's goal: under 10 %).
 
 use super::machine;
 use anyhow::Result;
@@ -23,28 +25,45 @@ pub fn run(repeat: usize) -> Result<String> {
         "Closed-loop climbs (scan, perceive, plan one stance, execute with every check at 1 kHz), default parameters, median of {repeat} runs by wall time; machine: {}.\n\n",
         machine()
     );
-    t += "| scenario | result | cycles | simulated | wall | loop / real time | execution / real time | perceive + plan, worst cycle | perceive, mean | plan, mean | lidar ray casting, mean |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+    t += "| scenario | stabilizer | result | friction ratio, largest | cycles | simulated | wall | loop / real time | execution / real time | stabilizer tick, mean | perceive + plan, worst cycle | perceive, mean | plan, mean | lidar ray casting, mean |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for name in ["exp1", "hrp4_step"] {
         let scenario = crate::cli::load_scenario(Some(std::path::Path::new(name)))?;
-        let mut runs: Vec<ClimbReport> = (0..repeat)
-            .map(|_| climb(&scenario, &ClimbParams::default(), &mut Nobody))
-            .collect::<Result<_, _>>()?;
-        runs.sort_by(|a, b| a.wall_s.total_cmp(&b.wall_s));
-        let r = &runs[runs.len() / 2];
+        let mut wall = [0.0; 2];
+        for (k, on) in [true, false].into_iter().enumerate() {
+            let mut params = ClimbParams::default();
+            params.stabilizer.enabled = on;
+            let mut runs: Vec<ClimbReport> =
+                (0..repeat).map(|_| climb(&scenario, &params, &mut Nobody)).collect::<Result<_, _>>()?;
+            runs.sort_by(|a, b| a.wall_s.total_cmp(&b.wall_s));
+            let r = &runs[runs.len() / 2];
+            wall[k] = r.wall_s / r.sim_s;
+            let (ticks, tick_s) = r
+                .cycles
+                .iter()
+                .filter_map(|c| c.execution.control)
+                .fold((0, 0.0), |(n, s), c| (n + c.ticks, s + c.wall_s));
+            let tick = if ticks > 0 { format!("{:.0} us", 1e6 * tick_s / ticks as f64) } else { "-".into() };
+            t += &format!(
+                "| {name} | {} | {} {}/{} steps | {:.2} | {} | {:.1} s | {:.2} s | {:.1} x | {:.1} x | {tick} | {:.2} s | {:.0} ms | {:.2} s | {:.0} ms |\n",
+                if on { "on" } else { "off" },
+                if r.success { "climbed" } else { "FAILED" },
+                r.steps_climbed,
+                r.steps_total,
+                r.max_friction_ratio(),
+                r.cycles.len(),
+                r.sim_s,
+                r.wall_s,
+                r.sim_s / r.wall_s,
+                r.execution_speed(),
+                r.worst_think_s(),
+                1e3 * r.mean_per_cycle(|c| c.perceive_s),
+                r.mean_per_cycle(|c| c.plan_s),
+                1e3 * r.mean_per_cycle(|c| c.scan_s),
+            );
+        }
         t += &format!(
-            "| {name} | {} {}/{} steps | {} | {:.1} s | {:.2} s | {:.1} x | {:.1} x | {:.2} s | {:.0} ms | {:.2} s | {:.0} ms |\n",
-            if r.success { "climbed" } else { "FAILED" },
-            r.steps_climbed,
-            r.steps_total,
-            r.cycles.len(),
-            r.sim_s,
-            r.wall_s,
-            r.sim_s / r.wall_s,
-            r.execution_speed(),
-            r.worst_think_s(),
-            1e3 * r.mean_per_cycle(|c| c.perceive_s),
-            r.mean_per_cycle(|c| c.plan_s),
-            1e3 * r.mean_per_cycle(|c| c.scan_s),
+            "| {name} | on / off | | | | | wall per simulated second x {:.2} | | | | | | | |\n",
+            wall[0] / wall[1]
         );
     }
     // Recording's cost: the same climb with and without --record, alternated, same process.
@@ -73,6 +92,7 @@ pub fn run(repeat: usize) -> Result<String> {
         100.0 * (b / a - 1.0),
         bytes as f64 / 1e6
     );
-    t += "\nLoop / real time counts everything (ray casting, perception, planning, execution); execution / real time is MuJoCo with the servos and every check alone. Planning is nearly all IK ticks (see bench plan).\n";
+    t += "\nThe friction ratio is the largest tangential over normal force of a loaded foot (the check's limit is the friction coefficient, 0.7). ";
+    t += "Loop / real time counts everything (ray casting, perception, planning, execution); execution / real time is MuJoCo with the servos and every check alone. Planning is nearly all IK ticks (see bench plan).\n";
     Ok(t)
 }
