@@ -2,18 +2,20 @@
 //! physics step; refusals stop the loop before anything moves; a broken plan, a foot off its
 //! step and a too-fast timing are each caught and named.
 
+mod common;
+
+use common::{settled_exp1, step_tops_moved};
 use nalgebra::{Translation3, Vector3};
 use stairbench::cancel::Cancel;
 use stairbench::climb::speed_margin::speed_margin;
 use stairbench::climb::{Check, CheckKind, ClimbReport, Execution, Footing, Nobody, StopReason};
 use stairbench::params::ClimbParams;
-use stairbench::perception::PlaneSegment;
 use stairbench::planning::clearance::step_blocks;
 use stairbench::planning::gait::Phase;
 use stairbench::planning::motion::track;
 use stairbench::planning::RefusalKind;
 use stairbench::planning::{plan, rectangles, Foot, Plan, PlanParams};
-use stairbench::robot::{hrp4, RobotModel};
+use stairbench::robot::RobotModel;
 use stairbench::scenario::Scenario;
 use stairbench::scene::Scene;
 use stairbench::sim::checks::CheckParams;
@@ -137,18 +139,6 @@ fn a_floor_stance_executes_in_mujoco_with_the_checks_holding() {
     assert!(ex.max_friction_ratio < 0.7 && ex.max_slip_m < 0.005);
 }
 
-/// The Exp. 1 world after settling, the robot's model and configuration.
-fn settled_exp1() -> (Scene, RobotModel, World, Vec<f64>) {
-    let scene = Scene::from_scenario(&Scenario::default()).unwrap();
-    let model = hrp4::model().unwrap();
-    let mut world = World::for_scene(&scene).unwrap();
-    for _ in 0..300 {
-        world.data_mut().step();
-    }
-    let q0 = world.data().qpos()[..model.nq()].to_vec();
-    (scene, model, world, q0)
-}
-
 /// `plan` executed in `world` with the default servos, stabilizer and checks; its
 /// violations printed.
 fn execute_checked(world: &mut World, model: &RobotModel, scene: &Scene, plan: &Plan) -> Execution {
@@ -205,20 +195,7 @@ fn a_foot_placed_5_cm_off_its_steps_edge_is_reported() {
     // The step rectangles as if perceived 6.5 cm too near: the foothold in the middle of
     // step 1's wrong rectangle puts the heel 5 cm over the true nose ((27 - 24) / 2 + 5 cm).
     let shift = -0.065;
-    let rects: Vec<PlaneSegment> = rectangles::from_step_tops(scene.steps())
-        .iter()
-        .map(|r| {
-            PlaneSegment::new(
-                r.center() + Vector3::new(shift, 0.0, 0.0),
-                r.along(),
-                r.depth_m(),
-                r.width_m(),
-                r.normal().into_inner(),
-                r.voxel_count(),
-            )
-            .unwrap()
-        })
-        .collect();
+    let rects = step_tops_moved(&scene, Vector3::new(shift, 0.0, 0.0));
     let p = plan(&model, &q0, &rects, Some(3), &PlanParams::default()).unwrap();
     assert_eq!(p.stances.last().unwrap().step, Some(0), "the third stance is on step 1");
     let ex = execute_checked(&mut world, &model, &scene, &p);

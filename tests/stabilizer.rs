@@ -3,15 +3,17 @@
 //! climbs keep their loaded feet well inside the friction cone; a step higher than perceived
 //! is met by the compliant touchdown.
 
+mod common;
+
+use common::{settled_exp1, step_tops_moved};
 use nalgebra::{Isometry3, Point3, Vector3, Vector6};
 use stairbench::cancel::Cancel;
 use stairbench::climb::{CheckKind, Execution, Nobody};
 use stairbench::control::distribution::{distribute, net_wrench, DistributionError, Support};
 use stairbench::control::{FootSensor, StabilizerParams};
 use stairbench::params::ClimbParams;
-use stairbench::perception::PlaneSegment;
 use stairbench::planning::contact::Contact;
-use stairbench::planning::{plan, rectangles, PlanParams};
+use stairbench::planning::{plan, PlanParams};
 use stairbench::robot::hrp4;
 use stairbench::scenario::Scenario;
 use stairbench::scene::Scene;
@@ -286,27 +288,8 @@ fn with_the_stabilizer_exp1_uses_at_most_half_the_friction_cone() {
 /// Exp. 1's first stances, planned on steps perceived `error_m` higher than they are (a
 /// perception error made on purpose), executed in the true world.
 fn with_perceived_height_off_by(error_m: f64, stabilizer: bool) -> Execution {
-    let scene = Scene::from_scenario(&Scenario::default()).unwrap();
-    let model = hrp4::model().unwrap();
-    let mut world = World::for_scene(&scene).unwrap();
-    for _ in 0..300 {
-        world.data_mut().step();
-    }
-    let q0 = world.data().qpos()[..model.nq()].to_vec();
-    let rects: Vec<PlaneSegment> = rectangles::from_step_tops(scene.steps())
-        .iter()
-        .map(|r| {
-            PlaneSegment::new(
-                r.center() + Vector3::new(0.0, 0.0, error_m),
-                r.along(),
-                r.depth_m(),
-                r.width_m(),
-                r.normal().into_inner(),
-                r.voxel_count(),
-            )
-            .unwrap()
-        })
-        .collect();
+    let (scene, model, mut world, q0) = settled_exp1();
+    let rects = step_tops_moved(&scene, Vector3::new(0.0, 0.0, error_m));
     let planned = plan(&model, &q0, &rects, Some(3), &PlanParams::default()).unwrap();
     assert_eq!(planned.stances.last().unwrap().step, Some(0), "the third stance is on step 1");
     let mut p = ClimbParams::default();

@@ -1,5 +1,6 @@
 //! Helpers shared by the integration tests: an independent ray caster (slab method on the
-//! scene's boxes, no MuJoCo) to check the simulated lidar against.
+//! scene's boxes, no MuJoCo) to check the simulated lidar against; the Exp. 1 world settled
+//! and its true step rectangles, moved as a perception error made on purpose.
 #![allow(dead_code)]
 
 use nalgebra::{Isometry3, Point3, Vector3};
@@ -45,4 +46,35 @@ pub fn cast<'a>(
 /// The scene of a scenario (unwrapping: test inputs are valid).
 pub fn scene_of(s: &stairbench::scenario::Scenario) -> Scene {
     Scene::from_scenario(s).expect("valid scenario")
+}
+
+/// The Exp. 1 world after settling (300 physics steps), the robot's model and configuration.
+pub fn settled_exp1() -> (Scene, stairbench::robot::RobotModel, stairbench::sim::World, Vec<f64>) {
+    let scene = Scene::from_scenario(&stairbench::scenario::Scenario::default()).unwrap();
+    let model = stairbench::robot::hrp4::model().unwrap();
+    let mut world = stairbench::sim::World::for_scene(&scene).unwrap();
+    for _ in 0..300 {
+        world.data_mut().step();
+    }
+    let q0 = world.data().qpos()[..model.nq()].to_vec();
+    (scene, model, world, q0)
+}
+
+/// The true step rectangles of `scene`, each moved by `offset` (a perception error made on
+/// purpose).
+pub fn step_tops_moved(scene: &Scene, offset: Vector3<f64>) -> Vec<stairbench::perception::PlaneSegment> {
+    stairbench::planning::rectangles::from_step_tops(scene.steps())
+        .iter()
+        .map(|r| {
+            stairbench::perception::PlaneSegment::new(
+                r.center() + offset,
+                r.along(),
+                r.depth_m(),
+                r.width_m(),
+                r.normal().into_inner(),
+                r.voxel_count(),
+            )
+            .unwrap()
+        })
+        .collect()
 }
