@@ -9,7 +9,9 @@ use common::{settled_exp1, step_tops_moved};
 use nalgebra::{Isometry3, Point3, Vector3, Vector6};
 use stairbench::cancel::Cancel;
 use stairbench::climb::{CheckKind, Execution, Nobody};
-use stairbench::control::distribution::{distribute, net_wrench, DistributionError, Support};
+use stairbench::control::distribution::{
+    distribute, net_wrench, regularization_weights, DistributionError, Support,
+};
 use stairbench::control::{FootSensor, StabilizerParams};
 use stairbench::params::ClimbParams;
 use stairbench::planning::contact::Contact;
@@ -153,17 +155,7 @@ fn dense_distribution(
     let mut h = g.transpose() * &g * p.weight_net_wrench;
     let c = -(g.transpose() * wanted) * p.weight_net_wrench;
     for i in 0..supports.len() {
-        for (j, w) in [
-            p.weight_tangential,
-            p.weight_tangential,
-            0.0,
-            p.weight_ankle_torque,
-            p.weight_ankle_torque,
-            p.weight_ankle_torque,
-        ]
-        .iter()
-        .enumerate()
-        {
+        for (j, w) in regularization_weights(p).iter().enumerate() {
             h[(6 * i + j, 6 * i + j)] += w;
         }
     }

@@ -60,6 +60,13 @@ pub enum DistributionError {
 const INFEASIBLE_FORCE_FRACTION: f64 = 0.02;
 const INFEASIBLE_ARM_M: f64 = 0.005;
 
+/// The weight of each axis of a sole's wrench (force x y z, torque x y z) in the QP's
+/// regularization: tangential forces and ankle torques, none on the normal force.
+pub fn regularization_weights(p: &StabilizerParams) -> [f64; 6] {
+    let (t, a) = (p.weight_tangential, p.weight_ankle_torque);
+    [t, t, 0.0, a, a, a]
+}
+
 /// The feet's wrenches (sole frames, in `supports`' order) closest to producing `wanted`
 /// (world force, and torque about `point`); an error when even the closest misses it.
 pub fn distribute(
@@ -83,20 +90,8 @@ pub fn distribute(
     let mut net = DMatrix::zeros(6, nv);
     let mut cones = Inequality { jacobian: DMatrix::zeros(16 * n, nv), bound: DVector::zeros(16 * n) };
     let mut regular = DMatrix::zeros(nv, nv);
-    let mut diag = Vector6::zeros();
-    for (k, v) in [
-        p.weight_tangential,
-        p.weight_tangential,
-        0.0,
-        p.weight_ankle_torque,
-        p.weight_ankle_torque,
-        p.weight_ankle_torque,
-    ]
-    .iter()
-    .enumerate()
-    {
-        diag[k] = v.sqrt();
-    }
+    let diag = regularization_weights(p).map(f64::sqrt);
+    let diag = Vector6::from_column_slice(&diag);
     for (i, s) in supports.iter().enumerate() {
         net.view_mut((0, 6 * i), (6, 6)).copy_from(&to_world(&s.contact, point));
         cones.jacobian.view_mut((16 * i, 6 * i), (16, 6)).copy_from(&s.contact.local_faces());

@@ -50,7 +50,7 @@ pub struct Stabilizer<'m> {
     sensors: [FootSensor; 2],
     soles: [usize; 2],
     mass_kg: f64,
-    segments: Vec<Segment>,
+    segments: std::sync::Arc<[Segment]>,
     starts_s: Vec<f64>,
     segment: usize,
     offsets: [FootOffset; 2],
@@ -96,7 +96,7 @@ impl<'m> Stabilizer<'m> {
             sensors,
             soles,
             mass_kg: model.total_mass_kg(),
-            segments: plan.segments.clone(),
+            segments: plan.segments.clone().into(),
             starts_s,
             segment: 0,
             offsets: [FootOffset::default(); 2],
@@ -208,7 +208,10 @@ impl<'m> Stabilizer<'m> {
         self.held_s += dt - step_s;
         let (si, tau) = self.segment_at(t_s + step_s);
         self.enter(si);
-        let seg = self.segments[si].clone();
+        // The segment by a shared handle: the tick changes the stabilizer's state while it
+        // reads the segment, and copying the segment (polygon, swing path) every tick is waste.
+        let segments = std::sync::Arc::clone(&self.segments);
+        let seg = &segments[si];
         let mut supports: Vec<(Foot, Isometry3<f64>)> = seg
             .support
             .iter()
@@ -234,7 +237,7 @@ impl<'m> Stabilizer<'m> {
         let mut swing = None;
         let sole_at: [Vector3<f64>; 2] =
             [0, 1].map(|k| self.estimate.frame_pose(self.soles[k]).translation.vector + shift);
-        if let (Some(sw), Some((foot, pose, twist))) = (&seg.swing, swing_target(&seg, tau)) {
+        if let (Some(sw), Some((foot, pose, twist))) = (&seg.swing, swing_target(seg, tau)) {
             let k = foot.index();
             let last = sw.path[sw.path.len() - 1];
             let descent = 1.0 - sw.shares[sw.shares.len() - 1] * (1.0 - self.p.touchdown_window);
@@ -287,7 +290,7 @@ impl<'m> Stabilizer<'m> {
         let (com_ref, com_v) = com_target(&self.segments[now], tau_now);
         let com_velocity = self.com_prev.map_or(Vector3::zeros(), |c| (com - c) / dt);
         self.com_prev = Some(com);
-        let (_, v_next) = com_target(&seg, tau);
+        let (_, v_next) = com_target(seg, tau);
         let (com_v, v_next) = if hold { (Vector3::zeros(), Vector3::zeros()) } else { (com_v, v_next) };
         let accel = (v_next - com_v) / dt;
         let force = self.mass_kg
@@ -338,7 +341,7 @@ impl<'m> Stabilizer<'m> {
             }
             Err(DistributionError::Solver(e)) => return Err(e),
         };
-        let (com_next, com_v_next) = com_target(&seg, tau);
+        let (com_next, com_v_next) = com_target(seg, tau);
         let com_v_next = if hold { Vector3::zeros() } else { com_v_next };
         self.t_s = t_s + step_s;
         let targets = Targets { com: com_next, com_velocity: com_v_next, swing, support: &supports };
