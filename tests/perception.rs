@@ -100,6 +100,49 @@ fn a_staircase_yawed_by_30_degrees_comes_out_turned() {
     }
 }
 
+/// A top landing is deeper than the steps, so §4.3's shape clustering alone leaves it out
+/// (the loop then first saw it from the last step, its nose hidden, and walked into its
+/// riser). From the floor, every step and the landing are found, each on its true step.
+#[test]
+fn a_deep_top_landing_is_found_with_the_flight() {
+    for landing_m in [0.3, 1.0] {
+        let toml = format!(
+            "[staircase]\nsteps = 3\nrise_m = 0.2\ntread_m = 0.27\nwidth_m = 0.5\nlanding_m = {landing_m}\n"
+        );
+        let mut s = Scenario::from_toml_str(&toml, "landing.toml").unwrap();
+        s.lidar.noise_sigma_m = 0.007;
+        let scene = common::scene_of(&s);
+        let r = perceive(&scan(&s), &PerceptionParams::default()).unwrap();
+        let sc = metrics::score(&r.segments, scene.steps(), 0.02);
+        assert_eq!(sc.found, 3, "landing {landing_m} m: {sc:?}");
+        assert_eq!(sc.false_segments, 0, "landing {landing_m} m: {sc:?}");
+        for st in &sc.steps {
+            assert!(st.iou >= 0.85, "landing {landing_m} m: step {} IoU {:.2}", st.index + 1, st.iou);
+        }
+    }
+}
+
+/// A wide, low flight (the ci suite's case 96): the supervoxel clustering cut each 1.3 m
+/// tread into strips, and the staircase came back as 15 "steps" at 5 heights (the planner
+/// saw rises of 0 and 19 cm treads and refused). Each tread is one segment on its true step.
+#[test]
+fn a_wide_low_tread_is_one_segment() {
+    let toml = "seed = 1473681528205108050\n\
+        [staircase]\nsteps = 8\nrise_m = 0.114\ntread_m = 0.364\nwidth_m = 1.30\nyaw_deg = -16.7\n\
+        start_m = [0.84, -0.38]\n[robot]\nyaw_deg = -14.1\n\
+        [lidar]\nnoise_sigma_m = 0.0075\ndropout_probability = 0.0087\n";
+    let s = Scenario::from_toml_str(toml, "wide.toml").unwrap();
+    let scene = common::scene_of(&s);
+    let r = perceive(&scan(&s), &PerceptionParams::default()).unwrap();
+    let sc = metrics::score(&r.segments, scene.steps(), 0.02);
+    assert!(sc.found >= 4, "{sc:?}");
+    assert_eq!(sc.false_segments, 0, "{sc:?}");
+    assert_eq!(r.segments.len(), sc.found, "one segment per tread: {sc:?}");
+    for st in sc.steps.iter().filter(|st| st.found) {
+        assert!(st.iou >= 0.85, "step {} IoU {:.2}", st.index + 1, st.iou);
+    }
+}
+
 #[test]
 fn grid_neighbourhoods_match_the_kd_tree() {
     let cloud = scan(&exp1(0.01));

@@ -120,8 +120,12 @@ pub enum Check {
         tangential_n: [f64; 2],
         /// Normal force.
         normal_n: f64,
-        /// The friction coefficient judged against.
+        /// The friction coefficient judged against: the surface's true one.
         limit: f64,
+        /// The coefficient the plan assumed (`checks.friction`, the plan's pyramid): above
+        /// `limit`, the plan asked for friction the surface does not have.
+        #[serde(default)]
+        planned: f64,
     },
     /// A foot's centre of pressure outside its sole.
     Cop {
@@ -316,11 +320,18 @@ impl fmt::Display for Check {
                     m.abs() * 1e3
                 )
             }
-            Check::Friction { foot, tangential_n, normal_n, limit } => write!(
-                f,
-                "{foot:?} foot: tangential ({:.1}, {:.1}) N beyond {limit} x normal {normal_n:.1} N",
-                tangential_n[0], tangential_n[1]
-            ),
+            Check::Friction { foot, tangential_n, normal_n, limit, planned } => {
+                write!(
+                    f,
+                    "{foot:?} foot: tangential ({:.1}, {:.1}) N beyond the surface's {limit:.2} x normal {normal_n:.1} N",
+                    tangential_n[0], tangential_n[1]
+                )?;
+                if planned > limit {
+                    write!(f, " (the plan assumed {planned:.2}: more than the surface has)")
+                } else {
+                    write!(f, " (beyond the plan's own {planned:.2} pyramid too)")
+                }
+            }
             Check::Cop { foot, cop_m, .. } => {
                 write!(f, "{foot:?} centre of pressure outside the sole at ({:.3}, {:.3})", cop_m[0], cop_m[1])
             }
@@ -517,18 +528,23 @@ mod tests {
                 foot: Foot::Right,
                 tangential_n: [-34.2, 7.9],
                 normal_n: 48.9,
-                limit: 0.7,
+                limit: 0.4,
+                planned: 0.7,
             },
         };
         let json = serde_json::to_value(&v).expect("serializable");
         assert_eq!(json["check"], "friction");
         assert_eq!(json["cycle"], 3);
         assert_eq!(json["normal_n"], 48.9);
-        assert_eq!(json["detail"], "Right foot: tangential (-34.2, 7.9) N beyond 0.7 x normal 48.9 N");
+        assert_eq!(
+            json["detail"],
+            "Right foot: tangential (-34.2, 7.9) N beyond the surface's 0.40 x normal 48.9 N \
+             (the plan assumed 0.70: more than the surface has)"
+        );
         let back: Violation = serde_json::from_value(json).expect("readable");
         assert_eq!(back, v);
         let m = v.check.measure().expect("measured");
-        assert!((m.value - 34.2 / 48.9).abs() < 1e-12 && m.limit == 0.7 && m.unit == "ratio");
+        assert!((m.value - 34.2 / 48.9).abs() < 1e-12 && m.limit == 0.4 && m.unit == "ratio");
     }
 
     #[test]

@@ -369,10 +369,6 @@ impl<'m> Stabilizer<'m> {
     ) {
         let p = &self.p;
         let loaded = |k: usize| measured[k].force_n.z > p.contact_force_n;
-        for (f, _) in supports {
-            let k = f.index();
-            let _ = k;
-        }
         if let [(a, pa), (b, pb)] = supports {
             let (i, j) = (a.index(), b.index());
             if let (true, true, Some(wi), Some(wj)) = (loaded(i), loaded(j), wanted[i], wanted[j]) {

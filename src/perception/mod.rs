@@ -59,6 +59,14 @@ pub struct PerceptionParams {
     /// §4.3: segments whose (depth, width) differ by less than this are clustered together;
     /// the biggest cluster is the staircase. Metres.
     pub shape_tolerance_m: f64,
+    /// Beyond §4.3: a segment of another shape continues the flight (a top landing, a
+    /// deeper first step) when it rises from the flight's end step by at most this, metres
+    /// (above the 28 cm the legs climb: perception reports, the planner judges).
+    pub flight_max_rise_m: f64,
+    /// ... and its near edge is within this of that step's far edge along the ascent,
+    /// metres (the treads of a continuous flight meet at the riser; perception leaves up to
+    /// about 6 cm between them, see the gait's `max_gap_m`).
+    pub flight_gap_m: f64,
 }
 
 impl Default for PerceptionParams {
@@ -79,6 +87,8 @@ impl Default for PerceptionParams {
             ransac_max_planes: 64,
             ransac_seed: 0,
             shape_tolerance_m: 0.10,
+            flight_max_rise_m: 0.30,
+            flight_gap_m: 0.10,
         }
     }
 }
@@ -116,6 +126,8 @@ impl PerceptionParams {
             ("foot_width_m", self.foot_width_m),
             ("ransac_distance_m", self.ransac_distance_m),
             ("shape_tolerance_m", self.shape_tolerance_m),
+            ("flight_max_rise_m", self.flight_max_rise_m),
+            ("flight_gap_m", self.flight_gap_m),
         ] {
             if !pos(v) {
                 return bad(f, "must be > 0");

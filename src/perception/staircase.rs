@@ -50,7 +50,7 @@ pub fn extract(
         }
     }
     let up = -gravity.into_inner();
-    let mut cands: Vec<Candidate> = Vec::new();
+    let mut parts: Vec<Candidate> = Vec::new();
     for plane in planes {
         let mut by_cluster: Vec<(u32, Vec<u32>)> = Vec::new();
         for &s in &plane.inliers {
@@ -69,17 +69,17 @@ pub fn extract(
                 continue;
             }
             let voxels: Vec<u32> = svs.iter().flat_map(|&s| members[s as usize].iter().copied()).collect();
-            // Filter 3's rule (§4.2) on each plane's part of a cluster too: RANSAC may split
-            // a cluster, and a leftover whose footprint is smaller than the sole is not a
-            // foothold (seen: 6 voxels of a step's tread, 5 deg off level, 1.5 cm above it,
-            // taken for another step turned 90 deg).
-            if let Some(c) = candidate(vc, voxels, plane.normal.cast()) {
-                if geom2d::area(&c.hull) >= p.foot_length_m * p.foot_width_m {
-                    cands.push(c);
-                }
-            }
+            parts.extend(candidate(vc, voxels, plane.normal.cast()));
         }
     }
+    // Filter 3's rule (§4.2) on each joined part too: RANSAC may split a cluster, and a
+    // leftover whose footprint is smaller than the sole is not a foothold (seen: 6 voxels
+    // of a step's tread, 5 deg off level, 1.5 cm above it, taken for another step turned
+    // 90 deg).
+    let cands: Vec<Candidate> = join_touching(vc, parts, p)
+        .into_iter()
+        .filter(|c| geom2d::area(&c.hull) >= p.foot_length_m * p.foot_width_m)
+        .collect();
     let n_candidates = cands.len();
     if cands.is_empty() {
         return Err(PerceptionError::NoStaircase(NoStaircase::NoFlatSegment {
@@ -135,6 +135,7 @@ pub fn extract(
     stair.sort_by(|a, b| a.height.total_cmp(&b.height));
 
     let along = ascent_direction(&stair, &below);
+    extend_flight(&mut stair, &steps, &along, p);
     let segments = stair
         .iter()
         .filter_map(|c| {
@@ -149,6 +150,60 @@ pub fn extract(
     Ok((segments, n_candidates))
 }
 
+/// Parts at one height (within the RANSAC inlier distance) whose voxels touch (within two
+/// voxels) are one surface: the supervoxel clustering cut wide, low treads into strips
+/// (ci suite: a 1.3 m tread came back as three segments at one height, the planner then
+/// saw a rise of 0 and a 19 cm tread), and a plane's parts in different clusters were kept
+/// apart. Separate surfaces at one height (a box top beside a tread) stay apart.
+fn join_touching(vc: &VoxelCloud, parts: Vec<Candidate>, p: &PerceptionParams) -> Vec<Candidate> {
+    let g = p.voxel_resolution_m;
+    let cell = |v: u32| {
+        let q = vc.positions[v as usize];
+        ((f64::from(q.x) / g).floor() as i64, (f64::from(q.y) / g).floor() as i64)
+    };
+    let cells: Vec<std::collections::HashSet<(i64, i64)>> =
+        parts.iter().map(|c| c.voxels.iter().map(|&v| cell(v)).collect()).collect();
+    let boxes: Vec<([f64; 2], [f64; 2])> = parts.iter().map(|c| geom2d::extents(&c.hull, &P2::x())).collect();
+    let near = |i: usize, j: usize| {
+        let ((xi, yi), (xj, yj)) = (boxes[i], boxes[j]);
+        let reach = 2.0 * g + 1e-9;
+        (parts[i].height - parts[j].height).abs() <= p.ransac_distance_m
+            && xi[0] - reach <= xj[1]
+            && xj[0] - reach <= xi[1]
+            && yi[0] - reach <= yj[1]
+            && yj[0] - reach <= yi[1]
+            && cells[j]
+                .iter()
+                .any(|&(x, y)| (-2..=2).any(|dx| (-2..=2).any(|dy| cells[i].contains(&(x + dx, y + dy)))))
+    };
+    let n = parts.len();
+    let mut label: Vec<usize> = (0..n).collect();
+    for i in 0..n {
+        for j in 0..i {
+            if label[i] != label[j] && near(i, j) {
+                let (from, to) = (label[i], label[j]);
+                label.iter_mut().filter(|l| **l == from).for_each(|l| *l = to);
+            }
+        }
+    }
+    let mut groups: Vec<Vec<Candidate>> = (0..n).map(|_| Vec::new()).collect();
+    for (c, l) in parts.into_iter().zip(label) {
+        groups[l].push(c);
+    }
+    groups
+        .into_iter()
+        .filter_map(|mut group| match group.len() {
+            0 => None,
+            1 => group.pop(),
+            _ => {
+                let normal = group.iter().map(|c| c.normal * c.voxels.len() as f64).sum::<Vector3<f64>>();
+                let voxels: Vec<u32> = group.into_iter().flat_map(|c| c.voxels).collect();
+                candidate(vc, voxels, normal.normalize())
+            }
+        })
+        .collect()
+}
+
 fn candidate(vc: &VoxelCloud, voxels: Vec<u32>, normal: Vector3<f64>) -> Option<Candidate> {
     let xy: Vec<P2> = voxels.iter().map(|&v| vc.positions[v as usize].xy().coords.cast::<f64>()).collect();
     let hull = geom2d::convex_hull(&xy);
@@ -157,6 +212,44 @@ fn candidate(vc: &VoxelCloud, voxels: Vec<u32>, normal: Vector3<f64>) -> Option<
     let height = voxels.iter().map(|&v| vc.positions[v as usize].z as f64).sum::<f64>() / voxels.len() as f64;
     let centroid = xy.iter().sum::<P2>() / xy.len() as f64;
     Some(Candidate { voxels, xy, height, normal, shape: [a.min(b), a.max(b)], axis, hull, centroid })
+}
+
+/// §4.3 takes the steps as the biggest cluster of like-shaped segments, so a tread of
+/// another depth at an end of the flight (a top landing, a deeper first step) was left out:
+/// from the floor the loop never saw the landing, and from the last step it saw it with its
+/// nose hidden under the sensor, 11 cm too far, and walked into its riser. A segment is kept
+/// as the flight's continuation when it rises from the flight's top step (or drops to its
+/// bottom one) by more than epsilon and at most `flight_max_rise_m`, its near edge is within
+/// `flight_gap_m` of that step's far edge along the ascent `along`, and across it overlaps
+/// that step by half the narrower width. Repeated while one is added.
+fn extend_flight<'a>(
+    stair: &mut Vec<&'a Candidate>,
+    others: &[&'a Candidate],
+    along: &P2,
+    p: &PerceptionParams,
+) {
+    let continues = |end: &Candidate, c: &Candidate, up: bool| {
+        let rise = if up { c.height - end.height } else { end.height - c.height };
+        let (ea, eb) = geom2d::extents(&end.xy, along);
+        let (ca, cb) = geom2d::extents(&c.xy, along);
+        let gap = if up { ca[0] - ea[1] } else { ea[0] - ca[1] };
+        let overlap = eb[1].min(cb[1]) - eb[0].max(cb[0]);
+        rise > p.max_height_extent_m
+            && rise <= p.flight_max_rise_m
+            && gap.abs() <= p.flight_gap_m
+            && overlap >= 0.5 * (eb[1] - eb[0]).min(cb[1] - cb[0])
+    };
+    loop {
+        let (Some(&top), Some(&bottom)) = (stair.last(), stair.first()) else { return };
+        let fresh = |c: &&&Candidate| !stair.iter().any(|s| std::ptr::eq(*s, **c));
+        if let Some(c) = others.iter().filter(fresh).find(|c| continues(top, c, true)) {
+            stair.push(c);
+        } else if let Some(c) = others.iter().filter(fresh).find(|c| continues(bottom, c, false)) {
+            stair.insert(0, c);
+        } else {
+            return;
+        }
+    }
 }
 
 /// Unit horizontal direction of ascent of a staircase (steps sorted by height).

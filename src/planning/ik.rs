@@ -386,16 +386,27 @@ pub fn frame_task(
 }
 
 /// A contact held still at `target`: J qd = gain * pose error (the gain only removes
-/// integration drift; 0 gives the paper's J qd = 0).
+/// integration drift; 0 gives the paper's J qd = 0), the correction's linear and angular
+/// parts capped at `max_speed` (m/s, rad/s). The cap binds only when the target is far from
+/// the frame, as when the stabilizer holds a foot where its sensors say it landed and the
+/// servos had lagged the command by centimetres: uncapped, such a jump asked the legs for
+/// more than their joint speed limits and the QP had no solution.
 pub fn contact(
     kin: &Kinematics,
     jac: &mut Matrix6xX<f64>,
     frame: usize,
     target: &Isometry3<f64>,
     gain: f64,
+    max_speed: [f64; 2],
 ) -> Equality {
     // The frame task's rows with no feed-forward, held exactly instead of weighted.
-    let t = frame_task(kin, jac, frame, target, &Vector6::zeros(), gain, 1.0);
+    let mut t = frame_task(kin, jac, frame, target, &Vector6::zeros(), gain, 1.0);
+    for (part, cap) in [(0, max_speed[0]), (3, max_speed[1])] {
+        let n = t.velocity.rows(part, 3).norm();
+        if n > cap {
+            t.velocity.rows_mut(part, 3).scale_mut(cap / n);
+        }
+    }
     Equality { jacobian: t.jacobian, velocity: t.velocity }
 }
 

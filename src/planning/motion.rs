@@ -34,6 +34,12 @@ pub struct IkParams {
     pub posture_gain_per_s: f64,
     /// Gain removing integration drift from the contacts (0 = the paper's J qd = 0), 1/s.
     pub contact_gain_per_s: f64,
+    /// Largest linear speed at which a contact's drift correction moves the sole toward its
+    /// target, m/s. Offline the drift is under a millimetre and this never binds; online the
+    /// stabilizer may move a contact by centimetres at once (a foot held where it landed).
+    pub max_contact_correction_m_s: f64,
+    /// Largest angular speed of the same correction, rad/s.
+    pub max_contact_correction_rad_s: f64,
     /// §6.1 constraint (2): the fixed maximum joint speed qd_max, rad/s (small, so the
     /// motion stays quasi-static).
     pub max_joint_speed_rad_s: f64,
@@ -70,6 +76,8 @@ impl Default for IkParams {
             task_gain_per_s: 40.0,
             posture_gain_per_s: 0.5,
             contact_gain_per_s: 40.0,
+            max_contact_correction_m_s: 0.1,
+            max_contact_correction_rad_s: 0.5,
             max_joint_speed_rad_s: 1.0,
             limit_gain_per_s: 5.0,
             damping: 1e-6,
@@ -390,7 +398,14 @@ impl<'m> Tracker<'m> {
             .support
             .iter()
             .map(|(f, pose)| {
-                ik::contact(&self.kin, &mut self.frame_jac, self.feet[f.index()], pose, p.contact_gain_per_s)
+                ik::contact(
+                    &self.kin,
+                    &mut self.frame_jac,
+                    self.feet[f.index()],
+                    pose,
+                    p.contact_gain_per_s,
+                    [p.max_contact_correction_m_s, p.max_contact_correction_rad_s],
+                )
             })
             .collect();
         let bounds = [ik::joint_limits(self.model, &self.q, p.max_joint_speed_rad_s, p.limit_gain_per_s)];

@@ -28,8 +28,6 @@ use nalgebra::{Isometry3, Point3, Quaternion, UnitQuaternion, Vector3};
 pub struct CheckParams {
     /// Least CoM margin inside the stability polygon, metres (0: inside is enough).
     pub min_margin_m: f64,
-    /// Friction coefficient the contact forces must respect (the plan's pyramid, §6.2).
-    pub friction: f64,
     /// Largest torque demand as a fraction of the joint's torque limit.
     pub max_torque_ratio: f64,
     /// Largest joint speed as a fraction of the joint's speed limit.
@@ -62,7 +60,6 @@ impl Default for CheckParams {
     fn default() -> Self {
         Self {
             min_margin_m: 0.0,
-            friction: crate::planning::contact::DEFAULT_FRICTION,
             max_torque_ratio: 1.0,
             max_speed_ratio: 1.0,
             touchdown_tolerance_m: 0.02,
@@ -92,20 +89,28 @@ pub fn margin_check(margin_m: f64, down: [bool; 2], p: &CheckParams) -> Option<C
 }
 
 /// A foot's resultant `local_n` in its sole frame: its friction ratio when loaded, and the
-/// violation when it leaves the pyramid.
-pub fn friction_check(foot: Foot, local_n: &Vector3<f64>, p: &CheckParams) -> (Option<f64>, Option<Check>) {
+/// violation when it leaves the pyramid of the surface's true coefficient `surface_mu` (the
+/// simulator's, from the scenario: the bench is the judge), the plan's assumed one
+/// (`plan_mu`) named beside it so a failure says which was wrong.
+pub fn friction_check(
+    foot: Foot,
+    local_n: &Vector3<f64>,
+    [surface_mu, plan_mu]: [f64; 2],
+    p: &CheckParams,
+) -> (Option<f64>, Option<Check>) {
     let normal = local_n.z.abs();
     if normal < p.friction_load_n {
         return (None, None);
     }
     let ratio = local_n.x.abs().max(local_n.y.abs()) / normal;
-    let mu = p.friction;
+    let mu = surface_mu;
     let out = local_n.x.abs() > mu * normal || local_n.y.abs() > mu * normal;
     let check = out.then_some(Check::Friction {
         foot,
         tangential_n: [local_n.x, local_n.y],
         normal_n: normal,
         limit: mu,
+        planned: plan_mu,
     });
     (Some(ratio), check)
 }
@@ -298,7 +303,7 @@ pub struct Ids {
 /// The polygon of the feet in contact, recomputed only when they change.
 #[derive(Default)]
 struct PolygonCache {
-    key: Option<([bool; 2], [Isometry3<f64>; 2])>,
+    key: Option<([bool; 2], [Isometry3<f64>; 2], f64)>,
     polygon: Vec<P2>,
 }
 
@@ -316,7 +321,9 @@ impl PolygonCache {
                 || a.rotation.angle_to(&b.rotation) > 5e-3
         };
         let stale = match &self.key {
-            Some((d, s)) => *d != down || (0..2).any(|k| down[k] && moved(&s[k], &soles[k])),
+            Some((d, s, mu)) => {
+                *d != down || *mu != friction || (0..2).any(|k| down[k] && moved(&s[k], &soles[k]))
+            }
             None => true,
         };
         if stale {
@@ -325,14 +332,13 @@ impl PolygonCache {
                 .filter_map(|k| Contact::new(soles[k], half_m[k][0], half_m[k][1], friction).ok())
                 .collect();
             self.polygon = by_double_description(&contacts, dd).unwrap_or_default();
-            self.key = Some((down, *soles));
+            self.key = Some((down, *soles, friction));
         }
         &self.polygon
     }
 }
 
 /// What the feet's contacts carry at one instant.
-#[derive(Default)]
 pub struct FootLoads {
     /// Sum of normal forces, newtons.
     pub normal_n: [f64; 2],
@@ -340,6 +346,20 @@ pub struct FootLoads {
     pub moment: [Vector3<f64>; 2],
     /// Resultant force, world frame.
     pub force: [Vector3<f64>; 2],
+    /// The least friction coefficient among each foot's contacts (the surfaces' true ones,
+    /// as the simulator applies them); infinite without a contact.
+    pub surface_mu: [f64; 2],
+}
+
+impl Default for FootLoads {
+    fn default() -> Self {
+        Self {
+            normal_n: [0.0; 2],
+            moment: [Vector3::zeros(); 2],
+            force: [Vector3::zeros(); 2],
+            surface_mu: [f64::INFINITY; 2],
+        }
+    }
 }
 
 /// The checks, with what they found so far.
@@ -347,6 +367,8 @@ pub struct Monitor<'a> {
     /// The robot's identifiers.
     pub ids: Ids,
     p: &'a CheckParams,
+    /// The friction coefficient the plan assumed.
+    plan_mu: f64,
     dd: &'a DdParams,
     scene: &'a Scene,
     sole_half_m: [[f64; 2]; 2],
@@ -361,15 +383,17 @@ pub struct Monitor<'a> {
 
 impl<'a> Monitor<'a> {
     /// A monitor judging against `scene` (the true steps) with limits `p`; the polygons are
-    /// built with `dd` on soles of half sizes `sole_half_m` (right, left).
+    /// built with the plan's double description on soles of half sizes `sole_half_m` (right,
+    /// left), the friction the plan assumed is named beside the surface's in a failure.
     pub fn new(
         world: &World,
         ids: Ids,
         scene: &'a Scene,
         sole_half_m: [[f64; 2]; 2],
         p: &'a CheckParams,
-        dd: &'a DdParams,
+        plan: &'a crate::planning::gait::StepParams,
     ) -> Self {
+        let (dd, plan_mu) = (&plan.dd, plan.friction);
         let mut warnings_seen = [0; 7];
         for (k, s) in world.data().warning().iter().enumerate().take(7) {
             warnings_seen[k] = s.number;
@@ -377,6 +401,7 @@ impl<'a> Monitor<'a> {
         Self {
             ids,
             p,
+            plan_mu,
             dd,
             scene,
             sole_half_m,
@@ -430,6 +455,7 @@ impl<'a> Monitor<'a> {
             // The contact frame's rows are its normal and two tangents (MuJoCo's layout).
             let axis = |r: usize| Vector3::new(c.frame[3 * r], c.frame[3 * r + 1], c.frame[3 * r + 2]);
             loads.force[foot] += axis(0) * f[0] + axis(1) * f[1] + axis(2) * f[2];
+            loads.surface_mu[foot] = loads.surface_mu[foot].min(c.friction[0]);
             loads.normal_n[foot] += f[0].max(0.0);
             loads.moment[foot] += Vector3::from(c.pos) * f[0].max(0.0);
             if let Some((sw, planned)) = swing.filter(|(sw, _)| sw.foot.index() == foot) {
@@ -467,7 +493,7 @@ impl<'a> Monitor<'a> {
                 self.landed[k] = Some(at);
             }
             let local = soles[k].rotation.inverse() * loads.force[k];
-            let (ratio, check) = friction_check(foot, &local, self.p);
+            let (ratio, check) = friction_check(foot, &local, [loads.surface_mu[k], self.plan_mu], self.p);
             if let Some(r) = ratio {
                 self.ex.max_friction_ratio = self.ex.max_friction_ratio.max(r);
             }
@@ -484,9 +510,19 @@ impl<'a> Monitor<'a> {
 
     /// The CoM against the stability polygon of the feet in contact.
     /// Returns this instant's margin, metres (negative outside, -inf without a polygon).
-    pub fn margin(&mut self, world: &World, now: f64, down: [bool; 2], soles: &[Isometry3<f64>; 2]) -> f64 {
+    /// The polygon is that of the surfaces' true friction (`loads.surface_mu`).
+    pub fn margin(
+        &mut self,
+        world: &World,
+        now: f64,
+        loads: &FootLoads,
+        down: [bool; 2],
+        soles: &[Isometry3<f64>; 2],
+    ) -> f64 {
         let com = world.data().subtree_com()[self.ids.root_body];
-        let poly = self.cache.polygon(down, soles, &self.sole_half_m, self.p.friction, self.dd);
+        let mu = (0..2).filter(|&k| down[k]).map(|k| loads.surface_mu[k]).fold(f64::INFINITY, f64::min);
+        let mu = if mu.is_finite() { mu } else { self.plan_mu };
+        let poly = self.cache.polygon(down, soles, &self.sole_half_m, mu, self.dd);
         let m = if poly.len() >= 3 { margin(poly, &P2::new(com[0], com[1])) } else { f64::NEG_INFINITY };
         self.ex.min_margin_m = self.ex.min_margin_m.min(m);
         if let Some(check) = margin_check(m, down, self.p) {
@@ -611,21 +647,30 @@ mod tests {
 
     #[test]
     fn friction_judges_loaded_feet_only_against_the_pyramid() {
-        let (ratio, check) = friction_check(Foot::Left, &Vector3::new(30.0, -5.0, 100.0), &p());
+        let (ratio, check) = friction_check(Foot::Left, &Vector3::new(30.0, -5.0, 100.0), [0.7, 0.7], &p());
         assert_eq!((ratio, check), (Some(0.3), None));
-        let (ratio, check) = friction_check(Foot::Right, &Vector3::new(-36.0, 7.9, 48.9), &p());
+        let (ratio, check) = friction_check(Foot::Right, &Vector3::new(-36.0, 7.9, 48.9), [0.7, 0.7], &p());
         assert!((ratio.expect("loaded") - 36.0 / 48.9).abs() < 1e-12);
         let c = check.expect("beyond 0.7 fires");
         assert_eq!(
             c,
-            Check::Friction { foot: Foot::Right, tangential_n: [-36.0, 7.9], normal_n: 48.9, limit: 0.7 }
+            Check::Friction {
+                foot: Foot::Right,
+                tangential_n: [-36.0, 7.9],
+                normal_n: 48.9,
+                limit: 0.7,
+                planned: 0.7
+            }
         );
         // Just inside the pyramid: 34.2 < 0.7 x 48.9 = 34.23.
-        assert_eq!(friction_check(Foot::Right, &Vector3::new(-34.2, 7.9, 48.9), &p()).1, None);
+        assert_eq!(friction_check(Foot::Right, &Vector3::new(-34.2, 7.9, 48.9), [0.7, 0.7], &p()).1, None);
         // Across the sole's y axis too.
-        assert!(friction_check(Foot::Right, &Vector3::new(0.0, 80.0, 100.0), &p()).1.is_some());
+        assert!(friction_check(Foot::Right, &Vector3::new(0.0, 80.0, 100.0), [0.7, 0.7], &p()).1.is_some());
         // A foot being set down (under the load threshold) is not judged.
-        assert_eq!(friction_check(Foot::Right, &Vector3::new(30.0, 0.0, 20.0), &p()), (None, None));
+        assert_eq!(
+            friction_check(Foot::Right, &Vector3::new(30.0, 0.0, 20.0), [0.7, 0.7], &p()),
+            (None, None)
+        );
     }
 
     #[test]

@@ -81,7 +81,7 @@ pub fn execute(
     observer: &mut dyn Observer,
     cancel: &Cancel,
 ) -> Result<Execution, SimError> {
-    let (servo, p, dd) = (&params.servo, &params.checks, &params.plan.step.dd);
+    let (servo, p) = (&params.servo, &params.checks);
     let dt = world.model().opt().timestep;
     let t_start = world.data().time();
     let base_z0 = world.data().qpos()[2];
@@ -94,7 +94,7 @@ pub fn execute(
         sole_sites: [world.site_id(hrp4::R_SOLE)?, world.site_id(hrp4::L_SOLE)?],
         root_body: world.body_id(&model.root().name)?,
     };
-    let mut mon = Monitor::new(world, ids, scene, hrp4::sole_half_m(model)?, p, dd);
+    let mut mon = Monitor::new(world, ids, scene, hrp4::sole_half_m(model)?, p, &params.plan.step);
     let joints = &model.joints()[..servos.kp.len().min(model.joints().len())];
     // Segment end times, for the touchdowns.
     let ends: Vec<f64> = plan
@@ -164,7 +164,7 @@ pub fn execute(
         let swing = plan.segments[seg].swing.as_ref().map(|sw| (sw, &planned.feet[sw.foot.index()]));
         let loads = mon.contacts(world, now, swing);
         let down = mon.feet(now, &loads, &soles);
-        let margin_m = mon.margin(world, now, down, &soles);
+        let margin_m = mon.margin(world, now, &loads, down, &soles);
         let max_torque_ratio =
             mon.joints(joints, |a| servos.demand_nm(world, a), |a| world.data().qvel()[V_JOINTS + a], now);
         let state = RobotState {

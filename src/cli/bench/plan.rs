@@ -54,7 +54,16 @@ fn qp_reuse(repeat: usize) -> Result<(f64, f64, f64)> {
     ];
     let eqs: Vec<ik::Equality> = soles
         .iter()
-        .map(|&f| ik::contact(&kin, &mut fj, f, &kin.frame_pose(f), p.contact_gain_per_s))
+        .map(|&f| {
+            ik::contact(
+                &kin,
+                &mut fj,
+                f,
+                &kin.frame_pose(f),
+                p.contact_gain_per_s,
+                [p.max_contact_correction_m_s, p.max_contact_correction_rad_s],
+            )
+        })
         .collect();
     let bounds = [ik::joint_limits(&model, &q, p.max_joint_speed_rad_s, p.limit_gain_per_s)];
     let fresh = ik::solve(model.nv(), &tasks, &eqs, &[], &bounds, p.damping)?;
