@@ -78,7 +78,7 @@ pub fn run(
         );
     }
     // The world of what was perceived, the robot standing at the origin.
-    let scene = Scene::rehearsal("hardware rehearsal", &steps, params.plan.step.friction);
+    let scene = Scene::rehearsal("hardware rehearsal", &steps, params.run.rehearsal_friction);
     let model = stairbench::robot::hrp4::model()?;
     let mut world = World::for_scene(&scene)?;
     settle(&mut world, params.run.settle_s);

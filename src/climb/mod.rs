@@ -38,11 +38,20 @@ pub struct RunParams {
     /// Standing still before each scan, seconds (the servos settle; the real robot scans
     /// standing still too).
     pub settle_s: f64,
+    /// Friction coefficient of the surfaces of a hardware rehearsal's world (`run
+    /// --hardware`: the perceived steps rebuilt in simulation, whose true friction nobody
+    /// measured; the checks judge the rehearsal against it). Default 0.7, the plan's.
+    pub rehearsal_friction: f64,
 }
 
 impl Default for RunParams {
     fn default() -> Self {
-        Self { stances_per_scan: 1, max_cycles: 40, settle_s: 0.3 }
+        Self {
+            stances_per_scan: 1,
+            max_cycles: 40,
+            settle_s: 0.3,
+            rehearsal_friction: crate::planning::contact::DEFAULT_FRICTION,
+        }
     }
 }
 

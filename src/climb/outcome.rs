@@ -122,10 +122,11 @@ pub enum Check {
         normal_n: f64,
         /// The friction coefficient judged against: the surface's true one.
         limit: f64,
-        /// The coefficient the plan assumed (`checks.friction`, the plan's pyramid): above
-        /// `limit`, the plan asked for friction the surface does not have.
-        #[serde(default)]
-        planned: f64,
+        /// The coefficient the plan assumed (`plan.step.friction`, its pyramids): above
+        /// `limit`, the plan asked for friction the surface does not have. `None` in reports
+        /// written before it was recorded.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        planned_mu: Option<f64>,
     },
     /// A foot's centre of pressure outside its sole.
     Cop {
@@ -320,16 +321,16 @@ impl fmt::Display for Check {
                     m.abs() * 1e3
                 )
             }
-            Check::Friction { foot, tangential_n, normal_n, limit, planned } => {
+            Check::Friction { foot, tangential_n, normal_n, limit, planned_mu } => {
                 write!(
                     f,
                     "{foot:?} foot: tangential ({:.1}, {:.1}) N beyond the surface's {limit:.2} x normal {normal_n:.1} N",
                     tangential_n[0], tangential_n[1]
                 )?;
-                if planned > limit {
-                    write!(f, " (the plan assumed {planned:.2}: more than the surface has)")
-                } else {
-                    write!(f, " (beyond the plan's own {planned:.2} pyramid too)")
+                match planned_mu {
+                    Some(mu) if mu > limit => write!(f, " (the plan assumed {mu:.2}: more than the surface has)"),
+                    Some(mu) => write!(f, " (beyond the plan's own {mu:.2} pyramid too)"),
+                    None => Ok(()),
                 }
             }
             Check::Cop { foot, cop_m, .. } => {
@@ -529,7 +530,7 @@ mod tests {
                 tangential_n: [-34.2, 7.9],
                 normal_n: 48.9,
                 limit: 0.4,
-                planned: 0.7,
+                planned_mu: Some(0.7),
             },
         };
         let json = serde_json::to_value(&v).expect("serializable");

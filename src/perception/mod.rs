@@ -133,6 +133,12 @@ impl PerceptionParams {
                 return bad(f, "must be > 0");
             }
         }
+        if self.flight_max_rise_m <= self.max_height_extent_m {
+            return bad(
+                "flight_max_rise_m",
+                "must exceed max_height_extent_m (a rise is more than a tread's own height extent)",
+            );
+        }
         if self.ransac_iterations == 0 || self.ransac_max_planes == 0 {
             return bad("ransac_iterations", "ransac_iterations and ransac_max_planes must be > 0");
         }

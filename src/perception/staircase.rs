@@ -3,11 +3,15 @@
 //! 1. Each plane's inliers are split by cluster of supervoxels: a plane segment is one
 //!    cluster's part of one plane (a plane through two steps' heights is impossible, since
 //!    planes are near-horizontal; a plane at one height may hold several separate surfaces).
-//! 2. Segments whose height extent exceeds epsilon are dropped.
+//! 2. Segments whose height extent exceeds epsilon are dropped; parts at one height whose
+//!    voxels touch are joined (one tread the clustering cut into strips), and parts smaller
+//!    than the sole are dropped (Filter 3's rule).
 //! 3. The ground, the surface the robot stands on (the segment under the sensor, else the
 //!    lowest segment), and every segment at its height, are set aside: they are the floor.
 //! 4. The remaining segments are clustered by their (depth, width) with single linkage; the
-//!    biggest cluster is the staircase (ties: the cluster nearest the sensor).
+//!    biggest cluster is the staircase (ties: the cluster nearest the sensor); a segment of
+//!    another shape that continues the flight by a rise at either end (a top landing) joins
+//!    it.
 //! 5. The staircase's direction of ascent is the common axis of the segments' minimum-area
 //!    rectangles that points up the stairs; each step's rectangle is the extent of its voxels
 //!    along and across that direction, so a yawed staircase comes out right.
@@ -192,13 +196,21 @@ fn join_touching(vc: &VoxelCloud, parts: Vec<Candidate>, p: &PerceptionParams) -
     }
     groups
         .into_iter()
-        .filter_map(|mut group| match group.len() {
-            0 => None,
-            1 => group.pop(),
+        .flat_map(|group| match group.len() {
+            0 => Vec::new(),
+            1 => group,
+            // A chain of pairs each within the RANSAC distance may span more than epsilon:
+            // such a group stays in its parts.
+            _ if group.iter().map(|c| c.height).fold(f64::NEG_INFINITY, f64::max)
+                - group.iter().map(|c| c.height).fold(f64::INFINITY, f64::min)
+                > p.max_height_extent_m =>
+            {
+                group
+            }
             _ => {
                 let normal = group.iter().map(|c| c.normal * c.voxels.len() as f64).sum::<Vector3<f64>>();
                 let voxels: Vec<u32> = group.into_iter().flat_map(|c| c.voxels).collect();
-                candidate(vc, voxels, normal.normalize())
+                candidate(vc, voxels, normal.normalize()).into_iter().collect()
             }
         })
         .collect()

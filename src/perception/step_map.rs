@@ -13,9 +13,9 @@ use serde::{Deserialize, Serialize};
 pub struct StepMapParams {
     /// Steps lower than the feet plus this are behind the robot, metres.
     pub ahead_margin_m: f64,
-    /// A new view's rectangle replaces a known one whose centre is within this distance (and
-    /// height within a third of it); known steps the new view misses (too close under the
-    /// lidar, say) are kept. Metres.
+    /// A new view's rectangle replaces a known one at its height (within a third of this)
+    /// whose centre is within this distance or whose footprint it overlaps; known steps the
+    /// new view misses (too close under the lidar, say) are kept. Metres.
     pub same_step_m: f64,
 }
 
@@ -146,11 +146,10 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment) -> PlaneSegment {
     let c = s.center();
     let front = |r: &PlaneSegment| (r.center() - r.along() * (r.depth_m() / 2.0) - c).dot(&along);
     let (front_s, front_k) = (front(s), front(k));
-    let (front, voxels) = if front_k < front_s {
-        (front_k, s.voxel_count().max(k.voxel_count()))
-    } else {
-        (front_s, s.voxel_count())
-    };
+    let front = front_s.min(front_k);
+    // The merged view rests on the fuller view's voxels whatever it took from it (a count
+    // left at the partial view's let the next partial view count as fuller).
+    let voxels = s.voxel_count().max(k.voxel_count());
     let back = s.depth_m() / 2.0;
     let left = nalgebra::Vector3::z().cross(&along);
     let middle = (fuller.center() - c).dot(&left);
@@ -208,13 +207,17 @@ mod tests {
 
     #[test]
     fn a_view_of_one_side_of_a_step_does_not_narrow_it() {
-        let known = step(1.31, 0.17, 0.26);
+        // ci case 9: 0.71 m of a 1.33 m tread, on its left, seen from close.
+        let known =
+            PlaneSegment::new(Point3::new(1.31, 0.0, 0.17), Vector3::x(), 0.26, 1.33, Vector3::z(), 308)
+                .expect("valid rectangle");
         let side =
-            PlaneSegment::new(Point3::new(1.38, 0.24, 0.17), Vector3::x(), 0.12, 0.71, Vector3::z(), 3)
+            PlaneSegment::new(Point3::new(1.38, 0.24, 0.17), Vector3::x(), 0.12, 0.71, Vector3::z(), 54)
                 .expect("valid rectangle");
         let merged = merge(std::slice::from_ref(&known), vec![side], 0.15);
         assert_eq!(merged.len(), 1);
-        assert!((merged[0].width_m() - 0.5).abs() < 1e-9 && merged[0].center().y.abs() < 1e-9, "{merged:?}");
+        assert!((merged[0].width_m() - 1.33).abs() < 1e-9 && merged[0].center().y.abs() < 1e-9, "{merged:?}");
+        assert_eq!(merged[0].voxel_count(), 308, "the fuller view's count stays");
     }
 
     #[test]

@@ -110,7 +110,7 @@ pub fn friction_check(
         tangential_n: [local_n.x, local_n.y],
         normal_n: normal,
         limit: mu,
-        planned: plan_mu,
+        planned_mu: Some(plan_mu),
     });
     (Some(ratio), check)
 }
@@ -455,7 +455,9 @@ impl<'a> Monitor<'a> {
             // The contact frame's rows are its normal and two tangents (MuJoCo's layout).
             let axis = |r: usize| Vector3::new(c.frame[3 * r], c.frame[3 * r + 1], c.frame[3 * r + 2]);
             loads.force[foot] += axis(0) * f[0] + axis(1) * f[1] + axis(2) * f[2];
-            loads.surface_mu[foot] = loads.surface_mu[foot].min(c.friction[0]);
+            if f[0] > 0.0 {
+                loads.surface_mu[foot] = loads.surface_mu[foot].min(c.friction[0]);
+            }
             loads.normal_n[foot] += f[0].max(0.0);
             loads.moment[foot] += Vector3::from(c.pos) * f[0].max(0.0);
             if let Some((sw, planned)) = swing.filter(|(sw, _)| sw.foot.index() == foot) {
@@ -659,7 +661,7 @@ mod tests {
                 tangential_n: [-36.0, 7.9],
                 normal_n: 48.9,
                 limit: 0.7,
-                planned: 0.7
+                planned_mu: Some(0.7)
             }
         );
         // Just inside the pyramid: 34.2 < 0.7 x 48.9 = 34.23.
@@ -670,6 +672,12 @@ mod tests {
         assert_eq!(
             friction_check(Foot::Right, &Vector3::new(30.0, 0.0, 20.0), [0.7, 0.7], &p()),
             (None, None)
+        );
+        // A surface slipperier than the plan assumed: judged by the surface, the plan's named.
+        let (ratio, check) = friction_check(Foot::Left, &Vector3::new(50.0, 0.0, 100.0), [0.4, 0.7], &p());
+        assert_eq!(ratio, Some(0.5));
+        assert!(
+            matches!(check, Some(Check::Friction { limit, planned_mu: Some(mu), .. }) if limit == 0.4 && mu == 0.7)
         );
     }
 
