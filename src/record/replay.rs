@@ -79,8 +79,9 @@ pub fn read_bytes(bytes: &[u8]) -> Result<Recording, String> {
         return Err("it does not start with MCAP's magic bytes".into());
     }
     let options = Options::IgnoreEndMagic | Options::ValidateChunkCrcs;
-    let records = ChunkFlattener::new_with_options(bytes, options).map_err(|e| e.to_string())?;
-    let mut rec = Recording::default();
+    let (sound, damage) = sound_prefix(bytes);
+    let records = ChunkFlattener::new_with_options(&bytes[..sound], options).map_err(|e| e.to_string())?;
+    let mut rec = Recording { damage, ..Recording::default() };
     let mut topics: HashMap<u16, String> = HashMap::new();
     let mut open: Option<(RecordedSweep, usize)> = None;
     for r in records {
@@ -123,6 +124,44 @@ pub fn read_bytes(bytes: &[u8]) -> Result<Recording, String> {
         }
     }
     Ok(rec)
+}
+
+/// How many leading bytes of an MCAP file hold sound top-level records, and why it ends
+/// there if not at the end. A damaged chunk header can claim an uncompressed size of
+/// exabytes, and the reader reserves it before decompressing (an abort, not an error); a
+/// chunk is taken only when its records fit in the file and its uncompressed size is
+/// within what any codec reaches (1024 times the compressed size, plus 1 MiB).
+fn sound_prefix(bytes: &[u8]) -> (usize, Option<String>) {
+    const CHUNK: u8 = 0x06;
+    let u64_at =
+        |at: usize| bytes.get(at..at + 8).map(|b| u64::from_le_bytes(b.try_into().unwrap_or([0; 8])));
+    let u32_at =
+        |at: usize| bytes.get(at..at + 4).map(|b| u32::from_le_bytes(b.try_into().unwrap_or([0; 4])));
+    let mut at = mcap::MAGIC.len();
+    while at < bytes.len() {
+        let (Some(&op), Some(len)) = (bytes.get(at), u64_at(at + 1)) else { break };
+        let body = at + 9;
+        let Some(end) = usize::try_from(len).ok().and_then(|l| body.checked_add(l)) else {
+            return (at, Some(format!("stopped at damaged data: a record at byte {at} claims {len} bytes")));
+        };
+        if end > bytes.len() {
+            break; // cut short: the reader reports it
+        }
+        if op == CHUNK {
+            // start, end times; uncompressed size, CRC; compression; records length.
+            let uncompressed = u64_at(body + 16).unwrap_or(u64::MAX);
+            let name_len = u32_at(body + 28).map_or(usize::MAX, |n| n as usize);
+            let compressed = body.checked_add(32 + name_len).and_then(u64_at).unwrap_or(u64::MAX);
+            if compressed > len || uncompressed > compressed.saturating_mul(1024).saturating_add(1 << 20) {
+                return (
+                    at,
+                    Some(format!("stopped at damaged data: the chunk at byte {at} claims {uncompressed} bytes uncompressed")),
+                );
+            }
+        }
+        at = end;
+    }
+    (bytes.len(), None)
 }
 
 /// Takes one message of `topic` into the recording (a new sweep, or a part of the open one).
