@@ -151,7 +151,8 @@ fn sound_prefix(bytes: &[u8]) -> (usize, Option<String>) {
             // start, end times; uncompressed size, CRC; compression; records length.
             let uncompressed = u64_at(body + 16).unwrap_or(u64::MAX);
             let name_len = u32_at(body + 28).map_or(usize::MAX, |n| n as usize);
-            let compressed = body.checked_add(32 + name_len).and_then(u64_at).unwrap_or(u64::MAX);
+            let compressed =
+                body.checked_add(name_len.saturating_add(32)).and_then(u64_at).unwrap_or(u64::MAX);
             if compressed > len || uncompressed > compressed.saturating_mul(1024).saturating_add(1 << 20) {
                 return (
                     at,
