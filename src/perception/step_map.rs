@@ -129,9 +129,12 @@ fn same_step(a: &PlaneSegment, b: &PlaneSegment, same_m: f64) -> bool {
 }
 
 /// The new view `s` of the known step `k`: `s`'s rectangle with its front edge (the nose,
-/// toward the robot) moved forward to `k`'s when that was nearer, on the plane (normal),
-/// along the direction of ascent and between the sides of whichever view rests on more
-/// voxels; its back edge and height stay `s`'s.
+/// toward the robot) moved forward to `k`'s when that was nearer, on the plane (normal and
+/// height), along the direction of ascent and between the sides of whichever view rests on
+/// more voxels; its back edge stays `s`'s.
+/// - The height: 14 voxels of a landing seen at a grazing angle from the step below came
+///   out 1.7 cm under the 3671 of the view before (ci suite case 60), and the last stance
+///   was planned that far under the landing (touchdown 19 mm off).
 /// - The direction: a partial view's rectangle is fitted to what the legs leave of a tread,
 ///   and turns (ci suite case 7: from step 6, 557 voxels of step 7 came out yawed 12 degrees
 ///   from the 1123 of the view before; the plan was refused, "not a straight staircase").
@@ -148,6 +151,7 @@ fn same_step(a: &PlaneSegment, b: &PlaneSegment, same_m: f64) -> bool {
 fn merge_view(s: &PlaneSegment, k: &PlaneSegment) -> PlaneSegment {
     let fuller = if k.voxel_count() > s.voxel_count() { k } else { s };
     let along = fuller.along();
+    let (s, k) = (&axis_nearest(s, &along), &axis_nearest(k, &along));
     let c = s.center();
     let edge =
         |r: &PlaneSegment, sign: f64| (r.center() + r.along() * (sign * r.depth_m() / 2.0) - c).dot(&along);
@@ -158,9 +162,31 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment) -> PlaneSegment {
     let back = edge(s, 1.0);
     let left = nalgebra::Vector3::z().cross(&along);
     let middle = (fuller.center() - c).dot(&left);
-    let centre = c + along * ((front + back) / 2.0) + left * middle;
+    let mut centre = c + along * ((front + back) / 2.0) + left * middle;
+    centre.z = fuller.height_m();
     PlaneSegment::new(centre, along, back - front, fuller.width_m(), fuller.normal().into_inner(), voxels)
         .unwrap_or_else(|| s.clone())
+}
+
+/// `r`, the same rectangle, described with the one of its four horizontal axes (ascent,
+/// left, their opposites) nearest `along` as its direction of ascent. Which of a rectangle's
+/// axes is the ascent is perception's guess, from the view alone; with a single tread in view
+/// it guesses from the direction to the sensor, and close to a riser (the sensor almost over
+/// the nose) it took the tread's width for its depth (ci suite case 11: step 2 seen 1.08 m
+/// "deep", 0.23 m wide, and merged into a 0.13 m tread).
+fn axis_nearest(r: &PlaneSegment, along: &nalgebra::Vector3<f64>) -> PlaneSegment {
+    let u = r.along();
+    let left = nalgebra::Vector3::z().cross(&u);
+    let (depth, width) = (r.depth_m(), r.width_m());
+    let axes = [(u, depth, width), (left, width, depth), (-u, depth, width), (-left, width, depth)];
+    let best = axes.iter().max_by(|a, b| a.0.dot(along).total_cmp(&b.0.dot(along)));
+    match best {
+        Some(&(axis, d, w)) if axis != u => {
+            PlaneSegment::new(r.center(), axis, d, w, r.normal().into_inner(), r.voxel_count())
+                .unwrap_or_else(|| r.clone())
+        }
+        _ => r.clone(),
+    }
 }
 
 #[cfg(test)]
@@ -243,6 +269,41 @@ mod tests {
                 .expect("valid rectangle");
         let merged = merge(&[full], vec![fuller_tilted.clone()], 0.15);
         assert_eq!(merged[0].normal(), fuller_tilted.normal());
+    }
+
+    /// ci suite case 11: with one tread in view, perception took its width for its depth
+    /// (ascent turned 90 degrees); the merge must read that view along the known ascent.
+    #[test]
+    fn a_view_with_its_axes_swapped_is_read_along_the_known_ascent() {
+        let known =
+            PlaneSegment::new(Point3::new(1.64, 0.01, 0.37), Vector3::x(), 0.29, 1.46, Vector3::z(), 506)
+                .expect("valid rectangle");
+        // The far 0.225 m of the tread's left part, described as 1.08 m "deep" along +y.
+        let swapped =
+            PlaneSegment::new(Point3::new(1.6725, 0.2, 0.37), Vector3::y(), 1.08, 0.225, Vector3::z(), 260)
+                .expect("valid rectangle");
+        let merged = merge(std::slice::from_ref(&known), vec![swapped], 0.15);
+        assert_eq!(merged.len(), 1);
+        let m = &merged[0];
+        assert!((m.along() - Vector3::x()).norm() < 1e-9, "ascent {:?}", m.along());
+        assert!((m.depth_m() - 0.29).abs() < 1e-9, "depth {} (the known 0.29 m)", m.depth_m());
+        assert!((m.width_m() - 1.46).abs() < 1e-9, "width {}", m.width_m());
+        assert!((m.center() - known.center()).norm() < 1e-9);
+    }
+
+    /// ci suite case 60: a sparse view of a landing must not move its plane.
+    #[test]
+    fn a_sparse_view_does_not_move_a_step_height() {
+        let landing =
+            PlaneSegment::new(Point3::new(4.06, 0.36, 1.004), Vector3::x(), 1.35, 1.42, Vector3::z(), 3671)
+                .expect("valid rectangle");
+        let sparse =
+            PlaneSegment::new(Point3::new(3.82, 0.28, 0.987), Vector3::x(), 0.7, 1.32, Vector3::z(), 14)
+                .expect("valid rectangle");
+        let merged = merge(std::slice::from_ref(&landing), vec![sparse], 0.15);
+        assert_eq!(merged.len(), 1);
+        assert!((merged[0].height_m() - 1.004).abs() < 1e-12, "height {}", merged[0].height_m());
+        assert!((merged[0].center().z - 1.004).abs() < 1e-12);
     }
 
     /// Footprints are compared on both rectangles' axes: a turned rectangle beside another
