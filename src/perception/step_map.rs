@@ -129,12 +129,14 @@ fn same_step(a: &PlaneSegment, b: &PlaneSegment, same_m: f64) -> bool {
 }
 
 /// The new view `s` of the known step `k`: the view of the two that rests on more voxels
-/// (the fuller), with its front edge (the nose, toward the robot) moved forward to the
-/// other's when that was nearer. Close to a riser the head lidar no longer sees the near
-/// part of the next tread, and that view must not move the nose back; everything else is
-/// the fuller view's, since a view of part of a tread gets the rest of it wrong:
-/// - The back edge: 8 voxels of a tread (ci suite case 15) ended 7 cm short of the 417 of
-///   the view before, and the tread came out 0.21 m deep (refused: shorter than the foot).
+/// (the fuller), stretched along the ascent to the other's edges where they reach farther.
+/// Each view misses part of a tread, never adds one: close to a riser the legs hide its
+/// front (the nose), and from afar the next step's nose hides its back (Exp. 2, step 6: the
+/// farthest view, on the most voxels, ended 4 cm short of the back; the closer ones within
+/// 1 cm), and 8 voxels of a tread (ci suite case 15) ended 7 cm short of the 417 of the
+/// view before (the tread came out 0.21 m deep: refused, shorter than the foot).
+/// Everything else is the fuller view's, since a view of part of a tread gets the rest of
+/// it wrong:
 /// - The height: 14 voxels of a landing seen at a grazing angle from the step below came
 ///   out 1.7 cm under the 3671 of the view before (ci suite case 60), and the last stance
 ///   was planned that far under the landing (touchdown 19 mm off).
@@ -158,9 +160,10 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment) -> PlaneSegment {
     let along = fuller.along();
     let other = axis_nearest(other, &along);
     let c = fuller.center();
-    let front_of = |r: &PlaneSegment| (r.center() - r.along() * (r.depth_m() / 2.0) - c).dot(&along);
-    let front = front_of(fuller).min(front_of(&other));
-    let back = fuller.depth_m() / 2.0;
+    let edge =
+        |r: &PlaneSegment, sign: f64| (r.center() + r.along() * (sign * r.depth_m() / 2.0) - c).dot(&along);
+    let front = edge(fuller, -1.0).min(edge(&other, -1.0));
+    let back = edge(fuller, 1.0).max(edge(&other, 1.0));
     PlaneSegment::new(
         c + along * ((front + back) / 2.0),
         along,
@@ -311,6 +314,22 @@ mod tests {
         assert!((merged[0].center() - known.center()).norm() < 1e-9);
     }
 
+    /// Exp. 2, seed 5, step 6: the farthest view rests on the most voxels but the next nose
+    /// hid the back 4 cm of its tread; the closer view's back edge is kept.
+    #[test]
+    fn a_closer_view_brings_the_back_the_farther_one_missed() {
+        let far =
+            PlaneSegment::new(Point3::new(2.028, 0.0, 1.08), Vector3::x(), 0.249, 1.24, Vector3::z(), 1067)
+                .expect("valid rectangle");
+        let close =
+            PlaneSegment::new(Point3::new(2.054, 0.0, 1.08), Vector3::x(), 0.284, 1.24, Vector3::z(), 966)
+                .expect("valid rectangle");
+        let merged = merge(std::slice::from_ref(&far), vec![close], 0.15);
+        let m = &merged[0];
+        let (front, back) = (m.center().x - m.depth_m() / 2.0, m.center().x + m.depth_m() / 2.0);
+        assert!((front - 1.9035).abs() < 1e-9 && (back - 2.196).abs() < 1e-9, "{front} {back}");
+    }
+
     /// ci suite case 60: a sparse view of a landing must not move its plane.
     #[test]
     fn a_sparse_view_does_not_move_a_step_height() {
@@ -363,11 +382,13 @@ mod tests {
             "direction {:?} (the partial view's turned)",
             m.along()
         );
-        // The nose and the back edge stay the known (fuller) view's.
+        // The nose stays the known view's; the back edge is the farther of the two along the
+        // kept axis (here the partial view's, its midpoint at 3.127 m).
         let edges =
             |r: &PlaneSegment| [-1.0, 1.0].map(|k| (r.center() + r.along() * (k * r.depth_m() / 2.0)).x);
         let (e, f) = (edges(m), edges(&full));
-        assert!((e[0] - f[0]).abs() < 1e-9 && (e[1] - f[1]).abs() < 1e-9, "{e:?} {f:?}");
+        let back = (partial.center() + partial.along() * 0.16).x;
+        assert!((e[0] - f[0]).abs() < 1e-9 && (e[1] - back.max(f[1])).abs() < 1e-9, "{e:?} {f:?}");
         // A fuller new view brings its own direction.
         let merged = merge(&[partial], vec![full.clone()], 0.15);
         assert!((merged[0].along() - full.along()).norm() < 1e-9);
