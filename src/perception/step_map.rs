@@ -84,10 +84,10 @@ pub fn without_partial_top(mut ahead: Vec<PlaneSegment>, min_tread_m: f64) -> Ne
 }
 
 /// The steps as known after a view: the new rectangles, plus the known ones no new rectangle
-/// matches. Where a new rectangle matches a known one, the new one is taken with its front
-/// edge (the nose) moved forward to the known one's if that was nearer ([`merge_view`]):
-/// close to a riser the head lidar no longer sees the near part of the next tread, and that
-/// partial view must not move the nose back.
+/// matches. Where a new rectangle matches a known one, the two views are merged
+/// ([`merge_view`]): the one on more voxels, reaching to the other's front and back edges
+/// where they are farther out (each view misses part of a tread: its front close to the
+/// riser, its back from afar).
 pub fn merge(known: &[PlaneSegment], seen: Vec<PlaneSegment>, same_m: f64) -> Vec<PlaneSegment> {
     let matches = |a: &PlaneSegment, b: &PlaneSegment| same_step(a, b, same_m);
     let kept: Vec<PlaneSegment> =
@@ -157,13 +157,17 @@ fn same_step(a: &PlaneSegment, b: &PlaneSegment, same_m: f64) -> bool {
 /// 50 cm Exp. 1 treads, 1.2-1.6 cm over three scans: the heel came down on the nose).
 fn merge_view(s: &PlaneSegment, k: &PlaneSegment) -> PlaneSegment {
     let (fuller, other) = if k.voxel_count() > s.voxel_count() { (k, s) } else { (s, k) };
+    // Which of its axes is the ascent, a view of one tread only guesses (see `axis_nearest`):
+    // the known step's says, even when the new view is the fuller (ci suite case 16: the top
+    // tread alone in view, 1101 voxels against 1091, its width taken for its depth).
+    let fuller = axis_nearest(fuller, &k.along());
     let along = fuller.along();
     let other = axis_nearest(other, &along);
     let c = fuller.center();
     let edge =
         |r: &PlaneSegment, sign: f64| (r.center() + r.along() * (sign * r.depth_m() / 2.0) - c).dot(&along);
-    let front = edge(fuller, -1.0).min(edge(&other, -1.0));
-    let back = edge(fuller, 1.0).max(edge(&other, 1.0));
+    let front = edge(&fuller, -1.0).min(edge(&other, -1.0));
+    let back = edge(&fuller, 1.0).max(edge(&other, 1.0));
     PlaneSegment::new(
         c + along * ((front + back) / 2.0),
         along,
@@ -172,7 +176,7 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment) -> PlaneSegment {
         fuller.normal().into_inner(),
         fuller.voxel_count(),
     )
-    .unwrap_or_else(|| fuller.clone())
+    .unwrap_or(fuller)
 }
 
 /// `r`, the same rectangle, described with the one of its four horizontal axes (ascent,
@@ -296,6 +300,19 @@ mod tests {
         assert!((m.depth_m() - 0.29).abs() < 1e-9, "depth {} (the known 0.29 m)", m.depth_m());
         assert!((m.width_m() - 1.46).abs() < 1e-9, "width {}", m.width_m());
         assert!((m.center() - known.center()).norm() < 1e-9);
+        // ci suite case 16: the swapped view is the fuller one; the known ascent still holds.
+        let whole =
+            PlaneSegment::new(Point3::new(1.64, 0.01, 0.37), Vector3::y(), 1.46, 0.27, Vector3::z(), 520)
+                .expect("valid rectangle");
+        let merged = merge(std::slice::from_ref(&known), vec![whole], 0.15);
+        let m = &merged[0];
+        assert!((m.along() - Vector3::x()).norm() < 1e-9, "ascent {:?}", m.along());
+        assert!(
+            (m.width_m() - 1.46).abs() < 1e-9 && (m.depth_m() - 0.29).abs() < 1e-9,
+            "{} {}",
+            m.width_m(),
+            m.depth_m()
+        );
     }
 
     /// ci suite case 15: 8 voxels of a tread must not cut its back edge (the merged tread
