@@ -201,6 +201,6 @@ fn replay_of_a_run_that_left_a_partly_seen_top_step_for_later_is_equal() {
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
     println!("{text}{}", String::from_utf8_lossy(&out.stderr));
-    assert!(text.contains("is left for a closer look"), "the recording holds the case");
+    assert!(text.contains("left for a closer look"), "the recording holds the case");
     assert!(out.status.success() && text.contains("replay equals the recording"));
 }

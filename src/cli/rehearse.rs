@@ -93,7 +93,8 @@ pub fn run(
     );
     if let Some(top) = &next.deferred {
         println!(
-            "  the top step, seen {:.3} m deep, is left out: a closer look is needed before climbing it",
+            "  the step at {:.3} m, seen {:.3} m deep, and any above it are left out: a closer look is needed before climbing them",
+            top.height_m(),
             top.depth_m()
         );
     }

@@ -163,7 +163,7 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
         );
         if let Some(top) = &next.deferred {
             println!(
-                "  step map: the top step at {:.3} m, seen {:.3} m deep, is left for a closer look",
+                "  step map: the step at {:.3} m, seen {:.3} m deep, and any above it are left for a closer look",
                 top.height_m(),
                 top.depth_m()
             );

@@ -23,12 +23,13 @@ pub enum PlanError {
     /// No rectangles.
     #[error("no staircase: no step rectangles to plan on")]
     NoSteps,
-    /// A rectangle's direction of ascent differs from the first one's.
-    #[error("step {} is turned more than {:.0} deg from step 1: not a straight staircase", .step + 1, .limit_rad.to_degrees())]
+    /// A rectangle's direction of ascent differs from the flight's (the steps' directions
+    /// weighed by their voxels).
+    #[error("step {} is turned {:.1} deg from the flight's direction (more than {:.0} deg): not a straight staircase", .step + 1, .angle_rad.to_degrees(), .limit_rad.to_degrees())]
     NotStraight {
         /// 0-based step.
         step: usize,
-        /// Its turn from step 1, radians.
+        /// Its turn from the flight's direction, radians.
         angle_rad: f64,
         /// The largest accepted.
         limit_rad: f64,
