@@ -8,8 +8,8 @@ use super::foxglove::{LaserScan, PointCloud};
 use super::messages::{PerceptionMsg, PlanMsg, SweepMsg, TrajectoryMsg};
 use crate::cancel::Cancel;
 use crate::sensor::{LidarModel, ScanRow, SensorError, Source, Sweep};
-use mcap::read::{ChunkFlattener, Options};
 use mcap::records::Record;
+use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use nalgebra::Vector3;
 use std::collections::HashMap;
 
@@ -78,9 +78,8 @@ pub fn read_bytes(bytes: &[u8]) -> Result<Recording, String> {
     if !bytes.starts_with(mcap::MAGIC) {
         return Err("it does not start with MCAP's magic bytes".into());
     }
-    let options = Options::IgnoreEndMagic | Options::ValidateChunkCrcs;
     let (sound, damage) = sound_prefix(bytes);
-    let records = ChunkFlattener::new_with_options(&bytes[..sound], options).map_err(|e| e.to_string())?;
+    let records = Flattened::new(&bytes[..sound]);
     let mut rec = Recording { damage, ..Recording::default() };
     let mut topics: HashMap<u16, String> = HashMap::new();
     let mut open: Option<(RecordedSweep, usize)> = None;
@@ -163,6 +162,49 @@ fn sound_prefix(bytes: &[u8]) -> (usize, Option<String>) {
         at = end;
     }
     (bytes.len(), None)
+}
+
+/// The records of an MCAP file with its chunks unpacked, as the mcap crate's
+/// `ChunkFlattener` gives them, but with a limit on a record's claimed length: a byte
+/// flipped in a chunk's compressed data (its CRC is checked only once the chunk is read)
+/// can make a record inside it claim exabytes, and the crate's reader reserved that much
+/// and aborted (tests/record.rs's damaged-file test, seen on a clean clone). No record is
+/// longer than 16 times the file (a chunk's contents compress a few times at most).
+struct Flattened<'a> {
+    rest: &'a [u8],
+    reader: LinearReader,
+}
+
+impl<'a> Flattened<'a> {
+    fn new(bytes: &'a [u8]) -> Self {
+        let options = LinearReaderOptions::default()
+            .with_skip_end_magic(true)
+            .with_validate_chunk_crcs(true)
+            .with_record_length_limit(bytes.len().saturating_mul(16).max(1 << 20));
+        Self { rest: bytes, reader: LinearReader::new_with_options(options) }
+    }
+}
+
+impl Iterator for Flattened<'_> {
+    type Item = Result<Record<'static>, mcap::McapError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        while let Some(event) = self.reader.next_event() {
+            match event {
+                Ok(LinearReadEvent::ReadRequest(need)) => {
+                    let n = need.min(self.rest.len());
+                    self.reader.insert(n).copy_from_slice(&self.rest[..n]);
+                    self.reader.notify_read(n);
+                    self.rest = &self.rest[n..];
+                }
+                Ok(LinearReadEvent::Record { data, opcode }) => {
+                    return Some(mcap::parse_record(opcode, data).map(|r| r.into_owned()))
+                }
+                Err(e) => return Some(Err(e)),
+            }
+        }
+        None
+    }
 }
 
 /// Takes one message of `topic` into the recording (a new sweep, or a part of the open one).
