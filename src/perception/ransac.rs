@@ -80,8 +80,9 @@ pub fn planes(
     out
 }
 
-/// Least-squares plane through `idx` (normal toward `up`).
-fn refit(centres: &[Point3<f32>], idx: &[u32], up: &Vector3<f32>) -> Option<(Vector3<f32>, f32)> {
+/// Least-squares plane through `centres[idx]` (normal toward `up`); `None` when they do
+/// not span a plane. Also fits a segment's normal to its own voxels (`staircase`).
+pub(super) fn refit(centres: &[Point3<f32>], idx: &[u32], up: &Vector3<f32>) -> Option<(Vector3<f32>, f32)> {
     let n = idx.len() as f32;
     let mean = idx.iter().map(|&i| centres[i as usize].coords).sum::<Vector3<f32>>() / n;
     let mut c = Matrix3::<f32>::zeros();

@@ -222,7 +222,8 @@ fn join_touching(vc: &VoxelCloud, parts: Vec<Candidate>, p: &PerceptionParams) -
 /// suite case 60, step 1; its 498 voxels: under half a degree), and the foot planned on that
 /// tilt met the tread heel first, 2 cm up.
 fn candidate(vc: &VoxelCloud, voxels: Vec<u32>, normal: Vector3<f64>) -> Option<Candidate> {
-    let normal = fitted_normal(vc, &voxels, &normal).unwrap_or(normal);
+    let up = normal.cast::<f32>();
+    let normal = super::ransac::refit(&vc.positions, &voxels, &up).map_or(normal, |(n, _)| n.cast());
     let xy: Vec<P2> = voxels.iter().map(|&v| vc.positions[v as usize].xy().coords.cast::<f64>()).collect();
     let hull = geom2d::convex_hull(&xy);
     let (axis, ra, rb) = geom2d::min_area_rect_of_hull(&hull)?;
@@ -230,30 +231,6 @@ fn candidate(vc: &VoxelCloud, voxels: Vec<u32>, normal: Vector3<f64>) -> Option<
     let height = voxels.iter().map(|&v| vc.positions[v as usize].z as f64).sum::<f64>() / voxels.len() as f64;
     let centroid = xy.iter().sum::<P2>() / xy.len() as f64;
     Some(Candidate { voxels, xy, height, normal, shape: [a.min(b), a.max(b)], axis, hull, centroid })
-}
-
-/// The least-squares normal of the voxels' positions, on `up`'s side; `None` for fewer than
-/// three voxels or points on a line.
-fn fitted_normal(vc: &VoxelCloud, voxels: &[u32], up: &Vector3<f64>) -> Option<Vector3<f64>> {
-    if voxels.len() < 3 {
-        return None;
-    }
-    let at = |v: u32| vc.positions[v as usize].coords.cast::<f64>();
-    let mean = voxels.iter().map(|&v| at(v)).sum::<Vector3<f64>>() / voxels.len() as f64;
-    let mut c = nalgebra::Matrix3::<f64>::zeros();
-    for &v in voxels {
-        let d = at(v) - mean;
-        c += d * d.transpose();
-    }
-    let eig = c.symmetric_eigen();
-    let mut order = [0, 1, 2];
-    order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
-    // A plane: the two larger spreads well above the smallest and not degenerate.
-    if eig.eigenvalues[order[1]] <= 1e-12 {
-        return None;
-    }
-    let n = eig.eigenvectors.column(order[0]).into_owned();
-    Some(if n.dot(up) < 0.0 { -n } else { n })
 }
 
 /// §4.3 takes the steps as the biggest cluster of like-shaped segments, so a tread of
