@@ -8,8 +8,8 @@ use stairbench::cloud::io::read_xyz_text;
 use stairbench::cloud::PointCloud;
 use stairbench::geom2d::{self, P2};
 use stairbench::perception::{
-    filter_slope, metrics, normals, perceive, perceive_voxels, NeighbourSearch, NoStaircase, PerceptionError,
-    PerceptionParams,
+    filter_slope, metrics, normals, perceive, perceive_voxels, NeighbourSearch, NoStaircase, Perception,
+    PerceptionError, PerceptionParams,
 };
 use stairbench::scenario::Scenario;
 use stairbench::sensor::AssembleParams;
@@ -78,14 +78,21 @@ fn exp1_scans_find_all_three_steps() {
     }
 }
 
+/// Perception on one scan of `s` (from its start), scored against its true steps (2 cm
+/// tolerance).
+fn perceive_scored(s: &Scenario) -> (Perception, metrics::Score) {
+    let scene = common::scene_of(s);
+    let r = perceive(&scan(s), &PerceptionParams::default()).unwrap();
+    let sc = metrics::score(&r.segments, scene.steps(), 0.02);
+    (r, sc)
+}
+
 #[test]
 fn a_staircase_yawed_by_30_degrees_comes_out_turned() {
     let mut s =
         Scenario::from_toml_str("[staircase]\nyaw_deg = 30\nstart_m = [0.6, 0.1]\n", "yaw.toml").unwrap();
     s.lidar.noise_sigma_m = 0.005;
-    let scene = common::scene_of(&s);
-    let r = perceive(&scan(&s), &PerceptionParams::default()).unwrap();
-    let sc = metrics::score(&r.segments, scene.steps(), 0.02);
+    let (r, sc) = perceive_scored(&s);
     assert_eq!(sc.found, 3, "{sc:?}");
     for seg in &r.segments {
         let a = seg.along();
@@ -132,9 +139,7 @@ fn a_wide_low_tread_is_one_segment() {
         start_m = [0.84, -0.38]\n[robot]\nyaw_deg = -14.1\n\
         [lidar]\nnoise_sigma_m = 0.0075\ndropout_probability = 0.0087\n";
     let s = Scenario::from_toml_str(toml, "wide.toml").unwrap();
-    let scene = common::scene_of(&s);
-    let r = perceive(&scan(&s), &PerceptionParams::default()).unwrap();
-    let sc = metrics::score(&r.segments, scene.steps(), 0.02);
+    let (r, sc) = perceive_scored(&s);
     assert!(sc.found >= 4, "{sc:?}");
     assert_eq!(sc.false_segments, 0, "{sc:?}");
     assert_eq!(r.segments.len(), sc.found, "one segment per tread: {sc:?}");
@@ -156,9 +161,7 @@ fn a_tread_under_range_noise_comes_out_level() {
         [robot]\nyaw_deg = -2.26\n\
         [lidar]\nnoise_sigma_m = 0.0148\ndropout_probability = 0.0008\n";
     let s = Scenario::from_toml_str(toml, "low-noisy.toml").unwrap();
-    let scene = common::scene_of(&s);
-    let r = perceive(&scan(&s), &PerceptionParams::default()).unwrap();
-    let sc = metrics::score(&r.segments, scene.steps(), 0.02);
+    let (r, sc) = perceive_scored(&s);
     assert!(sc.found >= 4, "{sc:?}");
     for seg in &r.segments {
         let tilt_deg = seg.normal().z.clamp(-1.0, 1.0).acos().to_degrees();

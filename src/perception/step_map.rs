@@ -79,10 +79,7 @@ impl StepMap {
 pub fn without_partial_top(mut ahead: Vec<PlaneSegment>, min_tread_m: f64) -> NextInput {
     ahead.sort_by(|a, b| a.height_m().total_cmp(&b.height_m()));
     let first_shallow = ahead.iter().skip(1).position(|s| s.depth_m() < min_tread_m).map(|i| i + 1);
-    let deferred = first_shallow.map(|i| {
-        let rest = ahead.split_off(i);
-        rest.into_iter().next().expect("split at an index inside ahead")
-    });
+    let deferred = first_shallow.and_then(|i| ahead.drain(i..).next());
     NextInput { ahead, deferred }
 }
 
@@ -208,9 +205,19 @@ mod tests {
     use super::*;
     use nalgebra::{Point3, Vector3};
 
+    /// A level rectangle (see `PlaneSegment::new`).
+    fn level(
+        center: Point3<f64>,
+        along: Vector3<f64>,
+        depth_m: f64,
+        width_m: f64,
+        voxels: usize,
+    ) -> PlaneSegment {
+        PlaneSegment::new(center, along, depth_m, width_m, Vector3::z(), voxels).expect("valid rectangle")
+    }
+
     fn step(x: f64, z: f64, depth_m: f64) -> PlaneSegment {
-        PlaneSegment::new(Point3::new(x, 0.0, z), Vector3::x(), depth_m, 0.5, Vector3::z(), 10)
-            .expect("valid rectangle")
+        level(Point3::new(x, 0.0, z), Vector3::x(), depth_m, 0.5, 10)
     }
 
     #[test]
@@ -253,12 +260,8 @@ mod tests {
     #[test]
     fn a_view_of_one_side_of_a_step_does_not_narrow_it() {
         // ci case 9: 0.71 m of a 1.33 m tread, on its left, seen from close.
-        let known =
-            PlaneSegment::new(Point3::new(1.31, 0.0, 0.17), Vector3::x(), 0.26, 1.33, Vector3::z(), 308)
-                .expect("valid rectangle");
-        let side =
-            PlaneSegment::new(Point3::new(1.38, 0.24, 0.17), Vector3::x(), 0.12, 0.71, Vector3::z(), 54)
-                .expect("valid rectangle");
+        let known = level(Point3::new(1.31, 0.0, 0.17), Vector3::x(), 0.26, 1.33, 308);
+        let side = level(Point3::new(1.38, 0.24, 0.17), Vector3::x(), 0.12, 0.71, 54);
         let merged = merge(std::slice::from_ref(&known), vec![side], 0.15);
         assert_eq!(merged.len(), 1);
         assert!((merged[0].width_m() - 1.33).abs() < 1e-9 && merged[0].center().y.abs() < 1e-9, "{merged:?}");
@@ -289,13 +292,9 @@ mod tests {
     /// (ascent turned 90 degrees); the merge must read that view along the known ascent.
     #[test]
     fn a_view_with_its_axes_swapped_is_read_along_the_known_ascent() {
-        let known =
-            PlaneSegment::new(Point3::new(1.64, 0.01, 0.37), Vector3::x(), 0.29, 1.46, Vector3::z(), 506)
-                .expect("valid rectangle");
+        let known = level(Point3::new(1.64, 0.01, 0.37), Vector3::x(), 0.29, 1.46, 506);
         // The far 0.225 m of the tread's left part, described as 1.08 m "deep" along +y.
-        let swapped =
-            PlaneSegment::new(Point3::new(1.6725, 0.2, 0.37), Vector3::y(), 1.08, 0.225, Vector3::z(), 260)
-                .expect("valid rectangle");
+        let swapped = level(Point3::new(1.6725, 0.2, 0.37), Vector3::y(), 1.08, 0.225, 260);
         let merged = merge(std::slice::from_ref(&known), vec![swapped], 0.15);
         assert_eq!(merged.len(), 1);
         let m = &merged[0];
@@ -304,9 +303,7 @@ mod tests {
         assert!((m.width_m() - 1.46).abs() < 1e-9, "width {}", m.width_m());
         assert!((m.center() - known.center()).norm() < 1e-9);
         // ci suite case 16: the swapped view is the fuller one; the known ascent still holds.
-        let whole =
-            PlaneSegment::new(Point3::new(1.64, 0.01, 0.37), Vector3::y(), 1.46, 0.27, Vector3::z(), 520)
-                .expect("valid rectangle");
+        let whole = level(Point3::new(1.64, 0.01, 0.37), Vector3::y(), 1.46, 0.27, 520);
         let merged = merge(std::slice::from_ref(&known), vec![whole], 0.15);
         let m = &merged[0];
         assert!((m.along() - Vector3::x()).norm() < 1e-9, "ascent {:?}", m.along());
@@ -322,12 +319,8 @@ mod tests {
     /// came out 0.21 m deep, and the plan was refused).
     #[test]
     fn a_sparse_view_does_not_cut_a_tread() {
-        let known =
-            PlaneSegment::new(Point3::new(1.505, 0.0, 0.51), Vector3::x(), 0.30, 0.94, Vector3::z(), 417)
-                .expect("valid rectangle");
-        let sparse =
-            PlaneSegment::new(Point3::new(1.489, 0.06, 0.505), Vector3::x(), 0.186, 0.7, Vector3::z(), 8)
-                .expect("valid rectangle");
+        let known = level(Point3::new(1.505, 0.0, 0.51), Vector3::x(), 0.30, 0.94, 417);
+        let sparse = level(Point3::new(1.489, 0.06, 0.505), Vector3::x(), 0.186, 0.7, 8);
         let merged = merge(std::slice::from_ref(&known), vec![sparse], 0.15);
         assert_eq!(merged.len(), 1);
         assert!((merged[0].depth_m() - 0.30).abs() < 1e-9, "depth {}", merged[0].depth_m());
@@ -338,12 +331,8 @@ mod tests {
     /// hid the back 4 cm of its tread; the closer view's back edge is kept.
     #[test]
     fn a_closer_view_brings_the_back_the_farther_one_missed() {
-        let far =
-            PlaneSegment::new(Point3::new(2.028, 0.0, 1.08), Vector3::x(), 0.249, 1.24, Vector3::z(), 1067)
-                .expect("valid rectangle");
-        let close =
-            PlaneSegment::new(Point3::new(2.054, 0.0, 1.08), Vector3::x(), 0.284, 1.24, Vector3::z(), 966)
-                .expect("valid rectangle");
+        let far = level(Point3::new(2.028, 0.0, 1.08), Vector3::x(), 0.249, 1.24, 1067);
+        let close = level(Point3::new(2.054, 0.0, 1.08), Vector3::x(), 0.284, 1.24, 966);
         let merged = merge(std::slice::from_ref(&far), vec![close], 0.15);
         let m = &merged[0];
         let (front, back) = (m.center().x - m.depth_m() / 2.0, m.center().x + m.depth_m() / 2.0);
@@ -353,12 +342,8 @@ mod tests {
     /// ci suite case 60: a sparse view of a landing must not move its plane.
     #[test]
     fn a_sparse_view_does_not_move_a_step_height() {
-        let landing =
-            PlaneSegment::new(Point3::new(4.06, 0.36, 1.004), Vector3::x(), 1.35, 1.42, Vector3::z(), 3671)
-                .expect("valid rectangle");
-        let sparse =
-            PlaneSegment::new(Point3::new(3.82, 0.28, 0.987), Vector3::x(), 0.7, 1.32, Vector3::z(), 14)
-                .expect("valid rectangle");
+        let landing = level(Point3::new(4.06, 0.36, 1.004), Vector3::x(), 1.35, 1.42, 3671);
+        let sparse = level(Point3::new(3.82, 0.28, 0.987), Vector3::x(), 0.7, 1.32, 14);
         let merged = merge(std::slice::from_ref(&landing), vec![sparse], 0.15);
         assert_eq!(merged.len(), 1);
         assert!((merged[0].height_m() - 1.004).abs() < 1e-12, "height {}", merged[0].height_m());
@@ -374,11 +359,9 @@ mod tests {
         // A 0.1 m square turned 45 degrees, its centre 0.62 m diagonally from a's: inside
         // a's spans along x and y, but apart along its own diagonal axes.
         let turned = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
-        let b = PlaneSegment::new(Point3::new(1.55, 0.29, 0.4), turned, 0.1, 0.1, Vector3::z(), 10)
-            .expect("valid rectangle");
+        let b = level(Point3::new(1.55, 0.29, 0.4), turned, 0.1, 0.1, 10);
         assert!(!same_step(&a, &b, 0.15) && !same_step(&b, &a, 0.15));
-        let inside = PlaneSegment::new(Point3::new(1.4, 0.1, 0.4), turned, 0.1, 0.1, Vector3::z(), 10)
-            .expect("valid rectangle");
+        let inside = level(Point3::new(1.4, 0.1, 0.4), turned, 0.1, 0.1, 10);
         assert!(same_step(&a, &inside, 0.15) && same_step(&inside, &a, 0.15));
     }
 
@@ -386,14 +369,10 @@ mod tests {
     /// degrees; the merged step must keep the fuller view's direction of ascent.
     #[test]
     fn a_partial_view_does_not_turn_a_step() {
-        let full =
-            PlaneSegment::new(Point3::new(2.9, -0.36, 1.02), Vector3::x(), 0.36, 0.98, Vector3::z(), 1123)
-                .expect("valid rectangle");
+        let full = level(Point3::new(2.9, -0.36, 1.02), Vector3::x(), 0.36, 0.98, 1123);
         let yaw = 12f64.to_radians();
         let turned = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
-        let partial =
-            PlaneSegment::new(Point3::new(2.97, -0.35, 1.02), turned, 0.32, 0.98, Vector3::z(), 557)
-                .expect("valid rectangle");
+        let partial = level(Point3::new(2.97, -0.35, 1.02), turned, 0.32, 0.98, 557);
         let merged = merge(std::slice::from_ref(&full), vec![partial.clone()], 0.15);
         assert_eq!(merged.len(), 1);
         let m = &merged[0];
@@ -461,8 +440,7 @@ mod tests {
         // Centred `s` along x from (1, 0, 0.4), its ascent yawed by `yaw_deg`.
         let view = |s: f64, depth_m: f64, yaw_deg: f64| {
             let along = Vector3::new(yaw_deg.to_radians().cos(), yaw_deg.to_radians().sin(), 0.0);
-            PlaneSegment::new(Point3::new(1.0 + s, 0.0, 0.4), along, depth_m, 0.5, Vector3::z(), 10)
-                .expect("valid rectangle")
+            level(Point3::new(1.0 + s, 0.0, 0.4), along, depth_m, 0.5, 10)
         };
         let mut map = StepMap::default();
         for i in 0..6 {
