@@ -15,6 +15,7 @@ pub mod climb;
 pub mod cloud;
 pub mod control;
 pub mod geom2d;
+pub mod geom3d;
 pub mod params;
 pub mod perception;
 pub mod planning;

@@ -6,6 +6,7 @@
 use crate::climb::{LoopParams, RunParams};
 use crate::control::StabilizerParams;
 use crate::perception::step_map::StepMapParams;
+use crate::perception::surroundings::SurroundingsParams;
 use crate::perception::PerceptionParams;
 use crate::planning::PlanParams;
 use crate::sim::checks::CheckParams;
@@ -20,6 +21,8 @@ pub struct ClimbParams {
     pub perception: PerceptionParams,
     /// The step map (known steps merged with each new view).
     pub step_map: StepMapParams,
+    /// What the lidar saw around the steps, kept for the body's clearance.
+    pub surroundings: SurroundingsParams,
     /// Planning (§6).
     pub plan: PlanParams,
     /// The simulated robot's servos.
@@ -40,6 +43,7 @@ impl ClimbParams {
         LoopParams {
             perception: &self.perception,
             step_map: &self.step_map,
+            surroundings: &self.surroundings,
             plan: &self.plan,
             run: &self.run,
         }

@@ -179,7 +179,8 @@ fn a_broken_plan_lifting_the_support_foot_is_caught_with_its_instant() {
     // The remaining segments keep both feet where they were (the plan ends there).
     segments.truncate(2);
     let blocks = step_blocks(&rects, -0.1);
-    let (trajectory, tracking) = track(&model, &q0, &segments, &blocks, &params.ik).unwrap();
+    let (trajectory, tracking) =
+        track(&model, &q0, &segments, &blocks, Default::default(), &params.ik).unwrap();
     let broken = Plan { segments, trajectory, tracking, ..good };
     let from_s = broken.segments[0].duration_s;
     let ex = execute_checked(&mut world, &model, &scene, &broken);

@@ -10,7 +10,7 @@ use stairbench::geom2d::P2;
 use stairbench::perception::PlaneSegment;
 use stairbench::planning::gait::Phase;
 use stairbench::planning::polygon::{by_bretl, margin};
-use stairbench::planning::{clearance, plan, rectangles, Contact, Plan, PlanError, PlanParams};
+use stairbench::planning::{clearance, plan, plan_among, rectangles, Contact, Plan, PlanError, PlanParams};
 use stairbench::robot::model::Q_JOINTS;
 use stairbench::robot::{hrp4, Kinematics, RobotModel};
 use stairbench::scenario::Scenario;
@@ -245,4 +245,141 @@ fn a_yawed_staircase_is_planned_along_its_own_direction() {
     check(&plan, Some(&scene));
     let yaw = plan.stances.last().unwrap().right.rotation.euler_angles().2;
     assert!((yaw - 30f64.to_radians()).abs() < 1e-6, "feet yaw {} deg", yaw.to_degrees());
+}
+
+/// The upper body's least distance to `points` over the plan's samples, by brute force over
+/// every capsule and point (the planner's own query goes through a k-d tree), and the
+/// highest y any upper-body capsule reached.
+fn upper_body_reach(plan: &Plan, points: &[Point3<f64>]) -> (f64, f64) {
+    let model = hrp4::model().unwrap();
+    let mut kin = Kinematics::new(&model);
+    let limbs = clearance::upper_limbs(&model, &hrp4::sole_frames(&model).unwrap());
+    let (mut least, mut reach_y) = (f64::INFINITY, f64::NEG_INFINITY);
+    for s in &plan.trajectory.samples {
+        kin.update(&s.q).unwrap();
+        for limb in &limbs {
+            let c = limb.capsule(&kin);
+            reach_y = reach_y.max(c.a.y.max(c.b.y) + c.radius_m);
+            least = points.iter().map(|p| c.distance_m(p)).fold(least, f64::min);
+        }
+    }
+    (least, reach_y)
+}
+
+/// Issue 19, stairwells: the wrist met a side wall the lidar saw. With the lanes held where
+/// the robot stands (a zero body half width, so that only the IK acts), a wall 2 cm beyond
+/// the farthest the arms reach in a plan that knows of no wall: planned among the wall's
+/// points, the body keeps its 3 cm from every one of them at every sample.
+#[test]
+fn the_ik_keeps_the_body_off_a_wall_the_lidar_saw() {
+    let model = hrp4::model().unwrap();
+    let scene = common::scene_of(&Scenario::default());
+    let rects = rectangles::from_step_tops(scene.steps());
+    let q0 = start_q(&model, &scene.robot_start());
+    let mut p = PlanParams::default();
+    p.gait.body_half_width_m = 0.0;
+    let blind = plan(&model, &q0, &rects, Some(2), &p).expect("planned without the wall");
+    let (_, reach_y) = upper_body_reach(&blind, &[]);
+    let wall_y = reach_y + 0.02;
+    let wall: Vec<Point3<f64>> = (0..80)
+        .flat_map(|i| {
+            (0..60).map(move |k| Point3::new(-0.5 + 0.03 * i as f64, wall_y, 0.3 + 0.03 * k as f64))
+        })
+        .collect();
+    let (blind_least, _) = upper_body_reach(&blind, &wall);
+    assert!(blind_least < p.ik.body_clearance_m - 0.005, "the blind plan comes within {blind_least} m");
+    let seen = std::sync::Arc::new(clearance::SeenPoints::new(wall.clone()));
+    let among = plan_among(&model, &q0, &rects, seen, Some(2), &p).expect("planned among the wall");
+    let (least, _) = upper_body_reach(&among, &wall);
+    assert!(least >= p.ik.body_clearance_m - 1e-3, "the body came within {least} m of the wall");
+    assert_eq!(among.stances, blind.stances, "the lanes were held: only the IK acted");
+    // The wall where the body stands: refused, naming the limb, not planned through.
+    let through: Vec<Point3<f64>> = wall.iter().map(|q| Point3::new(q.x, reach_y - 0.2, q.z)).collect();
+    let e = plan_among(
+        &model,
+        &q0,
+        &rects,
+        std::sync::Arc::new(clearance::SeenPoints::new(through)),
+        Some(2),
+        &p,
+    )
+    .expect_err("a wall through the body");
+    assert!(
+        matches!(
+            e,
+            PlanError::BodyTouchesSurface { .. } | PlanError::Ik { .. } | PlanError::ComStrays { .. }
+        ),
+        "{e}"
+    );
+}
+
+/// The planner's nearest seen point equals the brute-force one (every point, every capsule).
+#[test]
+fn the_nearest_seen_point_is_the_brute_force_one() {
+    let model = hrp4::model().unwrap();
+    let scene = common::scene_of(&Scenario::default());
+    let q0 = start_q(&model, &scene.robot_start());
+    let mut kin = Kinematics::new(&model);
+    kin.update(&q0).unwrap();
+    let base = kin.link_pose(0).translation.vector;
+    // A deterministic scatter around the body (a multiplicative congruential sequence).
+    let mut state = 12345u64;
+    let mut next = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let points: Vec<Point3<f64>> = (0..3000)
+        .map(|_| Point3::from(base + Vector3::new(next() - 0.5, next() - 0.5, next() * 1.2 - 0.6) * 1.2))
+        .collect();
+    let seen = clearance::SeenPoints::new(points.clone());
+    let range = 0.08;
+    let limbs = clearance::upper_limbs(&model, &hrp4::sole_frames(&model).unwrap());
+    assert!(limbs.len() >= 6, "arms, trunk and head: {}", limbs.len());
+    let mut found = 0;
+    for limb in &limbs {
+        let c = limb.capsule(&kin);
+        let brute = points.iter().map(|p| c.distance_m(p)).fold(f64::INFINITY, f64::min);
+        match seen.nearest(&kin, limb, range) {
+            Some(n) => {
+                found += 1;
+                assert!((n.clearance_m - brute).abs() < 1e-9, "{}: {} vs {brute}", limb.name, n.clearance_m);
+                assert!((c.distance_m(&points[n.block]) - brute).abs() < 1e-9);
+            }
+            None => assert!(brute > range, "{}: missed a point {brute} m away", limb.name),
+        }
+    }
+    assert!(found > 0, "the scatter reaches some capsule");
+}
+
+/// The tracker's probe cache skips a capsule's search only when it cannot have come within
+/// range: along a path that sweeps a capsule past a wall and back, in steps of a few
+/// millimetres to a few centimetres, the cached answer equals a fresh search at every step.
+#[test]
+fn the_probe_cache_answers_as_a_fresh_search_does() {
+    use stairbench::geom3d::Capsule;
+    let wall: Vec<Point3<f64>> = (0..40)
+        .flat_map(|i| (0..40).map(move |k| Point3::new(0.03 * i as f64, 0.5, 0.03 * k as f64)))
+        .collect();
+    let seen = clearance::SeenPoints::new(wall);
+    let mut cache = clearance::ProbeCache::default();
+    let range = 0.08;
+    let mut y = 0.0;
+    let mut fresh_hits = 0;
+    for step in 0..400 {
+        // Out toward the wall and back, faster and slower in turn.
+        let speed = if step % 7 == 0 { 0.03 } else { 0.004 };
+        y += if step < 200 { speed } else { -speed };
+        let capsule = Capsule {
+            a: Point3::new(0.5, y, 0.6),
+            b: Point3::new(0.55, y + 0.02 * ((step % 5) as f64), 0.4),
+            radius_m: 0.04,
+        };
+        let fresh = match seen.probe(&capsule, range) {
+            clearance::Probe::Near(n) => Some(n),
+            clearance::Probe::Clear { .. } => None,
+        };
+        fresh_hits += usize::from(fresh.is_some());
+        assert_eq!(cache.nearest(0, &seen, capsule, range), fresh, "step {step}, y {y}");
+    }
+    assert!(fresh_hits > 10, "the path comes within range of the wall: {fresh_hits}");
 }

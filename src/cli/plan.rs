@@ -5,9 +5,12 @@
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use stairbench::climb::add_view;
+use stairbench::perception::surroundings::{Surroundings, SurroundingsParams};
 use stairbench::perception::{perceive, PerceptionParams, PlaneSegment};
+use stairbench::planning::clearance::SeenPoints;
 use stairbench::planning::motion::JointTrajectory;
-use stairbench::planning::{plan, rectangles, Plan, PlanParams};
+use stairbench::planning::{plan_among, rectangles, Plan, PlanParams};
 use stairbench::record::messages::{PlanMsg, PlanReport};
 use stairbench::robot::{hrp4, RobotModel};
 use stairbench::scene::Scene;
@@ -16,6 +19,7 @@ use stairbench::sim::scan_scenario;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Arguments of `stairbench plan`.
@@ -25,7 +29,9 @@ pub struct PlanArgs {
     /// paper's format: x,y,z rows, four corners per step).
     input: Option<PathBuf>,
     /// Plan on the perceived steps (scan the scenario's world, run §4's perception) instead
-    /// of its ground truth.
+    /// of its ground truth, keeping the body off every surface the scan saw (walls, clutter)
+    /// as the closed loop does; on ground truth or a rectangles file nothing is known beside
+    /// the steps.
     #[arg(long)]
     perceived: bool,
     /// Rectangles file only: the floor's height in the file's frame, metres (default: the
@@ -63,9 +69,9 @@ pub fn run(a: PlanArgs) -> Result<ExitCode> {
         None => PlanParams::default(),
     };
     let model = hrp4::model()?;
-    let (rects, q0) = inputs(&a, &model)?;
+    let (rects, q0, seen) = inputs(&a, &model)?;
     let started = Instant::now();
-    let result = plan(&model, &q0, &rects, a.stances, &params);
+    let result = plan_among(&model, &q0, &rects, seen, a.stances, &params);
     let wall_s = started.elapsed().as_secs_f64();
     let planned = match result {
         Ok(p) => p,
@@ -98,8 +104,10 @@ pub fn run(a: PlanArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The rectangles and the start configuration.
-fn inputs(a: &PlanArgs, model: &RobotModel) -> Result<(Vec<PlaneSegment>, Vec<f64>)> {
+/// The rectangles, the start configuration, and the surfaces seen around the steps (a
+/// perceived scenario's whole scan, the body kept off it as the loop does; nothing
+/// otherwise).
+fn inputs(a: &PlanArgs, model: &RobotModel) -> Result<(Vec<PlaneSegment>, Vec<f64>, Arc<SeenPoints>)> {
     let is_txt = a.input.as_deref().and_then(Path::extension).is_some_and(|e| e.eq_ignore_ascii_case("txt"));
     if is_txt {
         let path = a.input.as_deref().unwrap_or(Path::new(""));
@@ -107,21 +115,24 @@ fn inputs(a: &PlanArgs, model: &RobotModel) -> Result<(Vec<PlaneSegment>, Vec<f6
             std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
         let rects = rectangles::parse(&text).with_context(|| path.display().to_string())?;
         let start = start_before(&rects, a.floor_z, a.standoff_m)?;
-        return Ok((rects, hrp4::half_sitting_at(model, &start)?));
+        return Ok((rects, hrp4::half_sitting_at(model, &start)?, Arc::default()));
     }
     if a.floor_z.is_some() {
         bail!("--floor-z is for rectangles files; a scenario's floor is at z = 0");
     }
     let scenario = super::load_scenario(a.input.as_deref())?;
     let scene = Scene::from_scenario(&scenario)?;
-    let rects = if a.perceived {
+    let q0 = hrp4::half_sitting_at(model, &scene.robot_start())?;
+    if a.perceived {
         let scan = scan_scenario(&scenario, &mut |_, _| {})?;
         let cloud = scan.sweep.assemble(&AssembleParams::default())?;
-        perceive(&cloud, &PerceptionParams::default())?.segments
-    } else {
-        rectangles::from_step_tops(scene.steps())
-    };
-    Ok((rects, hrp4::half_sitting_at(model, &scene.robot_start())?))
+        let rects = perceive(&cloud, &PerceptionParams::default())?.segments;
+        let p = SurroundingsParams::default();
+        let mut around = Surroundings::default();
+        add_view(&mut around, &cloud, model, &q0, &p);
+        return Ok((rects, q0, Arc::new(SeenPoints::new(around.points(&p)))));
+    }
+    Ok((rectangles::from_step_tops(scene.steps()), q0, Arc::default()))
 }
 
 /// The floor point between the feet, `standoff_m` in front of the lowest rectangle's front

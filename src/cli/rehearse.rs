@@ -7,17 +7,20 @@
 
 use anyhow::{Context, Result};
 use stairbench::cancel::Cancel;
-use stairbench::climb::{Event, Nobody, Observer};
+use stairbench::climb::{add_view, Event, Nobody, Observer};
 use stairbench::params::ClimbParams;
 use stairbench::perception::perceive;
 use stairbench::perception::step_map::StepMap;
-use stairbench::planning::plan;
+use stairbench::perception::surroundings::Surroundings;
+use stairbench::planning::clearance::SeenPoints;
+use stairbench::planning::plan_among;
 use stairbench::scene::Scene;
 use stairbench::sensor::AssembleParams;
 use stairbench::sim::execute::{execute, settle};
 use stairbench::sim::World;
 use std::path::Path;
 use std::process::ExitCode;
+use std::sync::Arc;
 
 /// The rehearsal; `record` and `trajectory` are written only when it passes.
 pub fn run(
@@ -99,7 +102,12 @@ pub fn run(
         );
     }
     let steps = next.ahead;
-    let planned = match plan(&model, &q0, &steps, None, &params.plan) {
+    // The body kept off every surface the sensor saw (walls, clutter), as the loop does:
+    // the rehearsal's world holds the perceived steps only, the real one the rest too.
+    let mut around = Surroundings::default();
+    add_view(&mut around, &cloud, &model, &q0, &params.surroundings);
+    let surfaces = Arc::new(SeenPoints::new(around.points(&params.surroundings)));
+    let planned = match plan_among(&model, &q0, &steps, surfaces, None, &params.plan) {
         Ok(p) => p,
         Err(e) => {
             discard(rec);

@@ -6,17 +6,20 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use stairbench::climb::feet_height_m;
+use stairbench::climb::{add_view, feet_height_m};
 use stairbench::params::ClimbParams;
 use stairbench::perception::step_map::StepMap;
+use stairbench::perception::surroundings::Surroundings;
 use stairbench::perception::PerceptionError;
 use stairbench::perception::{perceive, PlaneSegment};
-use stairbench::planning::plan;
+use stairbench::planning::clearance::SeenPoints;
+use stairbench::planning::plan_among;
 use stairbench::record::messages::{PerceptionMsg, PlanMsg};
 use stairbench::record::replay::{read, RecordedSweep};
 use stairbench::sensor::AssembleParams;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Arc;
 
 /// Arguments of `stairbench replay`.
 #[derive(Debug, Args)]
@@ -100,6 +103,7 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
     let params = parameters(&a, rec.attachments.get("params.toml").map(Vec::as_slice))?;
     let model = stairbench::robot::hrp4::model()?;
     let mut map = StepMap::default();
+    let mut around = Surroundings::default();
     let (mut differ, mut compared) = (0, 0);
     for (i, RecordedSweep { stamp_s, sweep, perception, plan: planned, trajectory, .. }) in
         rec.sweeps.iter().enumerate()
@@ -155,6 +159,8 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
             println!("  plan: DIFFERENT: the recorded plan has no usable start configuration");
             continue;
         }
+        add_view(&mut around, &cloud, &model, &then.q0, &params.surroundings);
+        let surfaces = Arc::new(SeenPoints::new(around.points(&params.surroundings)));
         let next = map.next_input(
             seen,
             feet_height_m(&model, &then.q0),
@@ -171,7 +177,7 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
         let verdict =
             // As many stances as were planned then (the loop plans a few per scan, a rehearsal
             // all it sees).
-            match plan(&model, &then.q0, &next.ahead, Some(then.stances.len()), &params.plan) {
+            match plan_among(&model, &then.q0, &next.ahead, surfaces, Some(then.stances.len()), &params.plan) {
                 Err(e) => {
                     differ += 1;
                     format!("DIFFERENT: refused now ({e})")

@@ -19,10 +19,13 @@ pub use report::{ClimbReport, CycleReport, Footing, StageTimes};
 
 use crate::cancel::Cancel;
 use crate::perception::step_map::{StepMap, StepMapParams};
+use crate::perception::surroundings::{Surroundings, SurroundingsParams};
 use crate::perception::{perceive, PerceptionError, PerceptionParams};
+use crate::planning::clearance::{body_capsules, SeenPoints};
 use crate::planning::plan::stance_at;
-use crate::planning::{plan, PlanParams};
+use crate::planning::{plan_among, PlanParams};
 use crate::robot::model::RobotModel;
+use crate::robot::Kinematics;
 use crate::scene::Scene;
 use crate::sensor::{AssembleParams, SensorError, Source};
 use std::time::Instant;
@@ -62,6 +65,8 @@ pub struct LoopParams<'a> {
     pub perception: &'a PerceptionParams,
     /// The step map.
     pub step_map: &'a StepMapParams,
+    /// What the lidar saw around the steps (the body's clearance).
+    pub surroundings: &'a SurroundingsParams,
     /// Planning (§6).
     pub plan: &'a PlanParams,
     /// The loop's own settings.
@@ -115,6 +120,7 @@ pub fn run<E: Executor>(
     };
     observer.event(&Event::Scene(truth));
     let mut map = StepMap::default();
+    let mut around = Surroundings::default();
     let mut last_cycle = 0;
     for cycle in 1..=p.run.max_cycles {
         last_cycle = cycle;
@@ -162,6 +168,7 @@ pub fn run<E: Executor>(
                 }
             }
         };
+        add_view(&mut around, &cloud, model, &q, p.surroundings);
         let feet_z = feet_height_m(model, &q);
         let next = map.next_input(seen, feet_z, p.plan.gait.min_tread_m, p.step_map);
         let ahead = next.ahead;
@@ -172,7 +179,8 @@ pub fn run<E: Executor>(
             break;
         }
         let t = Instant::now();
-        let planned = match plan(model, &q, &ahead, Some(p.run.stances_per_scan), p.plan) {
+        let surfaces = std::sync::Arc::new(SeenPoints::new(around.points(p.surroundings)));
+        let planned = match plan_among(model, &q, &ahead, surfaces, Some(p.run.stances_per_scan), p.plan) {
             Ok(x) => x,
             Err(e) => {
                 report.stop = Some(StopReason::Refused { cycle, refusal: e.refusal() });
@@ -231,6 +239,24 @@ pub fn run<E: Executor>(
         && report.steps_climbed == report.steps_total
         && report.cycles.iter().all(|c| c.pass);
     Ok(report)
+}
+
+/// Adds a sweep's cloud to the surroundings, leaving out the robot's own body at the
+/// configuration `q` it was taken from (nothing is left out when `q` is unusable: the
+/// planner then keeps the body off its own returns and refuses, rather than ignoring a wall).
+pub fn add_view(
+    around: &mut Surroundings,
+    cloud: &crate::cloud::PointCloud,
+    model: &RobotModel,
+    q: &[f64],
+    p: &SurroundingsParams,
+) {
+    let mut kin = Kinematics::new(model);
+    let body = match kin.update(q) {
+        Ok(()) => body_capsules(model, &kin),
+        Err(_) => Vec::new(),
+    };
+    around.add(cloud, &body, p);
 }
 
 /// The higher sole's height at configuration `q`, metres (`-inf` if `q` is unusable).

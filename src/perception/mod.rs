@@ -11,6 +11,7 @@ pub mod ransac;
 pub mod staircase;
 pub mod step_map;
 pub mod supervoxel;
+pub mod surroundings;
 pub mod voxel;
 
 use crate::cloud::PointCloud;

@@ -6,14 +6,19 @@
 //! extruded down to below the feet ([`step_blocks`]), [`nearest`] finds a capsule's closest
 //! block with the distance and its direction, the IK turns that into a velocity damper
 //! (`ik::clearance`), and tracking refuses a trajectory whose legs touch a step.
+//!
+//! The rest of the body (arms, trunk, head) is kept off every surface the lidar saw
+//! ([`SeenPoints`], from `perception::surroundings`): a stairwell's walls, a crate beside
+//! the flight. The legs are not: their feet stand on what the lidar saw.
 
+use crate::geom3d::Capsule;
 use crate::perception::PlaneSegment;
-use crate::robot::model::{RobotModel, Shape};
+use crate::robot::model::{Collision, RobotModel, Shape};
 use crate::robot::Kinematics;
 use crate::scene::{SceneBox, SurfaceRole};
 use nalgebra::{Point3, Vector3};
 
-/// A leg link's collision capsule: its axis from `a` to `b` in the link's frame.
+/// A link's collision shape as a capsule: its axis from `a` to `b` in the link's frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Limb {
     /// The link it belongs to.
@@ -32,11 +37,38 @@ impl Limb {
         let pose = kin.link_pose(self.link);
         (pose * self.a, pose * self.b)
     }
+
+    /// The capsule in the world frame, at the configuration `kin` holds.
+    pub fn capsule(&self, kin: &Kinematics) -> Capsule {
+        let (a, b) = self.axis_world(kin);
+        Capsule { a, b, radius_m: self.radius_m }
+    }
+
+    /// The capsule of a link's collision shape: a cylinder's own (the simulator makes it a
+    /// capsule), a sphere's, or the one around a box (along its longest edge, the radius
+    /// reaching the far corners of its cross-section).
+    fn of(model: &RobotModel, link: usize, c: &Collision) -> Self {
+        let (half, radius_m) = match c.shape {
+            Shape::Cylinder { radius_m, length_m } => (Vector3::z() * (length_m / 2.0), radius_m),
+            Shape::Sphere(r) => (Vector3::zeros(), r),
+            Shape::Box(size) => {
+                let long = (0..3).max_by(|&i, &j| size[i].total_cmp(&size[j])).unwrap_or(2);
+                let r2: f64 = (0..3).filter(|&i| i != long).map(|i| (size[i] / 2.0).powi(2)).sum();
+                (Vector3::ith(long, size[long] / 2.0), r2.sqrt())
+            }
+        };
+        Limb {
+            link,
+            name: model.links()[link].name.clone(),
+            a: c.placement * Point3::from(half),
+            b: c.placement * Point3::from(-half),
+            radius_m,
+        }
+    }
 }
 
-/// The capsules (cylinder collisions, capsules in the simulator) of the links on the chains
-/// from the root to `feet` (frames), root excluded.
-pub fn limbs(model: &RobotModel, feet: &[usize]) -> Vec<Limb> {
+/// The links on the chains from the root to `feet` (frames), root excluded.
+fn leg_links(model: &RobotModel, feet: &[usize]) -> Vec<usize> {
     let mut out = Vec::new();
     for &f in feet {
         let mut link = Some(model.frames()[f].link);
@@ -45,22 +77,187 @@ pub fn limbs(model: &RobotModel, feet: &[usize]) -> Vec<Limb> {
             if parent.is_none() {
                 break;
             }
-            for c in &model.links()[l].collisions {
-                if let Shape::Cylinder { radius_m, length_m } = c.shape {
-                    let half = Vector3::z() * (length_m / 2.0);
-                    out.push(Limb {
-                        link: l,
-                        name: model.links()[l].name.clone(),
-                        a: c.placement * Point3::from(half),
-                        b: c.placement * Point3::from(-half),
-                        radius_m,
-                    });
-                }
-            }
+            out.push(l);
             link = parent;
         }
     }
     out
+}
+
+/// The capsules (cylinder collisions, capsules in the simulator) of the links on the chains
+/// from the root to `feet` (frames), root excluded.
+pub fn limbs(model: &RobotModel, feet: &[usize]) -> Vec<Limb> {
+    leg_links(model, feet)
+        .into_iter()
+        .flat_map(|l| {
+            model.links()[l]
+                .collisions
+                .iter()
+                .filter(|c| matches!(c.shape, Shape::Cylinder { .. }))
+                .map(move |c| Limb::of(model, l, c))
+        })
+        .collect()
+}
+
+/// The capsules of every collision shape off the chains to `feet` (arms, trunk, head):
+/// what is kept off the surroundings.
+pub fn upper_limbs(model: &RobotModel, feet: &[usize]) -> Vec<Limb> {
+    let legs = leg_links(model, feet);
+    (0..model.links().len())
+        .filter(|l| !legs.contains(l))
+        .flat_map(|l| model.links()[l].collisions.iter().map(move |c| Limb::of(model, l, c)))
+        .collect()
+}
+
+/// Every collision shape of the robot as a world-frame capsule at the configuration `kin`
+/// holds (the surroundings' self-filter).
+pub fn body_capsules(model: &RobotModel, kin: &Kinematics) -> Vec<Capsule> {
+    (0..model.links().len())
+        .flat_map(|l| model.links()[l].collisions.iter().map(move |c| Limb::of(model, l, c).capsule(kin)))
+        .collect()
+}
+
+/// Spacing of the axis samples of [`SeenPoints::nearest`]'s bounds, metres.
+const SAMPLE_SPACING_M: f64 = 0.05;
+
+/// The surfaces the lidar saw, as points (the surroundings' voxel centroids), with a k-d
+/// tree for the clearance queries.
+pub struct SeenPoints {
+    points: Vec<Point3<f64>>,
+    tree: Option<kiddo::ImmutableKdTree<f64, 3>>,
+}
+
+impl std::fmt::Debug for SeenPoints {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "SeenPoints({} points)", self.points.len())
+    }
+}
+
+impl Default for SeenPoints {
+    fn default() -> Self {
+        Self::new(Vec::new())
+    }
+}
+
+impl SeenPoints {
+    /// The points (non-finite ones dropped).
+    pub fn new(points: Vec<Point3<f64>>) -> Self {
+        let points: Vec<Point3<f64>> =
+            points.into_iter().filter(|p| p.coords.iter().all(|v| v.is_finite())).collect();
+        let coords: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
+        let tree =
+            (!coords.is_empty()).then(|| kiddo::ImmutableKdTree::new_from_slice(&coords).ok()).flatten();
+        Self { points, tree }
+    }
+
+    /// The points.
+    pub fn points(&self) -> &[Point3<f64>] {
+        &self.points
+    }
+
+    /// The point nearest to `limb` at the configuration `kin` holds, `Nearest::block` being
+    /// its index; `None` when no point is within `range_m` of the capsule.
+    pub fn nearest(&self, kin: &Kinematics, limb: &Limb, range_m: f64) -> Option<Nearest> {
+        match self.probe(&limb.capsule(kin), range_m) {
+            Probe::Near(n) => Some(n),
+            Probe::Clear { .. } => None,
+        }
+    }
+
+    /// The point nearest to `capsule` when one is within `range_m` of it, else how far
+    /// beyond the range every point is known to be.
+    pub fn probe(&self, capsule: &Capsule, range_m: f64) -> Probe {
+        let Some(tree) = self.tree.as_ref() else { return Probe::Clear { gap_m: f64::INFINITY } };
+        // The nearest point to each of a few axis samples `spacing` apart bounds the axis's
+        // distance from above (their least) and from below (that less half the spacing):
+        // most capsules are out of range by the lower bound, and the exact search of the
+        // rest needs no wider a ball than the upper one (a wall's voxels in a ball around the
+        // whole trunk cost more than the IK's QP).
+        let half_length = (capsule.b - capsule.a).norm() / 2.0;
+        let samples = (2.0 * half_length / SAMPLE_SPACING_M).ceil().max(1.0) as usize;
+        let spacing = 2.0 * half_length / samples as f64;
+        let upper = (0..=samples)
+            .map(|i| {
+                let at = capsule.a.lerp(&capsule.b, i as f64 / samples as f64);
+                tree.query(&[at.x, at.y, at.z])
+                    .nearest_one::<kiddo::SquaredEuclidean<f64>>()
+                    .execute()
+                    .distance
+                    .sqrt()
+            })
+            .fold(f64::INFINITY, f64::min);
+        let gap_m = upper - spacing / 2.0 - capsule.radius_m - range_m;
+        if gap_m > 0.0 {
+            return Probe::Clear { gap_m };
+        }
+        let middle = Point3::from((capsule.a.coords + capsule.b.coords) / 2.0);
+        let reach = half_length + upper.min(capsule.radius_m + range_m);
+        let q = [middle.x, middle.y, middle.z];
+        let mut best: Option<Nearest> = None;
+        for found in tree.query(&q).within::<kiddo::SquaredEuclidean<f64>>(reach * reach).execute() {
+            let p = self.points[found.item as usize];
+            let point = capsule.axis_point_nearest(&p);
+            let away = point - p;
+            let clearance_m = away.norm() - capsule.radius_m;
+            if clearance_m <= range_m && best.as_ref().is_none_or(|n| clearance_m < n.clearance_m) {
+                let normal = away.try_normalize(1e-12).unwrap_or_else(Vector3::z);
+                best = Some(Nearest { block: found.item as usize, clearance_m, point, normal });
+            }
+        }
+        best.map_or(Probe::Clear { gap_m: 0.0 }, Probe::Near)
+    }
+}
+
+/// What [`SeenPoints::probe`] found for a capsule.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Probe {
+    /// The nearest point, within range.
+    Near(Nearest),
+    /// No point within range; every one is at least `gap_m` beyond it (0: not known).
+    Clear {
+        /// Metres.
+        gap_m: f64,
+    },
+}
+
+/// Saves the probes of capsules that cannot have come within range since their last one,
+/// for a tracker's ticks: the axis's points are blends of its ends, so none moves farther
+/// than the farther-moved end, and a capsule whose last probe found every point `gap_m`
+/// beyond range needs no new probe until an end has moved that far.
+#[derive(Debug, Clone, Default)]
+pub struct ProbeCache {
+    clear: Vec<Option<(Capsule, f64)>>,
+}
+
+impl ProbeCache {
+    /// The nearest point to capsule `i` (now `capsule`) within `range_m`, probing `seen`
+    /// only when it may have come within range since its last probe.
+    pub fn nearest(
+        &mut self,
+        i: usize,
+        seen: &SeenPoints,
+        capsule: Capsule,
+        range_m: f64,
+    ) -> Option<Nearest> {
+        if self.clear.len() <= i {
+            self.clear.resize(i + 1, None);
+        }
+        if let Some((then, gap_m)) = &self.clear[i] {
+            if (capsule.a - then.a).norm().max((capsule.b - then.b).norm()) < *gap_m {
+                return None;
+            }
+        }
+        match seen.probe(&capsule, range_m) {
+            Probe::Near(n) => {
+                self.clear[i] = None;
+                Some(n)
+            }
+            Probe::Clear { gap_m } => {
+                self.clear[i] = Some((capsule, gap_m));
+                None
+            }
+        }
+    }
 }
 
 /// Each step rectangle as a solid box from its top (its highest corner) down to `bottom_z`.
@@ -87,10 +284,10 @@ pub fn step_blocks(rects: &[PlaneSegment], bottom_z: f64) -> Vec<SceneBox> {
         .collect()
 }
 
-/// A capsule's closest block.
+/// A capsule's closest block (or seen point).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Nearest {
-    /// Index of the block.
+    /// Index of the block (of the point, from [`SeenPoints::nearest`]).
     pub block: usize,
     /// Distance from the capsule's surface to the block, metres (negative: they overlap).
     pub clearance_m: f64,

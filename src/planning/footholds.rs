@@ -1,9 +1,11 @@
 //! Footholds (§6.1, §6.4): from the step rectangles and the feet where they stand, the
 //! sequence of stances the gait goes through, both feet on each step. Each foothold sits in
 //! the middle of its rectangle along the direction of ascent; across, each foot keeps the
-//! lane it starts in; its height and tilt come from the rectangle's plane and its yaw from
-//! the staircase. Steps the feet cannot use are refused here, with the reason, before any
-//! motion is computed.
+//! lane it starts in, unless a surface the lidar saw beside the flight (a stairwell's wall,
+//! a crate) would then be nearer the body than its half width: both lanes then move away
+//! from it, on the floor before the flight or at the first step; its height and tilt come
+//! from the rectangle's plane and its yaw from the staircase. Steps the feet cannot use are
+//! refused here, with the reason, before any motion is computed.
 
 use super::PlanError;
 use crate::perception::PlaneSegment;
@@ -86,6 +88,16 @@ pub struct GaitParams {
     pub sole_length_m: f64,
     /// Sole width (HRP-4: 13 cm).
     pub sole_width_m: f64,
+    /// Half the width of the lane the body sweeps as it climbs, from the midline between
+    /// the feet, metres: HRP-4's upper arms reach 0.215 m from its midline (the shoulder
+    /// joint 0.175 m out, the arm 4 cm thick), the CoM sways over each foot (half the lanes'
+    /// spacing, about 0.1 m), and the body keeps its 3 cm clearance from the surroundings'
+    /// points, which stand up to 2 cm proud of a noisy wall. 0.36 m.
+    pub body_half_width_m: f64,
+    /// Heights above the tread below in which a surface the lidar saw beside the feet is
+    /// beside the body (from the hands to above the shoulders), metres. Lower, it is a
+    /// riser, a tread's edge or a low box the legs pass above.
+    pub body_band_m: [f64; 2],
     /// Fault injection, to test the regression tooling only: every foothold on a step is
     /// moved this far along the ascent, metres (0: none). A planner with this set is broken
     /// on purpose, and `regress --baseline` must say so.
@@ -106,14 +118,22 @@ impl Default for GaitParams {
             side_overhang_m: 0.02,
             sole_length_m: crate::robot::hrp4::SOLE_SIZE_M[0],
             sole_width_m: crate::robot::hrp4::SOLE_SIZE_M[1],
+            body_half_width_m: 0.36,
+            body_band_m: [0.4, 1.5],
             test_foothold_shift_m: 0.0,
         }
     }
 }
 
 /// The stances after `start`, ending with both feet on the highest rectangle, or the reason
-/// the staircase cannot be climbed.
-pub fn footholds(start: &Stance, rects: &[PlaneSegment], p: &GaitParams) -> Result<Vec<Stance>, PlanError> {
+/// the staircase cannot be climbed. `seen` are the surfaces the lidar saw (the
+/// surroundings' points; empty when nothing is known beside the steps).
+pub fn footholds(
+    start: &Stance,
+    rects: &[PlaneSegment],
+    seen: &[Point3<f64>],
+    p: &GaitParams,
+) -> Result<Vec<Stance>, PlanError> {
     if rects.is_empty() {
         return Err(PlanError::NoSteps);
     }
@@ -140,23 +160,30 @@ pub fn footholds(start: &Stance, rects: &[PlaneSegment], p: &GaitParams) -> Resu
     let o = steps[0].center();
     let (r0, l0) = (start.right.translation.vector, start.left.translation.vector);
     let floor_z = r0.z.min(l0.z);
-    let lanes = [(r0 - o.coords).dot(&w), (l0 - o.coords).dot(&w)];
+    let start_lanes = [(r0 - o.coords).dot(&w), (l0 - o.coords).dot(&w)];
     let start_along = ((r0 + l0) / 2.0 - o.coords).dot(&u);
+    let frame = Frame { o, u, w };
+    let shift = frame.lane_shift(&steps, seen, start_lanes, start_along, floor_z, p);
+    let lanes = start_lanes.map(|l| l + shift);
 
     let rises = super::rectangles::rises_m(&steps, Some(floor_z));
     let median = super::rectangles::median(&rises).unwrap_or(0.0);
     let yaw = UnitQuaternion::from_euler_angles(0.0, 0.0, u.y.atan2(u.x));
     // Both feet `along` the ascent in their lanes, on the plane through `point` with normal
     // `n` (the foot tilted with it, yawed with the staircase).
-    let stance_on = |along: f64, point: Point3<f64>, n: Vector3<f64>, step: Option<usize>| {
-        let tilt =
-            UnitQuaternion::rotation_between(&Vector3::z(), &n).unwrap_or_else(UnitQuaternion::identity);
-        let foot = |lane: f64| {
-            let xy = o + u * along + w * lane;
-            let z = point.z - (n.x * (xy.x - point.x) + n.y * (xy.y - point.y)) / n.z;
-            Isometry3::from_parts(Translation3::new(xy.x, xy.y, z), tilt * yaw)
+    let stance_in =
+        |lanes: [f64; 2], along: f64, point: Point3<f64>, n: Vector3<f64>, step: Option<usize>| {
+            let tilt =
+                UnitQuaternion::rotation_between(&Vector3::z(), &n).unwrap_or_else(UnitQuaternion::identity);
+            let foot = |lane: f64| {
+                let xy = o + u * along + w * lane;
+                let z = point.z - (n.x * (xy.x - point.x) + n.y * (xy.y - point.y)) / n.z;
+                Isometry3::from_parts(Translation3::new(xy.x, xy.y, z), tilt * yaw)
+            };
+            Stance { right: foot(lanes[0]), left: foot(lanes[1]), step }
         };
-        Stance { right: foot(lanes[0]), left: foot(lanes[1]), step }
+    let stance_on = |along: f64, point: Point3<f64>, n: Vector3<f64>, step: Option<usize>| {
+        stance_in(lanes, along, point, n, step)
     };
     let floor = Point3::new(o.x, o.y, floor_z);
 
@@ -205,8 +232,10 @@ pub fn footholds(start: &Stance, rects: &[PlaneSegment], p: &GaitParams) -> Resu
             let last = front - p.sole_length_m / 2.0 - p.toe_gap_m;
             let n = ((last - prev_along) / p.approach_stride_m).ceil().max(0.0) as usize;
             for k in 1..=n {
-                let a = prev_along + (last - prev_along) * k as f64 / n as f64;
-                out.push(stance_on(a, floor, Vector3::z(), None));
+                let f = k as f64 / n as f64;
+                let a = prev_along + (last - prev_along) * f;
+                // The lanes move aside on the floor, a share each step.
+                out.push(stance_in(start_lanes.map(|l| l + shift * f), a, floor, Vector3::z(), None));
             }
             if n > 0 {
                 prev_along = last;
@@ -220,6 +249,68 @@ pub fn footholds(start: &Stance, rects: &[PlaneSegment], p: &GaitParams) -> Resu
         prev_along = along;
     }
     Ok(out)
+}
+
+/// The staircase's frame: origin `o` (step 1's centre), ascent `u`, across `w` (leftward).
+struct Frame {
+    o: Point3<f64>,
+    u: Vector3<f64>,
+    w: Vector3<f64>,
+}
+
+impl Frame {
+    /// How far both lanes move across (along `w`, metres) so that no surface in `seen`
+    /// beside the feet, at the body's height over the tread below it and along the climb,
+    /// is nearer their midline than `p.body_half_width_m`: 0 when none is; between two
+    /// surfaces nearer each other than twice that, the middle (the IK's body clearance then
+    /// judges whether it fits).
+    fn lane_shift(
+        &self,
+        steps: &[&PlaneSegment],
+        seen: &[Point3<f64>],
+        lanes: [f64; 2],
+        start_along: f64,
+        floor_z: f64,
+        p: &GaitParams,
+    ) -> f64 {
+        let Some(top) = steps.last() else { return 0.0 };
+        let front = |s: &PlaneSegment| (s.center() - self.o).dot(&self.u) - s.depth_m() / 2.0;
+        // From behind the start to past the top foothold, by the body's half depth.
+        let reach_m = 0.3;
+        let (first, last) =
+            (start_along - reach_m, front(top) + (top.depth_m() / 2.0).min(p.landing_foothold_m) + reach_m);
+        let mid = (lanes[0] + lanes[1]) / 2.0;
+        let feet_half = (lanes[0] - lanes[1]).abs() / 2.0 + p.sole_width_m / 2.0;
+        let (mut right, mut left) = (f64::NEG_INFINITY, f64::INFINITY);
+        for q in seen {
+            let along = (q - self.o).dot(&self.u);
+            if along < first || along > last {
+                continue;
+            }
+            let across = (q - self.o).dot(&self.w) - mid;
+            if across.abs() <= feet_half {
+                continue; // ahead of the feet (a tread, a riser): not beside the body
+            }
+            let tread_z =
+                steps.iter().filter(|s| front(s) <= along).map(|s| s.height_m()).fold(floor_z, f64::max);
+            let above = q.z - tread_z;
+            if above < p.body_band_m[0] || above > p.body_band_m[1] {
+                continue;
+            }
+            if across > 0.0 {
+                left = left.min(across);
+            } else {
+                right = right.max(across);
+            }
+        }
+        let half = p.body_half_width_m;
+        if left - right < 2.0 * half {
+            (left + right) / 2.0
+        } else {
+            // The least move that fits (right + half <= left - half here).
+            0.0_f64.max(right + half).min(left - half)
+        }
+    }
 }
 
 #[cfg(test)]
@@ -262,13 +353,73 @@ mod tests {
         };
         let stance = Stance { right: sole(-0.165), left: sole(0.025), step: None };
         let p = GaitParams::default();
-        let stances = footholds(&stance, &rects, &p).expect("planned");
+        let stances = footholds(&stance, &rects, &[], &p).expect("planned");
         let top = stances.last().expect("a stance");
         let landing = &rects[2];
         for foot in [&top.right, &top.left] {
             let side = (foot.translation.vector - landing.center().coords).dot(&w).abs();
             assert!(side + p.sole_width_m / 2.0 - landing.width_m() / 2.0 <= p.side_overhang_m, "{side}");
         }
+    }
+
+    /// A straight flight of three 17 cm steps along x, 0.9 m wide, the robot standing on
+    /// the floor `lateral` off its middle.
+    fn flight_and_stance(lateral: f64) -> (Vec<PlaneSegment>, Stance) {
+        let rects: Vec<PlaneSegment> = (0..3)
+            .map(|i| {
+                PlaneSegment::new(
+                    Point3::new(0.64 + 0.28 * i as f64, 0.0, 0.17 * (i + 1) as f64),
+                    Vector3::x(),
+                    0.28,
+                    0.9,
+                    Vector3::z(),
+                    300,
+                )
+                .expect("valid rectangle")
+            })
+            .collect();
+        let sole = |y: f64| Isometry3::translation(0.2, lateral + y, 0.0);
+        (rects, Stance { right: sole(-0.095), left: sole(0.095), step: None })
+    }
+
+    /// Points of a vertical wall at `y`, from the floor to 2 m, along the flight.
+    fn wall(y: f64) -> Vec<Point3<f64>> {
+        (0..60)
+            .flat_map(|i| (0..66).map(move |k| Point3::new(-0.2 + 0.03 * i as f64, y, 0.03 * k as f64)))
+            .collect()
+    }
+
+    fn lanes_of(stances: &[Stance]) -> Vec<f64> {
+        stances.iter().map(|s| (s.right.translation.y + s.left.translation.y) / 2.0).collect()
+    }
+
+    /// The ci suite's case 186: a stairwell 0.9 m wide, the robot 15 cm off its middle. In
+    /// its lanes, the left shoulder met the wall as the CoM went over the left foot; the
+    /// lanes now move to keep the body's half width off the wall, on the floor first.
+    #[test]
+    fn lanes_move_off_a_wall_beside_the_flight_and_stay_without_one() {
+        let p = GaitParams::default();
+        let (rects, stance) = flight_and_stance(0.15);
+        let free = footholds(&stance, &rects, &[], &p).expect("planned");
+        assert!(lanes_of(&free).iter().all(|y| (y - 0.15).abs() < 1e-9), "no wall: lanes kept");
+        // A low box beside (its top below the hands) moves nothing either.
+        let low: Vec<Point3<f64>> = wall(0.45).into_iter().filter(|q| q.z < 0.3).collect();
+        let beside_low = footholds(&stance, &rects, &low, &p).expect("planned");
+        assert_eq!(lanes_of(&beside_low), lanes_of(&free));
+        // A wall at y = 0.45: the midline goes to 0.45 - 0.36 = 0.09, by the top for good.
+        let walled = footholds(&stance, &rects, &wall(0.45), &p).expect("planned");
+        let lanes = lanes_of(&walled);
+        assert!(lanes.iter().all(|y| *y <= 0.15 + 1e-9 && *y >= 0.09 - 1e-9), "{lanes:?}");
+        assert!((lanes.last().expect("stances") - 0.09).abs() < 1e-9, "{lanes:?}");
+        for s in &walled {
+            let half_gap = (s.left.translation.y - s.right.translation.y) / 2.0;
+            assert!((half_gap - 0.095).abs() < 1e-9, "the feet keep their spacing");
+        }
+        // Walls on both sides closer than the body's width: the middle.
+        let mut both = wall(0.35);
+        both.extend(wall(-0.2));
+        let pinched = footholds(&stance, &rects, &both, &p).expect("planned");
+        assert!((lanes_of(&pinched).last().expect("stances") - 0.075).abs() < 1e-9);
     }
 
     /// A tread's back edge seen 2 cm past the next riser (voxels reach past it): the foot goes
@@ -292,6 +443,7 @@ mod tests {
         let stances = footholds(
             &Stance { right: sole(-0.1), left: sole(0.1), step: None },
             &rects,
+            &[],
             &GaitParams::default(),
         )
         .expect("planned");

@@ -15,7 +15,7 @@ pub mod rectangles;
 
 pub use contact::{Contact, ContactSpec};
 pub use footholds::{Foot, Stance};
-pub use plan::{plan, Plan, PlanParams};
+pub use plan::{plan, plan_among, Plan, PlanParams};
 
 /// Why a climb was refused. Steps are numbered from 1, the lowest, in messages.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
@@ -155,6 +155,20 @@ pub enum PlanError {
         /// When, seconds from the plan's start.
         t_s: f64,
     },
+    /// The body (an arm, the trunk, the head) enters a surface the lidar saw.
+    #[error("segment {}: {limb} touches a surface the lidar saw at ({:.3}, {:.3}, {:.3}) m ({:.1} mm deep) at t = {t_s:.2} s", .segment + 1, .point_m[0], .point_m[1], .point_m[2], .depth_m * 1e3)]
+    BodyTouchesSurface {
+        /// 0-based segment.
+        segment: usize,
+        /// The limb (its link's name).
+        limb: String,
+        /// The surface's point (a voxel centroid of the surroundings), world frame, metres.
+        point_m: [f64; 3],
+        /// How deep, metres.
+        depth_m: f64,
+        /// When, seconds from the plan's start.
+        t_s: f64,
+    },
     /// The IK's swing foot ends too far from its target.
     #[error("segment {}: {foot:?} foot misses its target by {:.1} mm", .segment + 1, .error_m * 1e3)]
     FootMisses {
@@ -214,6 +228,8 @@ pub enum RefusalKind {
     Ik,
     /// [`PlanError::LimbTouchesStep`].
     LimbTouchesStep,
+    /// [`PlanError::BodyTouchesSurface`].
+    BodyTouchesSurface,
     /// [`PlanError::FootMisses`].
     FootMisses,
     /// [`PlanError::ComStrays`].
@@ -285,6 +301,9 @@ impl PlanError {
             PlanError::Ik { segment, .. } => (K::Ik, None, None, Some(*segment), none),
             PlanError::LimbTouchesStep { segment, step, depth_m, .. } => {
                 (K::LimbTouchesStep, Some(*step), None, Some(*segment), m(*depth_m, 0.0))
+            }
+            PlanError::BodyTouchesSurface { segment, depth_m, .. } => {
+                (K::BodyTouchesSurface, None, None, Some(*segment), m(*depth_m, 0.0))
             }
             PlanError::FootMisses { segment, error_m, limit_m, .. } => {
                 (K::FootMisses, None, None, Some(*segment), m(*error_m, *limit_m))

@@ -2,7 +2,7 @@
 //! IK of [`super::ik`] at a fixed rate, giving q(t) sampled as a [`JointTrajectory`], with
 //! what it reached (CoM, feet) and how closely it tracked.
 
-use super::clearance::{self, Limb};
+use super::clearance::{self, Limb, Nearest, ProbeCache, SeenPoints};
 use super::footholds::Foot;
 use super::gait::{Segment, Swing};
 use super::ik::{self, Task};
@@ -12,6 +12,7 @@ use crate::robot::model::{RobotModel, Q_JOINTS};
 use crate::robot::Kinematics;
 use crate::scene::SceneBox;
 use nalgebra::{Isometry3, Point3, Translation3, Vector6};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// The IK's weights and gains (§6.1).
@@ -64,6 +65,10 @@ pub struct IkParams {
     /// Gain of the clearance's velocity damper, 1/s: the clearance may shrink at most this
     /// times its excess over `leg_clearance_m`.
     pub clearance_gain_per_s: f64,
+    /// Least distance kept between the rest of the body (arms, trunk, head) and every
+    /// surface the lidar saw, metres, measured to the surroundings' voxel centroids (so a
+    /// noisy wall's nearest centroids stand a little proud of it). 3 cm, as the legs.
+    pub body_clearance_m: f64,
 }
 
 impl Default for IkParams {
@@ -87,6 +92,7 @@ impl Default for IkParams {
             leg_clearance_m: 0.03,
             clearance_range_m: 0.08,
             clearance_gain_per_s: 5.0,
+            body_clearance_m: 0.03,
         }
     }
 }
@@ -160,6 +166,10 @@ pub struct Tracking {
     /// Least distance between a leg capsule and a step over the trajectory, metres; `None`
     /// when no step came within `clearance_range_m` of the legs.
     pub min_leg_clearance_m: Option<f64>,
+    /// Least distance between the rest of the body and a surface the lidar saw, metres;
+    /// `None` when none came within `clearance_range_m`.
+    #[serde(default)]
+    pub min_body_clearance_m: Option<f64>,
     /// QPs solved.
     pub ik_ticks: usize,
     /// Wall time in the IK (kinematics, QP build, solve), seconds.
@@ -209,33 +219,45 @@ pub fn upper_body_mask(model: &RobotModel, feet: &[usize]) -> Vec<bool> {
     mask
 }
 
-/// One clearance row per leg capsule (a fixed count keeps the QP's shape), written into
-/// `g` (sized limbs x nv): the damper of its nearest step when one is within range, else a
-/// row of zeros. Returns the least clearance and which capsule and step it is between.
+/// Clearance rows for `limbs` into `g`: with `fixed`, one row per capsule (a fixed count
+/// keeps the QP's shape; the legs, near a step at every stride), the damper of its nearest
+/// obstacle (`nearest`) when one is within range, else a row of zeros; without, a row per
+/// capsule with an obstacle in range only (the rest of the body, rarely near anything: a
+/// row of zeros per arm, trunk and head shape made every open-flight IK tick 23 % dearer).
+/// Returns the least clearance and which capsule (index in `limbs`) and obstacle it is
+/// between.
+#[allow(clippy::too_many_arguments)]
 fn clearance_rows(
     kin: &Kinematics,
     jac: &mut nalgebra::Matrix6xX<f64>,
     limbs: &[Limb],
-    blocks: &[SceneBox],
-    p: &IkParams,
+    mut nearest: impl FnMut(usize, &Limb) -> Option<Nearest>,
+    min_m: f64,
+    gain_per_s: f64,
     g: &mut ik::Inequality,
+    fixed: bool,
 ) -> Option<(f64, usize, usize)> {
-    g.jacobian.fill(0.0);
-    g.bound.fill(1.0);
+    let near: Vec<(usize, Option<Nearest>)> = limbs
+        .iter()
+        .enumerate()
+        .map(|(i, limb)| (i, nearest(i, limb)))
+        .filter(|(_, n)| fixed || n.is_some())
+        .collect();
+    if g.bound.len() != near.len() {
+        *g = ik::Inequality {
+            jacobian: nalgebra::DMatrix::zeros(near.len(), jac.ncols()),
+            bound: nalgebra::DVector::zeros(near.len()),
+        };
+    }
     let mut least: Option<(f64, usize, usize)> = None;
-    for (r, limb) in limbs.iter().enumerate() {
-        if let Some(near) = clearance::nearest(kin, limb, blocks, p.clearance_range_m) {
-            g.bound[r] = ik::clearance(
-                kin,
-                jac,
-                limb.link,
-                &near,
-                p.leg_clearance_m,
-                p.clearance_gain_per_s,
-                g.jacobian.row_mut(r),
-            );
+    for (r, (i, near)) in near.into_iter().enumerate() {
+        g.jacobian.row_mut(r).fill(0.0);
+        g.bound[r] = 1.0;
+        if let Some(near) = near {
+            g.bound[r] =
+                ik::clearance(kin, jac, limbs[i].link, &near, min_m, gain_per_s, g.jacobian.row_mut(r));
             if least.is_none_or(|(d, _, _)| near.clearance_m < d) {
-                least = Some((near.clearance_m, r, near.block));
+                least = Some((near.clearance_m, i, near.block));
             }
         }
     }
@@ -269,22 +291,28 @@ pub struct Tracker<'m> {
     upper: Vec<bool>,
     limbs: Vec<Limb>,
     blocks: Vec<SceneBox>,
+    upper_limbs: Vec<Limb>,
+    seen: Arc<SeenPoints>,
+    probes: ProbeCache,
     base_ref: nalgebra::UnitQuaternion<f64>,
     com_jac: nalgebra::Matrix3xX<f64>,
     frame_jac: nalgebra::Matrix6xX<f64>,
     qp: ik::Solver,
-    legs: ik::Inequality,
+    /// The legs' clearance rows, then the rest of the body's.
+    clear: [ik::Inequality; 2],
     least: Option<(f64, usize, usize)>,
+    least_body: Option<(f64, usize, usize)>,
 }
 
 impl<'m> Tracker<'m> {
     /// A tracker from configuration `q0` (whose joints are also the posture term's reference
     /// and whose base orientation the base task holds), keeping the legs `p.leg_clearance_m`
-    /// off `blocks`.
+    /// off `blocks` and the rest of the body `p.body_clearance_m` off the `seen` surfaces.
     pub fn new(
         model: &'m RobotModel,
         q0: &[f64],
         blocks: &[SceneBox],
+        seen: Arc<SeenPoints>,
         p: &IkParams,
     ) -> Result<Self, PlanError> {
         let mut kin = Kinematics::new(model);
@@ -292,6 +320,7 @@ impl<'m> Tracker<'m> {
         let feet = hrp4::sole_frames(model)?;
         let upper = upper_body_mask(model, &feet);
         let limbs = clearance::limbs(model, &feet);
+        let upper_limbs = clearance::upper_limbs(model, &feet);
         // The base held upright at its starting heading: a reference taken from q0 as it is
         // would keep whatever tilt the last motion left, and the tilts of successive plans
         // would add up (Exp. 2 ended its 11 steps pitched 14 deg forward).
@@ -301,6 +330,10 @@ impl<'m> Tracker<'m> {
         let legs = ik::Inequality {
             jacobian: nalgebra::DMatrix::zeros(limbs.len(), model.nv()),
             bound: nalgebra::DVector::zeros(limbs.len()),
+        };
+        let body = ik::Inequality {
+            jacobian: nalgebra::DMatrix::zeros(0, model.nv()),
+            bound: nalgebra::DVector::zeros(0),
         };
         let mut t = Self {
             model,
@@ -312,15 +345,45 @@ impl<'m> Tracker<'m> {
             upper,
             limbs,
             blocks: blocks.to_vec(),
+            upper_limbs,
+            seen,
+            probes: ProbeCache::default(),
             base_ref,
             com_jac,
             frame_jac,
             qp: ik::Solver::with_tolerance(model.nv(), p.damping, p.qp_tolerance),
-            legs,
+            clear: [legs, body],
             least: None,
+            least_body: None,
         };
-        t.least = clearance_rows(&t.kin, &mut t.frame_jac, &t.limbs, &t.blocks, &t.p, &mut t.legs);
+        t.update_clearances();
         Ok(t)
+    }
+
+    /// The clearance rows and least clearances at the configuration reached.
+    fn update_clearances(&mut self) {
+        let (p, kin) = (&self.p, &self.kin);
+        let range = p.clearance_range_m;
+        self.least = clearance_rows(
+            kin,
+            &mut self.frame_jac,
+            &self.limbs,
+            |_, limb| clearance::nearest(kin, limb, &self.blocks, range),
+            p.leg_clearance_m,
+            p.clearance_gain_per_s,
+            &mut self.clear[0],
+            true,
+        );
+        self.least_body = clearance_rows(
+            kin,
+            &mut self.frame_jac,
+            &self.upper_limbs,
+            |i, limb| self.probes.nearest(i, &self.seen, limb.capsule(kin), range),
+            p.body_clearance_m,
+            p.clearance_gain_per_s,
+            &mut self.clear[1],
+            false,
+        );
     }
 
     /// The tracker for online use: each tick tries the equality-constrained least squares
@@ -355,6 +418,22 @@ impl<'m> Tracker<'m> {
     /// The leg capsules' names, by index.
     pub fn limb_name(&self, limb: usize) -> &str {
         &self.limbs[limb].name
+    }
+
+    /// The least clearance between the rest of the body and a surface the lidar saw, with
+    /// the capsule's index (see [`Tracker::upper_limb_name`]) and the point's (in `seen`).
+    pub fn least_body_clearance(&self) -> Option<(f64, usize, usize)> {
+        self.least_body
+    }
+
+    /// The upper body's capsules' names, by index.
+    pub fn upper_limb_name(&self, limb: usize) -> &str {
+        &self.upper_limbs[limb].name
+    }
+
+    /// The surfaces the lidar saw, as this tracker keeps the body off them.
+    pub fn seen(&self) -> &SeenPoints {
+        &self.seen
     }
 
     /// One QP toward `targets`, integrated over `dt_s`.
@@ -409,11 +488,10 @@ impl<'m> Tracker<'m> {
             })
             .collect();
         let bounds = [ik::joint_limits(self.model, &self.q, p.max_joint_speed_rad_s, p.limit_gain_per_s)];
-        let qd = self.qp.solve(&tasks, &equalities, std::slice::from_ref(&self.legs), &bounds)?;
+        let qd = self.qp.solve(&tasks, &equalities, &self.clear, &bounds)?;
         ik::integrate(&mut self.q, qd.as_slice(), dt_s);
         self.kin.update(&self.q).map_err(|e| ik::IkError::Setup(e.to_string()))?;
-        self.least =
-            clearance_rows(&self.kin, &mut self.frame_jac, &self.limbs, &self.blocks, p, &mut self.legs);
+        self.update_clearances();
         Ok(())
     }
 }
@@ -433,15 +511,17 @@ pub fn com_target(seg: &Segment, tau: f64) -> (Point3<f64>, nalgebra::Vector3<f6
 }
 
 /// Tracks `segments` from configuration `q0`: one QP per sample at `p.rate_hz`, keeping the
-/// legs `p.leg_clearance_m` off the `blocks` (the steps, see [`clearance::step_blocks`]).
+/// legs `p.leg_clearance_m` off the `blocks` (the steps, see [`clearance::step_blocks`]) and
+/// the rest of the body `p.body_clearance_m` off the `seen` surfaces.
 pub fn track(
     model: &RobotModel,
     q0: &[f64],
     segments: &[Segment],
     blocks: &[SceneBox],
+    seen: Arc<SeenPoints>,
     p: &IkParams,
 ) -> Result<(JointTrajectory, Tracking), PlanError> {
-    let mut tracker = Tracker::new(model, q0, blocks, p)?;
+    let mut tracker = Tracker::new(model, q0, blocks, seen, p)?;
     let feet = tracker.sole_frames();
     let dt = 1.0 / p.rate_hz;
     let mut stats = Tracking::default();
@@ -481,6 +561,19 @@ pub fn track(
                         segment: si,
                         limb: tracker.limb_name(limb).to_string(),
                         step: block,
+                        depth_m: -d,
+                        t_s: t,
+                    });
+                }
+            }
+            if let Some((d, limb, point)) = tracker.least_body_clearance() {
+                stats.min_body_clearance_m = Some(stats.min_body_clearance_m.map_or(d, |m: f64| m.min(d)));
+                if d < 0.0 {
+                    let at = tracker.seen().points()[point];
+                    return Err(PlanError::BodyTouchesSurface {
+                        segment: si,
+                        limb: tracker.upper_limb_name(limb).to_string(),
+                        point_m: [at.x, at.y, at.z],
                         depth_m: -d,
                         t_s: t,
                     });

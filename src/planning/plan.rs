@@ -1,7 +1,7 @@
 //! The planner end to end: step rectangles and the robot's configuration in, footholds, the
 //! gait's segments with their polygons and margins, and the joint trajectory out (§6).
 
-use super::clearance::step_blocks;
+use super::clearance::{step_blocks, SeenPoints};
 use super::footholds::{footholds, GaitParams, Stance};
 use super::gait::{segments, Body, Segment, StepParams};
 use super::motion::{track, IkParams, JointTrajectory, Tracking};
@@ -11,6 +11,7 @@ use crate::robot::hrp4;
 use crate::robot::model::RobotModel;
 use crate::robot::Kinematics;
 use crate::scene::SceneBox;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// How far below the feet the step solids of the clearance check reach, metres (the legs
@@ -59,6 +60,8 @@ pub struct Plan {
     pub gait_time_s: f64,
     /// The steps as solids the legs were kept off (an online IK keeps them off the same).
     pub blocks: Vec<SceneBox>,
+    /// The surfaces the lidar saw, which the rest of the body was kept off (the same).
+    pub seen: Arc<SeenPoints>,
 }
 
 impl Plan {
@@ -85,13 +88,27 @@ pub fn stance_at(model: &RobotModel, q: &[f64]) -> Result<Stance, PlanError> {
     Ok(stance_of(&kin, hrp4::sole_frames(model)?))
 }
 
-/// Plans the climb of `rects` from configuration `q0` (standing, both feet down).
-/// `max_stances` limits the plan to the first stances (the closed loop plans one step,
-/// moves, and scans again); `None` plans to the top.
+/// Plans the climb of `rects` from configuration `q0` (standing, both feet down), with
+/// nothing known around the steps (see [`plan_among`]). `max_stances` limits the plan to the
+/// first stances (the closed loop plans one step, moves, and scans again); `None` plans to
+/// the top.
 pub fn plan(
     model: &RobotModel,
     q0: &[f64],
     rects: &[PlaneSegment],
+    max_stances: Option<usize>,
+    p: &PlanParams,
+) -> Result<Plan, PlanError> {
+    plan_among(model, q0, rects, Arc::default(), max_stances, p)
+}
+
+/// [`plan`], keeping the body off the surfaces the lidar saw (`seen`, the surroundings) as
+/// well as the legs off the steps.
+pub fn plan_among(
+    model: &RobotModel,
+    q0: &[f64],
+    rects: &[PlaneSegment],
+    seen: Arc<SeenPoints>,
     max_stances: Option<usize>,
     p: &PlanParams,
 ) -> Result<Plan, PlanError> {
@@ -100,7 +117,7 @@ pub fn plan(
     let mut kin = Kinematics::new(model);
     kin.update(q0)?;
     let start = stance_of(&kin, soles);
-    let mut stances = footholds(&start, rects, &p.gait)?;
+    let mut stances = footholds(&start, rects, seen.points(), &p.gait)?;
     if let Some(n) = max_stances {
         stances.truncate(n);
     }
@@ -110,6 +127,6 @@ pub fn plan(
     // The steps as solids down to below the feet: what the legs must keep clear of.
     let feet_z = start.right.translation.z.min(start.left.translation.z);
     let blocks = step_blocks(rects, feet_z - BLOCK_DEPTH_M);
-    let (trajectory, tracking) = track(model, q0, &segs, &blocks, &p.ik)?;
-    Ok(Plan { start, stances, segments: segs, trajectory, tracking, gait_time_s, blocks })
+    let (trajectory, tracking) = track(model, q0, &segs, &blocks, seen.clone(), &p.ik)?;
+    Ok(Plan { start, stances, segments: segs, trajectory, tracking, gait_time_s, blocks, seen })
 }

@@ -1,0 +1,146 @@
+//! What the lidar saw around the robot: every surface, not only the steps. §4's perception
+//! keeps near-horizontal surfaces (Filter 1), so the step map knows nothing of a stairwell's
+//! walls or of a crate beside the flight, and a wrist met a side wall (issue 19). Each
+//! sweep's returns enter a voxel grid in the world frame, those on the robot's own body at
+//! the sweep's configuration left out (a real lidar sees its own arms; the simulated one is
+//! blind to them, so the filter costs nothing there); the planner keeps the upper body off
+//! the occupied voxels' centroids (`planning::clearance::SeenPoints`).
+
+use crate::cloud::PointCloud;
+use crate::geom3d::Capsule;
+use nalgebra::{Point3, Vector3};
+use std::collections::HashMap;
+
+/// How the surroundings are kept.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SurroundingsParams {
+    /// Edge of a voxel, metres. 3 cm: finer than the clearance kept from it, coarse enough
+    /// that a wall's voxels hold several returns each.
+    #[serde(deserialize_with = "positive_m")]
+    pub voxel_m: f64,
+    /// A voxel is a surface once this many returns fell in it over all sweeps (a lone
+    /// return is a stray: a noise spike, a mixed pixel at an edge).
+    pub min_returns: u32,
+    /// Returns within this distance of the robot's own collision shapes are its body,
+    /// metres.
+    #[serde(deserialize_with = "positive_m")]
+    pub self_margin_m: f64,
+}
+
+/// A parameters file's length that must be positive and finite.
+fn positive_m<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    let v = <f64 as serde::Deserialize>::deserialize(d)?;
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(serde::de::Error::custom(format!("{v} is not a positive length in metres")))
+    }
+}
+
+impl Default for SurroundingsParams {
+    fn default() -> Self {
+        Self { voxel_m: 0.03, min_returns: 2, self_margin_m: 0.05 }
+    }
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Cell {
+    sum: Vector3<f64>,
+    returns: u32,
+}
+
+/// The voxels the lidar's returns fell in, over every sweep so far.
+#[derive(Debug, Clone, Default)]
+pub struct Surroundings {
+    cells: HashMap<[i32; 3], Cell>,
+}
+
+impl Surroundings {
+    /// Adds a sweep's returns (world frame), except those within `p.self_margin_m` of the
+    /// robot's `body` (its collision shapes at the sweep's configuration) and non-finite
+    /// ones.
+    pub fn add(&mut self, cloud: &PointCloud, body: &[Capsule], p: &SurroundingsParams) {
+        if p.voxel_m.is_nan() || p.voxel_m <= 0.0 {
+            return; // no parameters file gives one (`positive_m`); only code could
+        }
+        for q in cloud.points() {
+            let q = Point3::new(q.x as f64, q.y as f64, q.z as f64);
+            if !(q.x.is_finite() && q.y.is_finite() && q.z.is_finite()) {
+                continue;
+            }
+            if body.iter().any(|c| c.distance_m(&q) < p.self_margin_m) {
+                continue;
+            }
+            let key = [0, 1, 2].map(|i| (q[i] / p.voxel_m).floor() as i32);
+            let cell = self.cells.entry(key).or_default();
+            cell.sum += q.coords;
+            cell.returns += 1;
+        }
+    }
+
+    /// The centroids of the voxels with at least `p.min_returns` returns.
+    pub fn points(&self, p: &SurroundingsParams) -> Vec<Point3<f64>> {
+        let mut out: Vec<Point3<f64>> = self
+            .cells
+            .values()
+            .filter(|c| c.returns >= p.min_returns.max(1))
+            .map(|c| Point3::from(c.sum / c.returns as f64))
+            .collect();
+        // The map's order is random; the planner's input is not.
+        out.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)).then(a.z.total_cmp(&b.z)));
+        out
+    }
+
+    /// Voxels holding any return.
+    pub fn len(&self) -> usize {
+        self.cells.len()
+    }
+
+    /// Whether no return was kept.
+    pub fn is_empty(&self) -> bool {
+        self.cells.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Point3;
+
+    fn cloud(points: &[[f32; 3]]) -> PointCloud {
+        PointCloud::unorganized(
+            points.iter().map(|p| Point3::new(p[0], p[1], p[2])).collect(),
+            Point3::origin(),
+        )
+    }
+
+    #[test]
+    fn returns_on_the_body_and_lone_strays_are_not_surroundings() {
+        let p = SurroundingsParams::default();
+        let arm = Capsule { a: Point3::new(0.0, 0.2, 1.0), b: Point3::new(0.0, 0.2, 0.6), radius_m: 0.04 };
+        let mut s = Surroundings::default();
+        // A wall at y = 0.45 (two returns in one voxel), the arm's own surface, a stray.
+        let wall = [[0.01, 0.451, 0.81], [0.015, 0.452, 0.815]];
+        let on_arm = [[0.0, 0.245, 0.8], [0.0, 0.246, 0.801]];
+        let stray = [[1.0, 1.0, 1.0]];
+        let nan = [[f32::NAN, 0.0, 0.0], [f32::NAN, 0.0, 0.0]];
+        s.add(&cloud(&[&wall[..], &on_arm, &stray, &nan].concat()), &[arm], &p);
+        let pts = s.points(&p);
+        assert_eq!(pts.len(), 1, "{pts:?}");
+        assert!((pts[0].y - 0.4515).abs() < 1e-6);
+        // Another sweep's return in the stray's voxel makes it a surface.
+        s.add(&cloud(&[[1.01, 1.01, 1.01]]), &[arm], &p);
+        assert_eq!(s.points(&p).len(), 2);
+    }
+
+    #[test]
+    fn a_voxel_that_is_not_a_positive_length_is_refused_when_read() {
+        for bad in ["voxel_m = 0.0", "voxel_m = -0.03", "voxel_m = nan", "self_margin_m = inf"] {
+            let e = toml::from_str::<SurroundingsParams>(bad).expect_err(bad).to_string();
+            assert!(e.contains("not a positive length"), "{bad}: {e}");
+        }
+        let ok: SurroundingsParams = toml::from_str("voxel_m = 0.05").expect("a positive voxel");
+        assert_eq!(ok.voxel_m, 0.05);
+    }
+}
