@@ -64,12 +64,21 @@ impl Surroundings {
         if p.voxel_m.is_nan() || p.voxel_m <= 0.0 {
             return; // no parameters file gives one (`positive_m`); only code could
         }
+        // The body's box: most returns (the floor, the room) are outside it and need no
+        // test against each shape.
+        let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
+        for c in body {
+            let reach = Vector3::repeat(c.radius_m + p.self_margin_m);
+            lo = lo.inf(&(c.a.coords.inf(&c.b.coords) - reach));
+            hi = hi.sup(&(c.a.coords.sup(&c.b.coords) + reach));
+        }
         for q in cloud.points() {
             let q = Point3::new(q.x as f64, q.y as f64, q.z as f64);
             if !(q.x.is_finite() && q.y.is_finite() && q.z.is_finite()) {
                 continue;
             }
-            if body.iter().any(|c| c.distance_m(&q) < p.self_margin_m) {
+            let in_box = (0..3).all(|i| q[i] >= lo[i] && q[i] <= hi[i]);
+            if in_box && body.iter().any(|c| c.distance_m(&q) < p.self_margin_m) {
                 continue;
             }
             let key = [0, 1, 2].map(|i| (q[i] / p.voxel_m).floor() as i32);

@@ -143,16 +143,23 @@ pub fn footholds(
     // scans and differ by a degree or two; one step's direction, carried a metre up a
     // flight, put the landing's centre 3 cm sideways (smoke suite case 8, refused "would
     // overhang its side").
+    // A rectangle gives its tread's axis; which way along it is up comes from the flight:
+    // from the lowest step toward the highest (ci suite case 159: a 1 m landing seen alone
+    // from afar came back with its ascent reversed, and the flight was refused as turned
+    // 177 degrees). A lone step keeps its own.
+    let rise = steps[steps.len() - 1].center() - steps[0].center();
+    let rise = Vector3::new(rise.x, rise.y, 0.0);
+    let up = |s: &PlaneSegment| if s.along().dot(&rise) < 0.0 { -s.along() } else { s.along() };
     let u = steps
         .iter()
-        .map(|s| s.along() * s.voxel_count().max(1) as f64)
+        .map(|s| up(s) * s.voxel_count().max(1) as f64)
         .sum::<Vector3<f64>>()
         .try_normalize(1e-9)
-        .unwrap_or_else(|| steps[0].along());
+        .unwrap_or_else(|| up(steps[0]));
     let limit_rad = 10f64.to_radians();
     for (i, s) in steps.iter().enumerate() {
-        let angle_rad = s.along().dot(&u).clamp(-1.0, 1.0).acos();
-        if s.along().dot(&u) < limit_rad.cos() {
+        let angle_rad = up(s).dot(&u).clamp(-1.0, 1.0).acos();
+        if up(s).dot(&u) < limit_rad.cos() {
             return Err(PlanError::NotStraight { step: i, angle_rad, limit_rad });
         }
     }
@@ -420,6 +427,30 @@ mod tests {
         both.extend(wall(-0.2));
         let pinched = footholds(&stance, &rects, &both, &p).expect("planned");
         assert!((lanes_of(&pinched).last().expect("stances") - 0.075).abs() < 1e-9);
+    }
+
+    /// The ci suite's case 159: the top landing, seen alone from afar, came back with its
+    /// ascent reversed; a rectangle is the same whichever way its axis points, and the
+    /// flight's rise says which way is up.
+    #[test]
+    fn a_step_returned_with_its_ascent_reversed_is_read_up_the_flight() {
+        let (mut rects, stance) = flight_and_stance(0.0);
+        let top = rects[2].clone();
+        rects[2] =
+            PlaneSegment::new(top.center(), -top.along(), top.depth_m(), top.width_m(), Vector3::z(), 3000)
+                .expect("valid rectangle");
+        let stances = footholds(&stance, &rects, &[], &GaitParams::default()).expect("planned");
+        let on_top = stances.last().expect("stances");
+        assert_eq!(on_top.step, Some(2));
+        assert!((on_top.right.translation.x - 1.2).abs() < 1e-9, "{}", on_top.right.translation.x);
+        // Truly turned is still refused.
+        let turned =
+            PlaneSegment::new(top.center(), Vector3::y(), 0.28, 0.9, Vector3::z(), 10).expect("valid");
+        rects[2] = turned;
+        assert!(matches!(
+            footholds(&stance, &rects, &[], &GaitParams::default()),
+            Err(PlanError::NotStraight { step: 2, .. })
+        ));
     }
 
     /// A tread's back edge seen 2 cm past the next riser (voxels reach past it): the foot goes
