@@ -138,11 +138,6 @@ pub fn footholds(
         return Err(PlanError::NoSteps);
     }
     let steps = super::rectangles::by_height(rects);
-    // The staircase's axis: the steps' directions of ascent weighed by their voxels. The step
-    // map keeps each step's direction from its fuller view, so steps come from different
-    // scans and differ by a degree or two; one step's direction, carried a metre up a
-    // flight, put the landing's centre 3 cm sideways (smoke suite case 8, refused "would
-    // overhang its side").
     // A rectangle gives its tread's axis; which way along it is up comes from the flight:
     // from the lowest step toward the highest (ci suite case 159: a 1 m landing seen alone
     // from afar came back with its ascent reversed, and the flight was refused as turned
@@ -150,6 +145,11 @@ pub fn footholds(
     let rise = steps[steps.len() - 1].center() - steps[0].center();
     let rise = Vector3::new(rise.x, rise.y, 0.0);
     let up = |s: &PlaneSegment| if s.along().dot(&rise) < 0.0 { -s.along() } else { s.along() };
+    // The staircase's axis: the steps' directions of ascent weighed by their voxels. The step
+    // map keeps each step's direction from its fuller view, so steps come from different
+    // scans and differ by a degree or two; one step's direction, carried a metre up a
+    // flight, put the landing's centre 3 cm sideways (smoke suite case 8, refused "would
+    // overhang its side").
     let u = steps
         .iter()
         .map(|s| up(s) * s.voxel_count().max(1) as f64)
