@@ -317,3 +317,83 @@ proptest! {
         }
     }
 }
+
+/// Two like clutter boxes beside a three-step flight, nearer the sensor than its steps (the
+/// ci suite's case 127): the boxes' tops, two segments of one shape, tied the flight's two
+/// like steps and won as nearer, a "staircase" of two steps at one height, and the flight
+/// was refused as a 0.378 m first rise. A flight rises: the steps found are the true ones.
+#[test]
+fn like_boxes_side_by_side_are_not_a_staircase() {
+    let toml = "seed = 4293448516482489633\n\
+        [staircase]\nsteps = 3\nrise_m = 0.1769\ntread_m = 0.2699\nwidth_m = 1.2608\nyaw_deg = 9.02\n\
+        start_m = [1.1190, 0.1861]\nlanding_m = 0.3\n\
+        [room]\nsize_m = [4.51, 4.15, 3.0]\ncenter_m = [1.057, 0.086]\n\
+        [[boxes]]\nname = \"clutter_1\"\ncenter_m = [0.3819, 0.9163, 0.1879]\nsize_m = [0.4697, 0.3758, 0.3758]\nyaw_deg = 16.1\n\
+        [[boxes]]\nname = \"clutter_2\"\ncenter_m = [1.1259, -0.7134, 0.1879]\nsize_m = [0.4697, 0.3758, 0.3758]\nyaw_deg = 28.1\n\
+        [robot]\nyaw_deg = 12.7\n\
+        [lidar]\nnoise_sigma_m = 0.0063\ndropout_probability = 0.0004\n";
+    let s = Scenario::from_toml_str(toml, "boxes-beside.toml").unwrap();
+    let (r, sc) = perceive_scored(&s);
+    assert!(sc.found >= 2, "{sc:?}");
+    assert_eq!(sc.false_segments, 0, "{sc:?}");
+    assert_eq!(r.segments.len(), sc.found, "{sc:?}");
+}
+
+/// A level tread under 14.5 mm of range noise (the ci suite's case 42's staircase, noise seed 9):
+/// its 94 supervoxel centres spanned 3.2 cm from lowest to highest, more than epsilon, and
+/// §4.3's filter dropped it; the planner then refused the flight for a step missing below
+/// the next one. The height a segment spans is its surface's: every true step in view is
+/// found, each once.
+#[test]
+fn a_level_tread_under_range_noise_is_not_dropped_for_its_height_extent() {
+    let toml = r#"
+seed = 9
+boxes = []
+
+[staircase]
+steps = 6
+rise_m = 0.14842055837278834
+tread_m = 0.3027085871334755
+width_m = 1.367663284147501
+yaw_deg = 24.54125544768781
+start_m = [0.644248249112154, 0.3658928380180529]
+landing_m = 0.3
+friction = 0.95815682173457
+missing_steps = []
+
+[room]
+size_m = [5.053351110470658, 4.1230934884596735, 3.0]
+center_m = [1.3266755552353284, 0.805383623618916]
+walls = true
+ceiling = true
+floor_friction = 0.8
+
+[robot]
+position_m = [0.0, 0.0]
+yaw_deg = 23.06158704084143
+
+[lidar]
+mount_xyz_m = [0.0, 0.0, 0.07]
+mount_rpy_deg = [0.0, 0.0, 0.0]
+axis_to_optical_m = [0.0, 0.0, 0.035]
+tilt_start_deg = 10.0
+tilt_end_deg = 70.0
+tilt_speed_dps = 10.0
+servo_ticks_per_rev = 4096
+fov_deg = 270.0
+resolution_deg = 0.25
+row_period_s = 0.025
+range_min_m = 0.1
+range_max_m = 30.0
+noise_sigma_m = 0.014534422756826829
+dropout_probability = 0.003469116074115104
+"#;
+    let s = Scenario::from_toml_str(toml, "noisy-tread.toml").unwrap();
+    let (r, sc) = perceive_scored(&s);
+    for st in &sc.steps {
+        println!("step {}: found {} IoU {:.2}", st.index + 1, st.found, st.iou);
+    }
+    assert!(sc.steps[..5].iter().all(|st| st.found), "{sc:?}");
+    assert_eq!(sc.false_segments, 0, "{sc:?}");
+    assert_eq!(r.segments.len(), sc.found, "{sc:?}");
+}

@@ -383,3 +383,89 @@ fn the_probe_cache_answers_as_a_fresh_search_does() {
     }
     assert!(fresh_hits > 10, "the path comes within range of the wall: {fresh_hits}");
 }
+
+/// Floor points seen every 3 cm over x in `xs`, |y| <= 0.7 m, at height `z`.
+fn floor_seen(xs: [f64; 2], z: f64) -> Vec<Point3<f64>> {
+    let n = ((xs[1] - xs[0]) / 0.03) as usize;
+    (0..=n)
+        .flat_map(|i| (0..=46).map(move |j| Point3::new(xs[0] + i as f64 * 0.03, -0.69 + j as f64 * 0.03, z)))
+        .collect()
+}
+
+/// A flight refused from afar for what a closer view may undo (step 2 seen in part, 0.2 m
+/// of its width) is walked toward on the floor, one stance, to look again; not where the
+/// lidar saw something standing on the floor, not beyond its sight where it saw no floor,
+/// and not at all once the first step is within a stride (the refusal then stands).
+#[test]
+fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
+    use stairbench::climb::plan_next;
+    use stairbench::planning::clearance::SeenPoints;
+    use stairbench::planning::footholds::{approach, GaitParams};
+    use stairbench::planning::RefusalKind;
+    use std::sync::Arc;
+    let model = hrp4::model().unwrap();
+    let mut s = Scenario::default();
+    s.staircase.start_m = [1.6, 0.0];
+    let scene = common::scene_of(&s);
+    let mut rects = rectangles::from_step_tops(scene.steps());
+    let r = rects[1].clone();
+    rects[1] = PlaneSegment::new(r.center(), r.along(), r.depth_m(), 0.2, Vector3::z(), 0).unwrap();
+    let q0 = start_q(&model, &scene.robot_start());
+    let p = PlanParams::default();
+    let floor = floor_seen([0.0, 1.6], 0.0);
+    let Err(refused) = plan_among(&model, &q0, &rects, Arc::new(SeenPoints::new(floor.clone())), Some(1), &p)
+    else {
+        panic!("step 2 seen in part was planned")
+    };
+    assert!(matches!(refused, PlanError::OffTheSide { step: 1, .. }), "{refused}");
+
+    let Ok((walk, why)) = plan_next(&model, &q0, &rects, Arc::new(SeenPoints::new(floor.clone())), 1, &p)
+    else {
+        panic!("no walk closer")
+    };
+    assert_eq!(why.map(|r| r.kind), Some(RefusalKind::OffTheSide));
+    assert_eq!(walk.stances.len(), 1);
+    let start_x = (walk.start.right.translation.x + walk.start.left.translation.x) / 2.0;
+    for f in [&walk.stances[0].right, &walk.stances[0].left] {
+        let ahead_m = f.translation.x - start_x;
+        assert!(ahead_m > 0.05 && ahead_m <= p.gait.approach_stride_m + 1e-9, "a foot {ahead_m:.3} m ahead");
+        assert!(f.translation.z.abs() < 1e-9 && walk.stances[0].step.is_none(), "on the floor");
+    }
+
+    // A box in the way, 30 cm tall from 0.2 m ahead: nothing is walked.
+    let mut boxed = floor.clone();
+    boxed.extend(floor_seen([0.2, 0.6], 0.3));
+    let stopped = plan_next(&model, &q0, &rects, Arc::new(SeenPoints::new(boxed)), 1, &p);
+    assert_eq!(stopped.err().map(|r| r.kind), Some(RefusalKind::OffTheSide), "walked into a box");
+
+    // No floor seen at all: only the stances within the lidar's blind reach, of all the walk's.
+    let g = GaitParams::default();
+    let whole = approach(&walk.start, &rects, &floor, &g);
+    let blind = approach(&walk.start, &rects, &[], &g);
+    assert!(
+        whole.len() >= 3 && !blind.is_empty() && blind.len() < whole.len(),
+        "{} of {}",
+        blind.len(),
+        whole.len()
+    );
+    for st in &blind {
+        for f in [&st.right, &st.left] {
+            assert!(
+                f.translation.x - start_x < g.approach_blind_m,
+                "a sole {:.2} m ahead, unseen",
+                f.translation.x - start_x
+            );
+        }
+    }
+
+    // Standing within a stride of step 1: nothing left to walk, the refusal stands.
+    let mut near = s.clone();
+    near.staircase.start_m = [0.25, 0.0];
+    let near_scene = common::scene_of(&near);
+    let mut near_rects = rectangles::from_step_tops(near_scene.steps());
+    let r = near_rects[1].clone();
+    near_rects[1] = PlaneSegment::new(r.center(), r.along(), r.depth_m(), 0.2, Vector3::z(), 0).unwrap();
+    let q_near = start_q(&model, &near_scene.robot_start());
+    let stands = plan_next(&model, &q_near, &near_rects, Arc::new(SeenPoints::new(floor)), 1, &p);
+    assert_eq!(stands.err().map(|r| r.kind), Some(RefusalKind::OffTheSide), "walked within a stride");
+}

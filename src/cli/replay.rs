@@ -6,14 +6,13 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use stairbench::climb::{add_view, feet_height_m};
+use stairbench::climb::{add_view, feet_height_m, plan_next};
 use stairbench::params::ClimbParams;
 use stairbench::perception::step_map::StepMap;
 use stairbench::perception::surroundings::Surroundings;
 use stairbench::perception::PerceptionError;
 use stairbench::perception::{perceive, PlaneSegment};
 use stairbench::planning::clearance::SeenPoints;
-use stairbench::planning::plan_among;
 use stairbench::record::messages::{PerceptionMsg, PlanMsg};
 use stairbench::record::replay::{read, RecordedSweep};
 use stairbench::sensor::AssembleParams;
@@ -177,12 +176,15 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
         let verdict =
             // As many stances as were planned then (the loop plans a few per scan, a rehearsal
             // all it sees).
-            match plan_among(&model, &then.q0, &next.ahead, surfaces, Some(then.stances.len()), &params.plan) {
+            match plan_next(&model, &then.q0, &next.ahead, surfaces, then.stances.len(), &params.plan) {
                 Err(e) => {
                     differ += 1;
-                    format!("DIFFERENT: refused now ({e})")
+                    format!("DIFFERENT: refused now ({})", e.message)
                 }
-                Ok(p) => {
+                Ok((p, closer_look)) => {
+                    if let Some(r) = closer_look {
+                        println!("  plan: a walk closer to look again (from here, {})", r.message);
+                    }
                     let now = PlanMsg::of(then.start_s, &next.ahead, &p);
                     let same_q = trajectory.as_ref().is_none_or(|t| {
                         t.q.len() == p.trajectory.samples.len()

@@ -249,6 +249,9 @@ fn print_cycle(c: &CycleReport) {
         c.plan_s,
         c.execution.sim_s
     );
+    if let Some(r) = &c.closer_look {
+        println!("         walked closer to look again: from afar, {}", r.message);
+    }
     for v in &c.execution.violations {
         println!("         t = {:.3} s  {}: {}", v.t_s, v.check.kind(), v.check);
     }

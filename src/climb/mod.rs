@@ -20,14 +20,16 @@ pub use report::{ClimbReport, CycleReport, Footing, StageTimes};
 use crate::cancel::Cancel;
 use crate::perception::step_map::{StepMap, StepMapParams};
 use crate::perception::surroundings::{Surroundings, SurroundingsParams};
+use crate::perception::PlaneSegment;
 use crate::perception::{perceive, PerceptionError, PerceptionParams};
 use crate::planning::clearance::{body_capsules, SeenPoints};
 use crate::planning::plan::stance_at;
-use crate::planning::{plan_among, PlanParams};
+use crate::planning::{plan_among, plan_approach, Plan, PlanParams, Refusal};
 use crate::robot::model::RobotModel;
 use crate::robot::Kinematics;
 use crate::scene::Scene;
 use crate::sensor::{AssembleParams, SensorError, Source};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Settings of the loop itself.
@@ -179,14 +181,15 @@ pub fn run<E: Executor>(
             break;
         }
         let t = Instant::now();
-        let surfaces = std::sync::Arc::new(SeenPoints::new(around.points(p.surroundings)));
-        let planned = match plan_among(model, &q, &ahead, surfaces, Some(p.run.stances_per_scan), p.plan) {
-            Ok(x) => x,
-            Err(e) => {
-                report.stop = Some(StopReason::Refused { cycle, refusal: e.refusal() });
-                break;
-            }
-        };
+        let surfaces = Arc::new(SeenPoints::new(around.points(p.surroundings)));
+        let (planned, closer_look) =
+            match plan_next(model, &q, &ahead, surfaces, p.run.stances_per_scan, p.plan) {
+                Ok(x) => x,
+                Err(refusal) => {
+                    report.stop = Some(StopReason::Refused { cycle, refusal: *refusal });
+                    break;
+                }
+            };
         let plan_s = t.elapsed().as_secs_f64();
         let t = Instant::now();
         observer.event(&Event::Plan { stamp_s: robot.now_s(), steps: &ahead, plan: &planned });
@@ -206,6 +209,7 @@ pub fn run<E: Executor>(
             to,
             pass: execution.pass(),
             steps_seen: ahead.len(),
+            closer_look,
             scan_s,
             perceive_s,
             plan_s,
@@ -239,6 +243,33 @@ pub fn run<E: Executor>(
         && report.steps_climbed == report.steps_total
         && report.cycles.iter().all(|c| c.pass);
     Ok(report)
+}
+
+/// The loop's next plan from configuration `q`: the first `stances` stances of the climb
+/// of `ahead`, or, where that is refused for the steps as seen from here
+/// ([`RefusalKind::about_the_view`](crate::planning::RefusalKind::about_the_view)), the
+/// first stances of the walk on the floor toward them (with the refusal it goes closer to
+/// look at again: the steps' upper part is reconstructed from nearer, as in the paper).
+/// The refusal when there is nothing left to walk, or the walk is refused too.
+pub fn plan_next(
+    model: &RobotModel,
+    q: &[f64],
+    ahead: &[PlaneSegment],
+    surfaces: Arc<SeenPoints>,
+    stances: usize,
+    p: &PlanParams,
+) -> Result<(Plan, Option<Refusal>), Box<Refusal>> {
+    let refusal = match plan_among(model, q, ahead, surfaces.clone(), Some(stances), p) {
+        Ok(plan) => return Ok((plan, None)),
+        Err(e) => e.refusal(),
+    };
+    if !refusal.kind.about_the_view() {
+        return Err(Box::new(refusal));
+    }
+    match plan_approach(model, q, ahead, surfaces, Some(stances), p) {
+        Ok(Some(walk)) => Ok((walk, Some(refusal))),
+        _ => Err(Box::new(refusal)),
+    }
 }
 
 /// Adds a sweep's cloud to the surroundings, leaving out the robot's own body at the

@@ -7,6 +7,7 @@
 
 use super::executor::Execution;
 use super::outcome::{StopReason, Violation};
+use crate::planning::Refusal;
 use serde::{Serialize, Serializer};
 use std::fmt;
 
@@ -46,6 +47,11 @@ pub struct CycleReport {
     pub pass: bool,
     /// Steps the plan was made on (the known steps ahead).
     pub steps_seen: usize,
+    /// The refusal this cycle's walk on the floor went closer to look at again (the plan
+    /// of the flight was refused from here for what a closer view may show otherwise);
+    /// `None` for a cycle of the climb's own plan.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub closer_look: Option<Refusal>,
     /// Wall time of the sweep, seconds.
     pub scan_s: f64,
     /// Perception wall time, seconds.

@@ -98,6 +98,22 @@ pub struct GaitParams {
     /// beside the body (from the hands to above the shoulders), metres. Lower, it is a
     /// riser, a tread's edge or a low box the legs pass above.
     pub body_band_m: [f64; 2],
+    /// A walk on the floor toward a flight refused from afar ([`approach`]) sets a sole only
+    /// where the lidar saw nothing standing on the floor (not two surroundings points above
+    /// `floor_band_m` and below 0.5 m over it: a step nobody took for one, a box) and,
+    /// beyond `approach_blind_m`, where it saw floor: at least this many points within
+    /// `floor_band_m` of the floor's height under the sole. A 3 cm voxel grid holds about 34
+    /// points under HRP-4's sole; 8 is a quarter of it.
+    pub approach_floor_returns: usize,
+    /// How far ahead of the feet, along the ascent, the floor lies under the head's lidar
+    /// and out of its sight, metres: tilting to 70 deg down from about 1.4 m, it sees the
+    /// floor from about 0.5 m ahead of the feet. A sole nearer the start than this needs
+    /// no floor returns (only nothing seen standing there).
+    pub approach_blind_m: f64,
+    /// Half the height of the band around the floor in which a surroundings point is floor,
+    /// metres: three standard deviations of a 20 mm range noise (a voxel's centroid on the
+    /// floor strays that far); a step's rise is more than twice it.
+    pub floor_band_m: f64,
     /// Fault injection, to test the regression tooling only: every foothold on a step is
     /// moved this far along the ascent, metres (0: none). A planner with this set is broken
     /// on purpose, and `regress --baseline` must say so.
@@ -120,6 +136,9 @@ impl Default for GaitParams {
             sole_width_m: crate::robot::hrp4::SOLE_SIZE_M[1],
             body_half_width_m: 0.36,
             body_band_m: [0.4, 1.5],
+            approach_floor_returns: 8,
+            approach_blind_m: 0.6,
+            floor_band_m: 0.06,
             test_foothold_shift_m: 0.0,
         }
     }
@@ -138,74 +157,24 @@ pub fn footholds(
         return Err(PlanError::NoSteps);
     }
     let steps = super::rectangles::by_height(rects);
-    // A rectangle gives its tread's axis; which way along it is up comes from the flight:
-    // from the lowest step toward the highest (ci suite case 159: a 1 m landing seen alone
-    // from afar came back with its ascent reversed, and the flight was refused as turned
-    // 177 degrees). A lone step keeps its own.
-    let rise = steps[steps.len() - 1].center() - steps[0].center();
-    let rise = Vector3::new(rise.x, rise.y, 0.0);
-    let up = |s: &PlaneSegment| if s.along().dot(&rise) < 0.0 { -s.along() } else { s.along() };
-    // The staircase's axis: the steps' directions of ascent weighed by their voxels. The step
-    // map keeps each step's direction from its fuller view, so steps come from different
-    // scans and differ by a degree or two; one step's direction, carried a metre up a
-    // flight, put the landing's centre 3 cm sideways (smoke suite case 8, refused "would
-    // overhang its side").
-    let u = steps
-        .iter()
-        .map(|s| up(s) * s.voxel_count().max(1) as f64)
-        .sum::<Vector3<f64>>()
-        .try_normalize(1e-9)
-        .unwrap_or_else(|| up(steps[0]));
+    let lay = Layout::new(start, &steps, seen, p);
+    let (o, u, w) = (lay.frame.o, lay.frame.u, lay.frame.w);
     let limit_rad = 10f64.to_radians();
     for (i, s) in steps.iter().enumerate() {
-        let angle_rad = up(s).dot(&u).clamp(-1.0, 1.0).acos();
-        if up(s).dot(&u) < limit_rad.cos() {
+        let angle_rad = lay.up(s).dot(&u).clamp(-1.0, 1.0).acos();
+        if lay.up(s).dot(&u) < limit_rad.cos() {
             return Err(PlanError::NotStraight { step: i, angle_rad, limit_rad });
         }
     }
-    let w = Vector3::z().cross(&u);
-    let o = steps[0].center();
-    let (r0, l0) = (start.right.translation.vector, start.left.translation.vector);
-    let floor_z = r0.z.min(l0.z);
-    let start_lanes = [(r0 - o.coords).dot(&w), (l0 - o.coords).dot(&w)];
-    let start_along = ((r0 + l0) / 2.0 - o.coords).dot(&u);
-    let frame = Frame { o, u, w };
-    let shift = frame.lane_shift(&steps, seen, start_lanes, start_along, floor_z, p);
-    let lanes = start_lanes.map(|l| l + shift);
-
-    let rises = super::rectangles::rises_m(&steps, Some(floor_z));
+    let lanes = lay.start_lanes.map(|l| l + lay.shift);
+    let rises = super::rectangles::rises_m(&steps, Some(lay.floor_z));
     let median = super::rectangles::median(&rises).unwrap_or(0.0);
-    let yaw = UnitQuaternion::from_euler_angles(0.0, 0.0, u.y.atan2(u.x));
-    // Both feet `along` the ascent in their lanes, on the plane through `point` with normal
-    // `n` (the foot tilted with it, yawed with the staircase).
-    let stance_in =
-        |lanes: [f64; 2], along: f64, point: Point3<f64>, n: Vector3<f64>, step: Option<usize>| {
-            let tilt =
-                UnitQuaternion::rotation_between(&Vector3::z(), &n).unwrap_or_else(UnitQuaternion::identity);
-            let foot = |lane: f64| {
-                let xy = o + u * along + w * lane;
-                let z = point.z - (n.x * (xy.x - point.x) + n.y * (xy.y - point.y)) / n.z;
-                Isometry3::from_parts(Translation3::new(xy.x, xy.y, z), tilt * yaw)
-            };
-            Stance { right: foot(lanes[0]), left: foot(lanes[1]), step }
-        };
-    let stance_on = |along: f64, point: Point3<f64>, n: Vector3<f64>, step: Option<usize>| {
-        stance_in(lanes, along, point, n, step)
-    };
-    let floor = Point3::new(o.x, o.y, floor_z);
 
     let mut out = Vec::new();
-    let mut prev_along = start_along;
+    let mut prev_along = lay.start_along;
     for (i, s) in steps.iter().enumerate() {
         let c = s.center();
-        let front = (c - o).dot(&u) - s.depth_m() / 2.0;
-        // The foot goes in the middle of the tread up to the next step's nose: a tread's back
-        // edge is its view's least sure (the next nose hides it from afar, and its voxels
-        // reach past the riser), and the toes must stay off the next riser (ci suite: a tread
-        // seen 2 cm deep past it put the toes against it).
-        let next_front = steps.get(i + 1).map(|n| (n.center() - o).dot(&u) - n.depth_m() / 2.0);
-        let usable_m = next_front.map_or(s.depth_m(), |n| (n - front).clamp(0.0, s.depth_m()));
-        let along = front + (usable_m / 2.0).min(p.landing_foothold_m);
+        let (front, along) = lay.foothold_along(&steps, i, p);
         if s.depth_m() < p.min_tread_m {
             return Err(PlanError::ShortTread { step: i, depth_m: s.depth_m(), min_m: p.min_tread_m });
         }
@@ -234,28 +203,192 @@ pub fn footholds(
                 });
             }
         }
-        if i == 0 && along - prev_along > p.max_stride_m {
-            // Walk up to the first step on the floor, the toes staying behind its riser.
-            let last = front - p.sole_length_m / 2.0 - p.toe_gap_m;
-            let n = ((last - prev_along) / p.approach_stride_m).ceil().max(0.0) as usize;
-            for k in 1..=n {
-                let f = k as f64 / n as f64;
-                let a = prev_along + (last - prev_along) * f;
-                // The lanes move aside on the floor, a share each step.
-                out.push(stance_in(start_lanes.map(|l| l + shift * f), a, floor, Vector3::z(), None));
+        if i == 0 {
+            let walk = lay.floor_walk(front, along, p);
+            if !walk.is_empty() {
+                prev_along = Layout::last_floor_along(front, p);
             }
-            if n > 0 {
-                prev_along = last;
-            }
+            out.extend(walk);
         }
         let stride = along - prev_along;
         if stride > p.max_stride_m || stride < 0.0 {
             return Err(PlanError::Stride { step: i, stride_m: stride, max_m: p.max_stride_m });
         }
-        out.push(stance_on(along + p.test_foothold_shift_m, c, s.normal().into_inner(), Some(i)));
+        out.push(lay.stance_in(lanes, along + p.test_foothold_shift_m, c, s.normal().into_inner(), Some(i)));
         prev_along = along;
     }
     Ok(out)
+}
+
+/// The stances on the floor that walk the feet from `start` toward the flight of `rects`,
+/// as [`footholds`] begins its plan, without judging the steps: where a plan was refused
+/// from afar for what a closer view may show otherwise (a step seen in part, a noisy
+/// tread), the loop walks these and looks again. Empty when the first step's foothold is
+/// within a stride already (nothing is left to walk: a refusal then stands) or there are
+/// no steps.
+pub fn approach(start: &Stance, rects: &[PlaneSegment], seen: &[Point3<f64>], p: &GaitParams) -> Vec<Stance> {
+    if rects.is_empty() {
+        return Vec::new();
+    }
+    let steps = super::rectangles::by_height(rects);
+    let lay = Layout::new(start, &steps, seen, p);
+    let (front, along) = lay.foothold_along(&steps, 0, p);
+    let mut walk = lay.floor_walk(front, along, p);
+    let seen_free = |f: &Isometry3<f64>| {
+        let blind = (f.translation.vector - lay.frame.o.coords).dot(&lay.frame.u) - lay.start_along
+            < p.approach_blind_m;
+        on_seen_floor(f, seen, lay.floor_z, if blind { 0 } else { p.approach_floor_returns }, p)
+    };
+    let seen_to = walk.iter().take_while(|s| seen_free(&s.right) && seen_free(&s.left)).count();
+    walk.truncate(seen_to);
+    walk
+}
+
+/// Whether the lidar saw floor under the sole at `foot` (at least `floor_returns` of `seen`
+/// within `floor_band_m` of `floor_z` inside the sole) and nothing standing on it (no point
+/// inside the sole from above that band to 0.5 m over the floor but a lone stray).
+fn on_seen_floor(
+    foot: &Isometry3<f64>,
+    seen: &[Point3<f64>],
+    floor_z: f64,
+    floor_returns: usize,
+    p: &GaitParams,
+) -> bool {
+    const STANDING_M: f64 = 0.5;
+    let inv = foot.inverse();
+    let (mut floor, mut standing) = (0usize, 0usize);
+    for q in seen {
+        let dz = q.z - floor_z;
+        if dz < -p.floor_band_m || dz > STANDING_M {
+            continue;
+        }
+        let local = inv * q;
+        if local.x.abs() > p.sole_length_m / 2.0 || local.y.abs() > p.sole_width_m / 2.0 {
+            continue;
+        }
+        if dz <= p.floor_band_m {
+            floor += 1;
+        } else {
+            standing += 1;
+        }
+    }
+    floor >= floor_returns && standing < 2
+}
+
+/// The flight laid out from the start stance: its frame, its yaw, the feet's lanes across
+/// it (and how far they move aside), where the feet start along it.
+struct Layout {
+    frame: Frame,
+    /// Up the flight, from its lowest step toward its highest (horizontal).
+    rise: Vector3<f64>,
+    yaw: UnitQuaternion<f64>,
+    start_lanes: [f64; 2],
+    shift: f64,
+    start_along: f64,
+    floor_z: f64,
+}
+
+impl Layout {
+    /// `steps` sorted by height, at least one.
+    fn new(start: &Stance, steps: &[&PlaneSegment], seen: &[Point3<f64>], p: &GaitParams) -> Self {
+        // A rectangle gives its tread's axis; which way along it is up comes from the flight:
+        // from the lowest step toward the highest (ci suite case 159: a 1 m landing seen alone
+        // from afar came back with its ascent reversed, and the flight was refused as turned
+        // 177 degrees). A lone step keeps its own.
+        let rise = steps[steps.len() - 1].center() - steps[0].center();
+        let rise = Vector3::new(rise.x, rise.y, 0.0);
+        let up = |s: &PlaneSegment| if s.along().dot(&rise) < 0.0 { -s.along() } else { s.along() };
+        // The staircase's axis: the steps' directions of ascent weighed by their voxels. The
+        // step map keeps each step's direction from its fuller view, so steps come from
+        // different scans and differ by a degree or two; one step's direction, carried a
+        // metre up a flight, put the landing's centre 3 cm sideways (smoke suite case 8,
+        // refused "would overhang its side").
+        let u = steps
+            .iter()
+            .map(|s| up(s) * s.voxel_count().max(1) as f64)
+            .sum::<Vector3<f64>>()
+            .try_normalize(1e-9)
+            .unwrap_or_else(|| up(steps[0]));
+        let w = Vector3::z().cross(&u);
+        let o = steps[0].center();
+        let (r0, l0) = (start.right.translation.vector, start.left.translation.vector);
+        let floor_z = r0.z.min(l0.z);
+        let start_lanes = [(r0 - o.coords).dot(&w), (l0 - o.coords).dot(&w)];
+        let start_along = ((r0 + l0) / 2.0 - o.coords).dot(&u);
+        let frame = Frame { o, u, w };
+        let shift = frame.lane_shift(steps, seen, start_lanes, start_along, floor_z, p);
+        let yaw = UnitQuaternion::from_euler_angles(0.0, 0.0, u.y.atan2(u.x));
+        Self { frame, rise, yaw, start_lanes, shift, start_along, floor_z }
+    }
+
+    /// A step's direction of ascent, pointing up the flight.
+    fn up(&self, s: &PlaneSegment) -> Vector3<f64> {
+        if s.along().dot(&self.rise) < 0.0 {
+            -s.along()
+        } else {
+            s.along()
+        }
+    }
+
+    /// Where the last floor stance stands along the ascent, before a first step whose front
+    /// edge is at `front`: the toes `toe_gap_m` behind its riser.
+    fn last_floor_along(front: f64, p: &GaitParams) -> f64 {
+        front - p.sole_length_m / 2.0 - p.toe_gap_m
+    }
+
+    /// Step `i`'s front edge and its foothold, along the ascent. The foot goes in the middle
+    /// of the tread up to the next step's nose: a tread's back edge is its view's least sure
+    /// (the next nose hides it from afar, and its voxels reach past the riser), and the toes
+    /// must stay off the next riser (ci suite: a tread seen 2 cm deep past it put the toes
+    /// against it).
+    fn foothold_along(&self, steps: &[&PlaneSegment], i: usize, p: &GaitParams) -> (f64, f64) {
+        let front = |s: &PlaneSegment| (s.center() - self.frame.o).dot(&self.frame.u) - s.depth_m() / 2.0;
+        let s = steps[i];
+        let next_front = steps.get(i + 1).map(|n| front(n));
+        let usable_m = next_front.map_or(s.depth_m(), |n| (n - front(s)).clamp(0.0, s.depth_m()));
+        (front(s), front(s) + (usable_m / 2.0).min(p.landing_foothold_m))
+    }
+
+    /// Both feet `along` the ascent in `lanes`, on the plane through `point` with normal `n`
+    /// (the foot tilted with it, yawed with the staircase).
+    fn stance_in(
+        &self,
+        lanes: [f64; 2],
+        along: f64,
+        point: Point3<f64>,
+        n: Vector3<f64>,
+        step: Option<usize>,
+    ) -> Stance {
+        let Frame { o, u, w } = self.frame;
+        let tilt =
+            UnitQuaternion::rotation_between(&Vector3::z(), &n).unwrap_or_else(UnitQuaternion::identity);
+        let foot = |lane: f64| {
+            let xy = o + u * along + w * lane;
+            let z = point.z - (n.x * (xy.x - point.x) + n.y * (xy.y - point.y)) / n.z;
+            Isometry3::from_parts(Translation3::new(xy.x, xy.y, z), tilt * self.yaw)
+        };
+        Stance { right: foot(lanes[0]), left: foot(lanes[1]), step }
+    }
+
+    /// The floor stances up to the first step, whose front edge is at `front` and foothold
+    /// at `along`: none when the foothold is within a stride of the start; else strides of
+    /// at most `approach_stride_m`, the toes staying behind its riser, the lanes moving
+    /// aside a share each stance.
+    fn floor_walk(&self, front: f64, along: f64, p: &GaitParams) -> Vec<Stance> {
+        if along - self.start_along <= p.max_stride_m {
+            return Vec::new();
+        }
+        let last = Self::last_floor_along(front, p);
+        let n = ((last - self.start_along) / p.approach_stride_m).ceil().max(0.0) as usize;
+        let floor = Point3::new(self.frame.o.x, self.frame.o.y, self.floor_z);
+        (1..=n)
+            .map(|k| {
+                let f = k as f64 / n as f64;
+                let a = self.start_along + (last - self.start_along) * f;
+                self.stance_in(self.start_lanes.map(|l| l + self.shift * f), a, floor, Vector3::z(), None)
+            })
+            .collect()
+    }
 }
 
 /// The staircase's frame: origin `o` (step 1's centre), ascent `u`, across `w` (leftward).

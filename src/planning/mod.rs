@@ -15,7 +15,7 @@ pub mod rectangles;
 
 pub use contact::{Contact, ContactSpec};
 pub use footholds::{Foot, Stance};
-pub use plan::{plan, plan_among, Plan, PlanParams};
+pub use plan::{plan, plan_among, plan_approach, Plan, PlanParams};
 
 /// Why a climb was refused. Steps are numbered from 1, the lowest, in messages.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
@@ -236,6 +236,26 @@ pub enum RefusalKind {
     ComStrays,
     /// [`PlanError::Config`].
     Robot,
+}
+
+impl RefusalKind {
+    /// Whether a closer view of the steps may undo this refusal: a judgement of the steps
+    /// as seen (a step seen in part is narrow or shallow, a tread lost to noise leaves a
+    /// rise too high or a step missing, a rectangle from afar comes back turned), not of
+    /// the robot's motion over them.
+    pub fn about_the_view(self) -> bool {
+        use RefusalKind as K;
+        matches!(
+            self,
+            K::NotStraight
+                | K::ShortTread
+                | K::MissingStep
+                | K::HighRise
+                | K::Gap
+                | K::OffTheSide
+                | K::Stride
+        )
+    }
 }
 
 /// A refusal as data, for reports and regression tables: its kind, where (1-based step,

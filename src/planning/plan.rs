@@ -2,7 +2,7 @@
 //! gait's segments with their polygons and margins, and the joint trajectory out (§6).
 
 use super::clearance::{step_blocks, SeenPoints};
-use super::footholds::{footholds, GaitParams, Stance};
+use super::footholds::{approach, footholds, GaitParams, Stance};
 use super::gait::{segments, Body, Segment, StepParams};
 use super::motion::{track, IkParams, JointTrajectory, Tracking};
 use super::PlanError;
@@ -112,14 +112,50 @@ pub fn plan_among(
     max_stances: Option<usize>,
     p: &PlanParams,
 ) -> Result<Plan, PlanError> {
+    plan_stances(model, q0, rects, seen, max_stances, p, |start, pts| footholds(start, rects, pts, &p.gait))?
+        .ok_or(PlanError::NoSteps)
+}
+
+/// The walk on the floor toward the flight of `rects` ([`approach`]), its first
+/// `max_stances` stances, planned as [`plan_among`] plans a climb but with the steps left
+/// unjudged: the closed loop walks it to look again at a flight it refused from afar.
+/// `Ok(None)` when there is nothing left to walk (the first step is within a stride).
+pub fn plan_approach(
+    model: &RobotModel,
+    q0: &[f64],
+    rects: &[PlaneSegment],
+    seen: Arc<SeenPoints>,
+    max_stances: Option<usize>,
+    p: &PlanParams,
+) -> Result<Option<Plan>, PlanError> {
+    plan_stances(model, q0, rects, seen, max_stances, p, |start, pts| {
+        Ok(approach(start, rects, pts, &p.gait))
+    })
+}
+
+/// A plan through the stances `stances_from` gives from the start stance and the seen
+/// surfaces (the first `max_stances` of them): the gait's segments and the joint
+/// trajectory, the legs kept off `rects` and the body off `seen`; `None` for no stances.
+fn plan_stances(
+    model: &RobotModel,
+    q0: &[f64],
+    rects: &[PlaneSegment],
+    seen: Arc<SeenPoints>,
+    max_stances: Option<usize>,
+    p: &PlanParams,
+    stances_from: impl FnOnce(&Stance, &[nalgebra::Point3<f64>]) -> Result<Vec<Stance>, PlanError>,
+) -> Result<Option<Plan>, PlanError> {
     let started = Instant::now();
     let soles = hrp4::sole_frames(model)?;
     let mut kin = Kinematics::new(model);
     kin.update(q0)?;
     let start = stance_of(&kin, soles);
-    let mut stances = footholds(&start, rects, seen.points(), &p.gait)?;
+    let mut stances = stances_from(&start, seen.points())?;
     if let Some(n) = max_stances {
         stances.truncate(n);
+    }
+    if stances.is_empty() {
+        return Ok(None);
     }
     let body = Body::measure(&kin, soles)?;
     let segs = segments(kin.com(), &start, &stances, &body, &p.step)?;
@@ -128,5 +164,5 @@ pub fn plan_among(
     let feet_z = start.right.translation.z.min(start.left.translation.z);
     let blocks = step_blocks(rects, feet_z - BLOCK_DEPTH_M);
     let (trajectory, tracking) = track(model, q0, &segs, &blocks, seen.clone(), &p.ik)?;
-    Ok(Plan { start, stances, segments: segs, trajectory, tracking, gait_time_s, blocks, seen })
+    Ok(Some(Plan { start, stances, segments: segs, trajectory, tracking, gait_time_s, blocks, seen }))
 }

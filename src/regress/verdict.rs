@@ -139,6 +139,7 @@ mod tests {
                     to: *to,
                     pass: !violated,
                     steps_seen: 3,
+                    closer_look: None,
                     scan_s: 0.0,
                     perceive_s: 0.0,
                     plan_s: 0.0,
