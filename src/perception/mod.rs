@@ -68,6 +68,12 @@ pub struct PerceptionParams {
     /// metres (the treads of a continuous flight meet at the riser; perception leaves up to
     /// about 6 cm between them, see the gait's `max_gap_m`).
     pub flight_gap_m: f64,
+    /// Beyond §4.2's Filter 3: a segment's voxels must cover at least this share of its
+    /// footprint (its convex hull), or it is a few scattered voxels, not a surface: 4
+    /// voxels of floor spread over 0.3 m by 1 m passed the sole-sized footprint test and
+    /// joined a flight as a step turned 16 deg (ci suite case 104). A tread seen from afar,
+    /// sampled every 3-5 cm in range by a 2 cm voxel grid, covers 30 % or more.
+    pub min_segment_cover: f64,
 }
 
 impl Default for PerceptionParams {
@@ -90,6 +96,7 @@ impl Default for PerceptionParams {
             shape_tolerance_m: 0.10,
             flight_max_rise_m: 0.30,
             flight_gap_m: 0.10,
+            min_segment_cover: 0.1,
         }
     }
 }
@@ -133,6 +140,9 @@ impl PerceptionParams {
             if !pos(v) {
                 return bad(f, "must be > 0");
             }
+        }
+        if !(self.min_segment_cover >= 0.0 && self.min_segment_cover <= 1.0) {
+            return bad("min_segment_cover", "must be in [0, 1] (a share of a segment's footprint)");
         }
         if self.flight_max_rise_m <= self.max_height_extent_m {
             return bad(

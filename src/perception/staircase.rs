@@ -75,11 +75,9 @@ pub fn extract(
     // Filter 3's rule (§4.2) on each joined part too: RANSAC may split a cluster, and a
     // leftover whose footprint is smaller than the sole is not a foothold (seen: 6 voxels
     // of a step's tread, 5 deg off level, 1.5 cm above it, taken for another step turned
-    // 90 deg).
-    let cands: Vec<Candidate> = join_touching(vc, parts, p)
-        .into_iter()
-        .filter(|c| geom2d::area(&c.hull) >= p.foot_length_m * p.foot_width_m)
-        .collect();
+    // 90 deg), nor are voxels too few to cover their footprint (`min_segment_cover`).
+    let cands: Vec<Candidate> =
+        join_touching(vc, parts, p).into_iter().filter(|c| is_surface(c, p)).collect();
     let n_candidates = cands.len();
     if cands.is_empty() {
         return Err(PerceptionError::NoStaircase(NoStaircase::NoFlatSegment {
@@ -153,6 +151,15 @@ pub fn extract(
         })
         .collect();
     Ok((segments, n_candidates))
+}
+
+/// Whether a candidate is a surface a sole can use: its footprint (convex hull) at least
+/// the sole's (Filter 3's rule), and its voxels covering at least `min_segment_cover` of it.
+fn is_surface(c: &Candidate, p: &PerceptionParams) -> bool {
+    let hull_m2 = geom2d::area(&c.hull);
+    let cell_m2 = p.voxel_resolution_m * p.voxel_resolution_m;
+    hull_m2 >= p.foot_length_m * p.foot_width_m
+        && c.voxels.len() as f64 * cell_m2 >= p.min_segment_cover * hull_m2
 }
 
 /// Δz of §4.3, the height a segment spans, measured on the least-squares plane through its
@@ -371,6 +378,42 @@ mod tests {
         let span = surface_height_extent_m(&ramp, &idx, &up);
         assert!((span - 0.45 * f64::from(slope)).abs() < 1e-4, "a 10 deg ramp 0.45 m long spans {span}");
         assert!(span > 0.03);
+    }
+
+    /// Voxels on a grid at `xy` (z = 0.3), as a candidate.
+    fn candidate_of(xy: &[(f32, f32)]) -> Candidate {
+        let n = xy.len();
+        let vc = VoxelCloud {
+            resolution_m: 0.02,
+            keys: vec![[0, 0, 0]; n],
+            positions: xy.iter().map(|&(x, y)| Point3::new(x, y, 0.3)).collect(),
+            normals: vec![Vector3::z(); n],
+            counts: vec![1; n],
+            adjacency: vec![1; n],
+        };
+        candidate(&vc, (0..n as u32).collect(), Vector3::z()).expect("a candidate")
+    }
+
+    /// A tread 0.3 by 1 m, every voxel seen or one row in two and one in three across (a
+    /// far view's sampling), and a 5 cm strip of it, are surfaces; ci case 104's stray, 4
+    /// voxels at the corners of such a tread, is not, nor is a patch smaller than the sole.
+    #[test]
+    fn scattered_voxels_are_not_a_surface() {
+        let p = PerceptionParams::default();
+        let grid = |dx: usize, dy: usize, depth: f32| -> Vec<(f32, f32)> {
+            let (nx, ny) = ((depth / 0.02) as usize, 50);
+            (0..=nx)
+                .step_by(dx)
+                .flat_map(|i| (0..ny).step_by(dy).map(move |j| (i as f32 * 0.02, j as f32 * 0.02)))
+                .collect()
+        };
+        assert!(is_surface(&candidate_of(&grid(1, 1, 0.3)), &p));
+        assert!(is_surface(&candidate_of(&grid(2, 3, 0.3)), &p));
+        assert!(is_surface(&candidate_of(&grid(1, 1, 0.05)), &p));
+        assert!(!is_surface(&candidate_of(&[(0.0, 0.0), (0.3, 0.0), (0.0, 1.0), (0.3, 1.0)]), &p));
+        let small: Vec<(f32, f32)> =
+            (0..50).map(|i| ((i % 10) as f32 * 0.02, (i / 10) as f32 * 0.02)).collect();
+        assert!(!is_surface(&candidate_of(&small), &p), "0.18 by 0.08 m: smaller than the sole");
     }
 
     #[test]

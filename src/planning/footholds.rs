@@ -84,6 +84,11 @@ pub struct GaitParams {
     pub toe_gap_m: f64,
     /// How far a sole may overhang its rectangle's side.
     pub side_overhang_m: f64,
+    /// A foothold moved back from its tread's middle, so that the stride stays within
+    /// `max_stride_m`, keeps the heel at least this far onto the tread from its front edge
+    /// as perceived (about a voxel: perception places an edge within half a voxel, §4's
+    /// v = 2 cm).
+    pub edge_margin_m: f64,
     /// Sole length (HRP-4: 24 cm).
     pub sole_length_m: f64,
     /// Sole width (HRP-4: 13 cm).
@@ -132,6 +137,7 @@ impl Default for GaitParams {
             landing_foothold_m: 0.18,
             toe_gap_m: 0.03,
             side_overhang_m: 0.02,
+            edge_margin_m: 0.02,
             sole_length_m: crate::robot::hrp4::SOLE_SIZE_M[0],
             sole_width_m: crate::robot::hrp4::SOLE_SIZE_M[1],
             body_half_width_m: 0.36,
@@ -210,6 +216,15 @@ pub fn footholds(
             }
             out.extend(walk);
         }
+        // A tread deeper than the legs' stride (ci suite case 6: 0.368 m treads, the
+        // middles 0.402 m apart as seen): the foot goes back from the middle toward the
+        // front edge as far as the stride needs, the whole sole staying on the tread.
+        let heel_on_m = front + p.sole_length_m / 2.0 + p.edge_margin_m;
+        let along = if along - prev_along > p.max_stride_m {
+            (prev_along + p.max_stride_m).max(heel_on_m).min(along)
+        } else {
+            along
+        };
         let stride = along - prev_along;
         if stride > p.max_stride_m || stride < 0.0 {
             return Err(PlanError::Stride { step: i, stride_m: stride, max_m: p.max_stride_m });
@@ -615,5 +630,54 @@ mod tests {
         assert!((on_step_1.right.translation.x - 0.635).abs() < 1e-9, "{}", on_step_1.right.translation.x);
         let on_step_2 = stances.iter().find(|s| s.step == Some(1)).expect("a stance on step 2");
         assert!((on_step_2.right.translation.x - 0.905).abs() < 1e-9, "the top step: its own middle");
+    }
+
+    /// Treads deeper than the stride: the ci suite's case 6 (0.368 m treads, their middles
+    /// 0.402 m apart as seen) was refused for a stride of 0.402 m over 0.400. The foot goes
+    /// back toward the nose by what the stride needs, the sole wholly on its tread; a tread
+    /// whose whole sole would not then fit within the stride is still refused.
+    #[test]
+    fn a_tread_deeper_than_the_stride_takes_the_foot_back_toward_its_nose() {
+        let p = GaitParams::default();
+        // Steps of (front edge, depth) along x, 15 cm apart in height.
+        let flight = |steps: &[(f64, f64)]| -> Vec<PlaneSegment> {
+            steps
+                .iter()
+                .enumerate()
+                .map(|(i, &(front, d))| {
+                    PlaneSegment::new(
+                        Point3::new(front + d / 2.0, 0.0, 0.15 * (i + 1) as f64),
+                        Vector3::x(),
+                        d,
+                        1.0,
+                        Vector3::z(),
+                        100,
+                    )
+                    .expect("valid rectangle")
+                })
+                .collect()
+        };
+        let sole = |y: f64| Isometry3::translation(0.3, y, 0.0);
+        let start = Stance { right: sole(-0.1), left: sole(0.1), step: None };
+        // Step 3's front 0.402 m past step 2's (as the view of ci 6 had it), 36 cm treads.
+        let rects = flight(&[(0.5, 0.36), (0.868, 0.36), (1.27, 0.36)]);
+        let stances = footholds(&start, &rects, &[], &p).expect("planned within the stride");
+        let xs: Vec<f64> =
+            stances.iter().filter(|s| s.step.is_some()).map(|s| s.right.translation.x).collect();
+        for (k, w) in xs.windows(2).enumerate() {
+            assert!(w[1] - w[0] <= p.max_stride_m + 1e-9, "stride {} is {:.3} m", k + 2, w[1] - w[0]);
+        }
+        for (x, r) in xs.iter().zip(&rects) {
+            let front = r.center().x - r.depth_m() / 2.0;
+            assert!(
+                x - p.sole_length_m / 2.0 >= front + p.edge_margin_m - 1e-9,
+                "a heel off its tread at {x:.3}"
+            );
+            assert!(x + p.sole_length_m / 2.0 <= front + r.depth_m() + 1e-9, "toes off the tread at {x:.3}");
+        }
+        assert!(xs[2] < 1.27 + 0.18 - 1e-3, "step 3's foot went back from where it would go: {:.3}", xs[2]);
+        // After a 0.6 m tread, step 3's whole sole is not within a stride: still refused.
+        let far = flight(&[(0.5, 0.36), (0.868, 0.6), (1.468, 0.36)]);
+        assert!(matches!(footholds(&start, &far, &[], &p), Err(PlanError::Stride { step: 2, .. })));
     }
 }
