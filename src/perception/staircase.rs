@@ -13,7 +13,8 @@
 //!    another shape that continues the flight by a rise at either end (a top landing) joins
 //!    it.
 //! 5. The staircase's direction of ascent is the common axis of the segments' minimum-area
-//!    rectangles that points up the stairs; each step's rectangle is the extent of its voxels
+//!    rectangles (the flight's, landing included, weighed by size and elongation) that
+//!    points up the stairs; each step's rectangle is the extent of its voxels
 //!    along and across that direction, so a yawed staircase comes out right.
 
 use super::ransac::Plane;
@@ -137,8 +138,7 @@ pub fn extract(
     let mut stair: Vec<&Candidate> = (0..n).filter(|&i| label[i] == best).map(|i| steps[i]).collect();
     stair.sort_by(|a, b| a.height.total_cmp(&b.height));
 
-    let along = ascent_direction(&stair, &below);
-    extend_flight(&mut stair, &steps, &along, p);
+    let along = flight(&mut stair, &steps, &below, p);
     let segments = stair
         .iter()
         .filter_map(|c| {
@@ -275,7 +275,8 @@ fn candidate(vc: &VoxelCloud, voxels: Vec<u32>, normal: Vector3<f64>) -> Option<
 /// nose hidden under the sensor, 11 cm too far, and walked into its riser. A segment is kept
 /// as the flight's continuation when it rises from the flight's top step (or drops to its
 /// bottom one) by more than epsilon and at most `flight_max_rise_m`, its near edge is within
-/// `flight_gap_m` of that step's far edge along the ascent `along`, and across it overlaps
+/// `flight_gap_m` of that step's far edge along the ascent (read again over the flight as
+/// it grows: a strip of a step seen in part may be turned), and across it overlaps
 /// that step by half the narrower width. A step seen in part, of another shape than its
 /// neighbours, between two of the flight's steps is kept the same way, rising from the one
 /// below (ci case 188: under 20 mm of noise the first view saw 0.54 m of step 2's 0.9 m
@@ -284,10 +285,10 @@ fn candidate(vc: &VoxelCloud, voxels: Vec<u32>, normal: Vector3<f64>) -> Option<
 fn extend_flight<'a>(
     stair: &mut Vec<&'a Candidate>,
     others: &[&'a Candidate],
-    along: &P2,
+    sensor: &P2,
     p: &PerceptionParams,
 ) {
-    let continues = |end: &Candidate, c: &Candidate, up: bool| {
+    let continues = |along: &P2, end: &Candidate, c: &Candidate, up: bool| {
         let rise = if up { c.height - end.height } else { end.height - c.height };
         let (ea, eb) = geom2d::extents(&end.xy, along);
         let (ca, cb) = geom2d::extents(&c.xy, along);
@@ -300,6 +301,8 @@ fn extend_flight<'a>(
     };
     loop {
         let (Some(&top), Some(&bottom)) = (stair.last(), stair.first()) else { return };
+        let along = &ascent_direction(stair, sensor);
+        let continues = |end: &Candidate, c: &Candidate, up: bool| continues(along, end, c, up);
         let fresh = |c: &&&Candidate| !stair.iter().any(|s| std::ptr::eq(*s, **c));
         if let Some(c) = others.iter().filter(fresh).find(|c| continues(top, c, true)) {
             stair.push(c);
@@ -319,14 +322,32 @@ fn extend_flight<'a>(
     }
 }
 
+/// The flight from its cluster `stair` (sorted by height): extended by the `others` that
+/// continue it ([`extend_flight`]), and its direction of ascent over the whole flight: the cluster alone may be one step seen in part (ci case 54, from the foot of
+/// the flight: a 13 cm strip of step 1, its axis 5 deg off, set the axis of step 2's
+/// rectangle, which came out 0.357 m deep on a 0.262 m tread, and the foot planned in its
+/// middle overhung the nose).
+fn flight<'a>(
+    stair: &mut Vec<&'a Candidate>,
+    others: &[&'a Candidate],
+    sensor: &P2,
+    p: &PerceptionParams,
+) -> P2 {
+    extend_flight(stair, others, sensor, p);
+    ascent_direction(stair, sensor)
+}
+
 /// Unit horizontal direction of ascent of a staircase (steps sorted by height).
 fn ascent_direction(stair: &[&Candidate], sensor: &P2) -> P2 {
     // The segments' rectangle axes, folded to [0, 90) degrees, averaged on the doubled
-    // circle of period 90 degrees (angle x 4), weighted by segment size.
+    // circle of period 90 degrees (angle x 4), weighted by segment size and by how long
+    // the rectangle is against its width: a near-square one (a deep landing seen in part,
+    // its 1.3 m by 1.26 m the biggest segment in view in ci case 54) says little of its axis.
     let (mut s, mut c) = (0.0, 0.0);
     for seg in stair {
         let a = seg.axis.y.atan2(seg.axis.x);
-        let w = seg.voxels.len() as f64;
+        let elongation = 1.0 - seg.shape[0] / seg.shape[1].max(1e-9);
+        let w = seg.voxels.len() as f64 * elongation;
         s += w * (4.0 * a).sin();
         c += w * (4.0 * a).cos();
     }
@@ -380,13 +401,18 @@ mod tests {
         assert!(span > 0.03);
     }
 
-    /// Voxels on a grid at `xy` (z = 0.3), as a candidate.
+    /// Voxels at `xy` (z = 0.3), as a candidate.
     fn candidate_of(xy: &[(f32, f32)]) -> Candidate {
+        candidate_at(xy, 0.3)
+    }
+
+    /// Voxels at `xy` and height `z`, as a candidate.
+    fn candidate_at(xy: &[(f32, f32)], z: f32) -> Candidate {
         let n = xy.len();
         let vc = VoxelCloud {
             resolution_m: 0.02,
             keys: vec![[0, 0, 0]; n],
-            positions: xy.iter().map(|&(x, y)| Point3::new(x, y, 0.3)).collect(),
+            positions: xy.iter().map(|&(x, y)| Point3::new(x, y, z)).collect(),
             normals: vec![Vector3::z(); n],
             counts: vec![1; n],
             adjacency: vec![1; n],
@@ -414,6 +440,44 @@ mod tests {
         let small: Vec<(f32, f32)> =
             (0..50).map(|i| ((i % 10) as f32 * 0.02, (i / 10) as f32 * 0.02)).collect();
         assert!(!is_surface(&candidate_of(&small), &p), "0.18 by 0.08 m: smaller than the sole");
+    }
+
+    /// A tread of `depth_m` by `width_m` from `front_m` along x, turned `yaw_deg`, every
+    /// 2 cm, at height `z`.
+    fn tread(front_m: f32, depth_m: f32, width_m: f32, yaw_deg: f32, z: f32) -> Candidate {
+        let (s, c) = yaw_deg.to_radians().sin_cos();
+        let (nx, ny) = ((depth_m / 0.02) as usize, (width_m / 0.02) as usize);
+        let xy: Vec<(f32, f32)> = (0..=nx)
+            .flat_map(|i| {
+                (0..=ny).map(move |j| {
+                    let (a, b) = (front_m + i as f32 * 0.02, j as f32 * 0.02 - width_m / 2.0);
+                    (a * c - b * s, a * s + b * c)
+                })
+            })
+            .collect();
+        candidate_at(&xy, z)
+    }
+
+    /// ci case 54's view from the foot of the flight: the cluster is a 13 cm strip of step
+    /// 1 whose rectangle is turned 5 deg; step 2 and a deep landing continue it. The
+    /// flight's ascent is read over all three (the strip still pulls it 1.4 deg), and step
+    /// 2's rectangle along it is within 4 cm of its depth.
+    #[test]
+    fn a_strip_of_a_step_does_not_set_the_flights_axis() {
+        let p = PerceptionParams::default();
+        // Step 1's back 13 cm (its front hidden under the sensor), step 2, the landing.
+        let strip = tread(0.132, 0.13, 1.13, 5.0, 0.187);
+        let step_2 = tread(0.262, 0.262, 1.31, 0.0, 0.374);
+        let landing = tread(0.524, 1.26, 1.31, 0.0, 0.561);
+        let mut stair = vec![&strip];
+        let others = [&strip, &step_2, &landing];
+        let along = flight(&mut stair, &others, &P2::new(-0.9, 0.0), &p);
+        assert_eq!(stair.len(), 3, "step 2 and the landing continue the strip");
+        let off_deg = along.y.atan2(along.x).to_degrees();
+        assert!(off_deg.abs() < 2.0, "the flight's ascent is {off_deg:.2} deg off");
+        // Step 2's rectangle along it (along the strip's axis: 0.375 m on its 0.262 m).
+        let (ra, _) = geom2d::extents(&step_2.xy, &along);
+        assert!((ra[1] - ra[0] - 0.262).abs() < 0.04, "step 2 comes out {:.3} m deep", ra[1] - ra[0]);
     }
 
     #[test]
