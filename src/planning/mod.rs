@@ -239,22 +239,14 @@ pub enum RefusalKind {
 }
 
 impl RefusalKind {
-    /// Whether a closer view of the steps may undo this refusal: a judgement of the steps
-    /// as seen (a step seen in part is narrow or shallow, a tread lost to noise leaves a
-    /// rise too high or a step missing, a rectangle from afar comes back turned), not of
-    /// the robot's motion over them.
+    /// Whether a closer view of the steps may undo this refusal: a judgement of a step's
+    /// extent as seen (a step seen in part is narrow or shallow, leaves a gap or a long
+    /// stride, or comes back turned), not of the robot's motion over the steps. Rises are
+    /// not: a height is measured whole from any view, and a staircase too high to climb
+    /// is refused before anything moves.
     pub fn about_the_view(self) -> bool {
         use RefusalKind as K;
-        matches!(
-            self,
-            K::NotStraight
-                | K::ShortTread
-                | K::MissingStep
-                | K::HighRise
-                | K::Gap
-                | K::OffTheSide
-                | K::Stride
-        )
+        matches!(self, K::NotStraight | K::ShortTread | K::Gap | K::OffTheSide | K::Stride)
     }
 }
 
