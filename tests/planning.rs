@@ -404,13 +404,18 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
     use stairbench::planning::RefusalKind;
     use std::sync::Arc;
     let model = hrp4::model().unwrap();
-    let mut s = Scenario::default();
-    s.staircase.start_m = [1.6, 0.0];
-    let scene = common::scene_of(&s);
-    let mut rects = rectangles::from_step_tops(scene.steps());
-    let r = rects[1].clone();
-    rects[1] = PlaneSegment::new(r.center(), r.along(), r.depth_m(), 0.2, Vector3::z(), 0).unwrap();
-    let q0 = start_q(&model, &scene.robot_start());
+    // Exp. 1's flight `start_m` ahead, step 2 seen 0.2 m wide: its rectangles, and the
+    // robot standing at the start.
+    let seen_from = |start_m: f64| {
+        let mut s = Scenario::default();
+        s.staircase.start_m = [start_m, 0.0];
+        let scene = common::scene_of(&s);
+        let mut rects = rectangles::from_step_tops(scene.steps());
+        let r = rects[1].clone();
+        rects[1] = PlaneSegment::new(r.center(), r.along(), r.depth_m(), 0.2, Vector3::z(), 0).unwrap();
+        (rects, start_q(&model, &scene.robot_start()))
+    };
+    let (rects, q0) = seen_from(1.6);
     let p = PlanParams::default();
     let floor = floor_seen([0.0, 1.6], 0.0);
     let Err(refused) = plan_among(&model, &q0, &rects, Arc::new(SeenPoints::new(floor.clone())), Some(1), &p)
@@ -459,13 +464,7 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
     }
 
     // Standing within a stride of step 1: nothing left to walk, the refusal stands.
-    let mut near = s.clone();
-    near.staircase.start_m = [0.25, 0.0];
-    let near_scene = common::scene_of(&near);
-    let mut near_rects = rectangles::from_step_tops(near_scene.steps());
-    let r = near_rects[1].clone();
-    near_rects[1] = PlaneSegment::new(r.center(), r.along(), r.depth_m(), 0.2, Vector3::z(), 0).unwrap();
-    let q_near = start_q(&model, &near_scene.robot_start());
+    let (near_rects, q_near) = seen_from(0.25);
     let stands = plan_next(&model, &q_near, &near_rects, Arc::new(SeenPoints::new(floor)), 1, &p);
     assert_eq!(stands.err().map(|r| r.kind), Some(RefusalKind::OffTheSide), "walked within a stride");
 }
