@@ -87,18 +87,26 @@ pub fn without_partial_top(mut ahead: Vec<PlaneSegment>, min_tread_m: f64) -> Ne
 /// matches. Where a new rectangle matches a known one, the two views are merged
 /// ([`merge_view`]): the one on more voxels, reaching to the other's front and back edges
 /// where they are farther out (each view misses part of a tread: its front close to the
-/// riser, its back from afar).
+/// riser, its back from afar). New rectangles that are one step, once merged (a view that
+/// split a tread in two), are one: ci case 188, under 20 mm of noise, saw step 3 as two
+/// pieces side by side, each merged with the known step into a whole tread; the two at one
+/// height left the first no depth up to the "next" one's front, and its foot was planned
+/// on the nose (the robot fell).
 pub fn merge(known: &[PlaneSegment], seen: Vec<PlaneSegment>, same_m: f64) -> Vec<PlaneSegment> {
     let matches = |a: &PlaneSegment, b: &PlaneSegment| same_step(a, b, same_m);
     let kept: Vec<PlaneSegment> =
         known.iter().filter(|k| !seen.iter().any(|s| matches(k, s))).cloned().collect();
-    let updated: Vec<PlaneSegment> = seen
-        .into_iter()
-        .map(|s| match known.iter().find(|k| matches(k, &s)) {
+    let mut updated: Vec<PlaneSegment> = Vec::with_capacity(seen.len());
+    for s in seen {
+        let s = match known.iter().find(|k| matches(k, &s)) {
             Some(k) => merge_view(&s, k),
             None => s,
-        })
-        .collect();
+        };
+        match updated.iter_mut().find(|u| matches(u, &s)) {
+            Some(u) => *u = merge_view(&s, u),
+            None => updated.push(s),
+        }
+    }
     updated.into_iter().chain(kept).collect()
 }
 
@@ -255,6 +263,26 @@ mod tests {
         // Two treads at one height that do not overlap stay two (a landing between flights).
         let apart = merge(&[step(1.0, 0.4, 0.27)], vec![step(1.6, 0.4, 0.27)], 0.15);
         assert_eq!(apart.len(), 2);
+    }
+
+    /// ci case 188: a view splits the known step 3 (0.9 m wide) in two pieces side by
+    /// side; the map keeps one step 3, whole.
+    #[test]
+    fn a_view_that_splits_a_tread_in_two_leaves_one_step() {
+        let known = vec![
+            level(Point3::new(0.69, 0.0, 0.51), Vector3::x(), 0.31, 0.83, 400),
+            level(Point3::new(0.41, 0.0, 0.34), Vector3::x(), 0.26, 0.60, 300),
+        ];
+        let seen = vec![
+            level(Point3::new(0.70, -0.34, 0.511), Vector3::x(), 0.28, 0.18, 60),
+            level(Point3::new(0.74, -0.07, 0.515), Vector3::x(), 0.23, 0.29, 90),
+        ];
+        let merged = merge(&known, seen, 0.15);
+        let at_3: Vec<&PlaneSegment> = merged.iter().filter(|r| (r.height_m() - 0.51).abs() < 0.02).collect();
+        assert_eq!(at_3.len(), 1, "{at_3:?}");
+        let front = at_3[0].center().x - at_3[0].depth_m() / 2.0;
+        assert!((at_3[0].width_m() - 0.83).abs() < 1e-9 && (front - 0.535).abs() < 1e-9, "{at_3:?}");
+        assert_eq!(merged.len(), 2);
     }
 
     #[test]
