@@ -348,11 +348,12 @@ fn ascent_direction(stair: &[&Candidate], sensor: &P2, p: &PerceptionParams) -> 
 /// The direction of ascent `axes` turned toward the line through the middles (across) of
 /// the steps in `stair` as wide as the flight, weighing the two by their variances.
 ///
-/// A segment's minimum-area rectangle is drawn on the edges of a voxel grid that is
-/// aligned with the world, and its axis leans toward the grid's: on a flight yawed 9.5
-/// degrees the rectangles came out at 6.4-9.4 degrees, the same in one view for every
-/// step, and a foot keeping its lane along that axis drifted 7 mm sideways a step until the
-/// planner refused a landing it "would overhang" (ci case 0). The steps' middles across
+/// A segment's minimum-area rectangle is drawn on its hull, the ragged outline that range
+/// noise, dropouts and the world-aligned voxel grid leave (a stray voxel at a corner turns
+/// it): on a flight yawed 9.5 degrees the treads' rectangles came out 6.3-10.5 degrees, and
+/// their weighed mean, one axis for every step of a view, 6.4-10.1; a foot keeping its lane
+/// along it drifted up to 8 mm sideways a step until the planner refused a landing it
+/// "would overhang" (ci case 0). The steps' middles across
 /// lie on the flight's axis however the grid falls: each is within about a quarter voxel
 /// (its two side edges, each half a voxel, averaged), so over steps spread along the
 /// flight their line's direction is known to `voxel / 2 / spread`, where a rectangle's
