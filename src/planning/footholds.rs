@@ -180,9 +180,9 @@ pub fn footholds(
     let mut prev_along = lay.start_along;
     for (i, s) in steps.iter().enumerate() {
         let c = s.center();
-        let (front, along) = lay.foothold_along(&steps, i, p);
-        if s.depth_m() < p.min_tread_m {
-            return Err(PlanError::ShortTread { step: i, depth_m: s.depth_m(), min_m: p.min_tread_m });
+        let (front, along, usable_m) = lay.foothold_along(&steps, i, p);
+        if usable_m < p.min_tread_m {
+            return Err(PlanError::ShortTread { step: i, depth_m: usable_m, min_m: p.min_tread_m });
         }
         if rises.len() >= 3 && rises[i] >= p.missing_step_ratio * median {
             return Err(PlanError::MissingStep { step: i, rise_m: rises[i], median_m: median });
@@ -247,7 +247,7 @@ pub fn approach(start: &Stance, rects: &[PlaneSegment], seen: &[Point3<f64>], p:
     }
     let steps = super::rectangles::by_height(rects);
     let lay = Layout::new(start, &steps, seen, p);
-    let (front, along) = lay.foothold_along(&steps, 0, p);
+    let (front, along, _) = lay.foothold_along(&steps, 0, p);
     let mut walk = lay.floor_walk(front, along, p);
     let seen_free = |f: &Isometry3<f64>| {
         let blind = (f.translation.vector - lay.frame.o.coords).dot(&lay.frame.u) - lay.start_along
@@ -351,17 +351,17 @@ impl Layout {
         front - p.sole_length_m / 2.0 - p.toe_gap_m
     }
 
-    /// Step `i`'s front edge and its foothold, along the ascent. The foot goes in the middle
-    /// of the tread up to the next step's nose: a tread's back edge is its view's least sure
+    /// Step `i`'s front edge, its foothold along the ascent, and its usable depth (up to the
+    /// next step's nose, at most its own). The foot goes in the middle of that depth: a tread's back edge is its view's least sure
     /// (the next nose hides it from afar, and its voxels reach past the riser), and the toes
     /// must stay off the next riser (ci suite: a tread seen 2 cm deep past it put the toes
     /// against it).
-    fn foothold_along(&self, steps: &[&PlaneSegment], i: usize, p: &GaitParams) -> (f64, f64) {
+    fn foothold_along(&self, steps: &[&PlaneSegment], i: usize, p: &GaitParams) -> (f64, f64, f64) {
         let front = |s: &PlaneSegment| (s.center() - self.frame.o).dot(&self.frame.u) - s.depth_m() / 2.0;
         let s = steps[i];
         let next_front = steps.get(i + 1).map(|n| front(n));
         let usable_m = next_front.map_or(s.depth_m(), |n| (n - front(s)).clamp(0.0, s.depth_m()));
-        (front(s), front(s) + (usable_m / 2.0).min(p.landing_foothold_m))
+        (front(s), front(s) + (usable_m / 2.0).min(p.landing_foothold_m), usable_m)
     }
 
     /// Both feet `along` the ascent in `lanes`, on the plane through `point` with normal `n`
@@ -630,6 +630,36 @@ mod tests {
         assert!((on_step_1.right.translation.x - 0.635).abs() < 1e-9, "{}", on_step_1.right.translation.x);
         let on_step_2 = stances.iter().find(|s| s.step == Some(1)).expect("a stance on step 2");
         assert!((on_step_2.right.translation.x - 0.905).abs() < 1e-9, "the top step: its own middle");
+    }
+
+    /// The ci suite's case 188: a view split a tread in two pieces at one height, one 4 mm
+    /// past the other; the first left no depth up to the second's front, its foothold went on
+    /// the nose and the robot fell. A tread is as deep as the foot can use, up to the next
+    /// step's front edge: one too shallow that way is refused like a short tread.
+    #[test]
+    fn a_tread_hidden_by_the_next_step_is_refused_as_short() {
+        let step = |front: f64, z: f64, depth: f64| {
+            PlaneSegment::new(
+                Point3::new(front + depth / 2.0, 0.0, z),
+                Vector3::x(),
+                depth,
+                1.0,
+                Vector3::z(),
+                100,
+            )
+            .expect("valid rectangle")
+        };
+        let sole = |y: f64| Isometry3::translation(0.3, y, 0.0);
+        let start = Stance { right: sole(-0.1), left: sole(0.1), step: None };
+        let p = GaitParams::default();
+        let split = [step(0.5, 0.17, 0.29), step(0.504, 0.172, 0.286), step(0.79, 0.34, 0.27)];
+        match footholds(&start, &split, &[], &p) {
+            Err(PlanError::ShortTread { step: 0, depth_m, .. }) => assert!((depth_m - 0.004).abs() < 1e-9),
+            other => panic!("a foothold on the nose: {other:?}"),
+        }
+        // The next step's front 0.25 m past: the sole fits, planned.
+        let whole = [step(0.5, 0.17, 0.29), step(0.75, 0.34, 0.27)];
+        assert!(footholds(&start, &whole, &[], &p).is_ok());
     }
 
     /// Treads deeper than the stride: the ci suite's case 6 (0.368 m treads, their middles

@@ -34,12 +34,13 @@ pub enum PlanError {
         /// The largest accepted.
         limit_rad: f64,
     },
-    /// A tread shorter than the foot.
-    #[error("step {}: tread {depth_m:.3} m is shorter than the foot needs ({min_m:.3} m)", .step + 1)]
+    /// A tread shorter than the foot, as deep as the foot can use it: up to the next step's
+    /// front edge.
+    #[error("step {}: tread {depth_m:.3} m deep (up to the next step's front) is shorter than the foot needs ({min_m:.3} m)", .step + 1)]
     ShortTread {
         /// 0-based step.
         step: usize,
-        /// Its depth.
+        /// Its depth, up to the next step's front edge.
         depth_m: f64,
         /// The least accepted.
         min_m: f64,
