@@ -11,6 +11,7 @@ use crate::cancel::Cancel;
 use crate::climb::{ControlCost, Event, Execution, Executor, Observer, RobotState};
 use crate::control::Stabilizer;
 use crate::params::ClimbParams;
+use crate::planning::gait::Swing;
 use crate::planning::Plan;
 use crate::robot::hrp4;
 use crate::robot::model::{RobotModel, Q_JOINTS, V_JOINTS};
@@ -107,6 +108,8 @@ pub fn execute(
         .collect();
     let mut seg = 0usize;
     let mut landed = vec![false; plan.segments.len()];
+    // Touchdowns due: the swing, and the plan time by which its foot must be down.
+    let mut due: Vec<(&Swing, f64)> = Vec::new();
     let mut q = vec![0.0; model.nq()];
     let mut control = match params.stabilizer.enabled {
         true => Some(Control {
@@ -150,11 +153,12 @@ pub fn execute(
             break;
         }
         let soles = mon.ids.sole_sites.map(|s| world.site_pose(s));
-        // Touchdown: the moment a swing segment ends (or the trajectory does).
+        // A swing segment's end: its foot's touchdown is due.
         while t > ends[seg] - dt / 2.0 && !landed[seg] {
             landed[seg] = true;
             if let Some(sw) = &plan.segments[seg].swing {
-                mon.touchdown(now, sw, &soles);
+                let by_s = ends.get(seg + 1).copied().unwrap_or(ends[seg]);
+                due.push((sw, by_s));
             }
             if seg + 1 < plan.segments.len() {
                 seg += 1;
@@ -164,6 +168,17 @@ pub fn execute(
         let swing = plan.segments[seg].swing.as_ref().map(|sw| (sw, &planned.feet[sw.foot.index()]));
         let loads = mon.contacts(world, now, swing);
         let down = mon.feet(now, &loads, &soles);
+        // Touchdown: measured once the foot is down after its swing's end (the compliant
+        // touchdown lowers it slowly the last centimetre, and the servos lag their set points:
+        // at the swing's end on the plan's clock it may still be millimetres above), or, if
+        // it is not down by the end of the next segment, there, in the air.
+        due.retain(|&(sw, by_s)| {
+            let now_due = down[sw.foot.index()] || t > by_s - dt / 2.0;
+            if now_due {
+                mon.touchdown(now, sw, &soles);
+            }
+            !now_due
+        });
         let margin_m = mon.margin(world, now, &loads, down, &soles);
         let max_torque_ratio =
             mon.joints(joints, |a| servos.demand_nm(world, a), |a| world.data().qvel()[V_JOINTS + a], now);
@@ -182,7 +197,13 @@ pub fn execute(
             break;
         }
     }
-    mon.ex.sim_s = world.data().time() - t_start;
+    // A touchdown still due when the plan ended (or the run stopped): measured as it is.
+    let soles = mon.ids.sole_sites.map(|s| world.site_pose(s));
+    let now = world.data().time() - t_start;
+    for (sw, _) in due {
+        mon.touchdown(now, sw, &soles);
+    }
+    mon.ex.sim_s = now;
     if let Some(c) = control {
         mon.ex.control = Some(ControlCost { ticks: c.ticks, wall_s: c.wall_s });
     }
