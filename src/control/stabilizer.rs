@@ -409,9 +409,22 @@ impl<'m> Stabilizer<'m> {
             }
         }
         // One foot down (or none loaded): its CoP is where the CoM puts it; the offsets
-        // return to the plan.
-        for (f, _) in supports {
-            admittance::leak(&mut self.offsets[f.index()], p, dt);
+        // return to the plan, but for the other foot of a double support, touching the
+        // ground lightly, whose tangential force still yields.
+        let double = supports.len() == 2;
+        for (f, pose) in supports {
+            let k = f.index();
+            let light = measured[k].force_n.z > p.touchdown_force_n && !loaded(k);
+            match wanted[k] {
+                Some(w) if double && light => admittance::light_contact(
+                    &mut self.offsets[k],
+                    &(pose.rotation * measured[k].force_n),
+                    &(pose.rotation * w.force_n),
+                    p,
+                    dt,
+                ),
+                _ => admittance::leak(&mut self.offsets[k], p, dt),
+            }
         }
     }
 }
