@@ -601,23 +601,25 @@ mod tests {
         ));
     }
 
+    /// A 1 m wide tread ascending along x, its front edge at `front`, its top at `z`.
+    fn tread(front: f64, z: f64, depth: f64) -> PlaneSegment {
+        PlaneSegment::new(
+            Point3::new(front + depth / 2.0, 0.0, z),
+            Vector3::x(),
+            depth,
+            1.0,
+            Vector3::z(),
+            100,
+        )
+        .expect("valid rectangle")
+    }
+
     /// A tread's back edge seen 2 cm past the next riser (voxels reach past it): the foot goes
     /// in the middle of the tread up to the next nose, so the toes stay as far from the next
     /// riser as the heel from the nose (the smoke suite's case 3: the toe struck the riser).
     #[test]
     fn a_foot_is_centred_between_the_nose_and_the_next_nose() {
-        let step = |front: f64, z: f64, depth: f64| {
-            PlaneSegment::new(
-                Point3::new(front + depth / 2.0, 0.0, z),
-                Vector3::x(),
-                depth,
-                1.0,
-                Vector3::z(),
-                100,
-            )
-            .expect("valid rectangle")
-        };
-        let rects = [step(0.5, 0.17, 0.29), step(0.77, 0.34, 0.27)];
+        let rects = [tread(0.5, 0.17, 0.29), tread(0.77, 0.34, 0.27)];
         let sole = |y: f64| Isometry3::translation(0.3, y, 0.0);
         let stances = footholds(
             &Stance { right: sole(-0.1), left: sole(0.1), step: None },
@@ -638,27 +640,16 @@ mod tests {
     /// step's front edge: one too shallow that way is refused like a short tread.
     #[test]
     fn a_tread_hidden_by_the_next_step_is_refused_as_short() {
-        let step = |front: f64, z: f64, depth: f64| {
-            PlaneSegment::new(
-                Point3::new(front + depth / 2.0, 0.0, z),
-                Vector3::x(),
-                depth,
-                1.0,
-                Vector3::z(),
-                100,
-            )
-            .expect("valid rectangle")
-        };
         let sole = |y: f64| Isometry3::translation(0.3, y, 0.0);
         let start = Stance { right: sole(-0.1), left: sole(0.1), step: None };
         let p = GaitParams::default();
-        let split = [step(0.5, 0.17, 0.29), step(0.504, 0.172, 0.286), step(0.79, 0.34, 0.27)];
+        let split = [tread(0.5, 0.17, 0.29), tread(0.504, 0.172, 0.286), tread(0.79, 0.34, 0.27)];
         match footholds(&start, &split, &[], &p) {
             Err(PlanError::ShortTread { step: 0, depth_m, .. }) => assert!((depth_m - 0.004).abs() < 1e-9),
             other => panic!("a foothold on the nose: {other:?}"),
         }
         // The next step's front 0.25 m past: the sole fits, planned.
-        let whole = [step(0.5, 0.17, 0.29), step(0.75, 0.34, 0.27)];
+        let whole = [tread(0.5, 0.17, 0.29), tread(0.75, 0.34, 0.27)];
         assert!(footholds(&start, &whole, &[], &p).is_ok());
     }
 
