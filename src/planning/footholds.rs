@@ -352,10 +352,10 @@ impl Layout {
     }
 
     /// Step `i`'s front edge, its foothold along the ascent, and its usable depth (up to the
-    /// next step's nose, at most its own). The foot goes in the middle of that depth: a tread's back edge is its view's least sure
-    /// (the next nose hides it from afar, and its voxels reach past the riser), and the toes
-    /// must stay off the next riser (ci suite: a tread seen 2 cm deep past it put the toes
-    /// against it).
+    /// next step's nose, at most its own). The foot goes in the middle of that depth: a
+    /// tread's back edge is its view's least sure (the next nose hides it from afar, and its
+    /// voxels reach past the riser), and the toes must stay off the next riser (ci suite: a
+    /// tread seen 2 cm deep past it put the toes against it).
     fn foothold_along(&self, steps: &[&PlaneSegment], i: usize, p: &GaitParams) -> (f64, f64, f64) {
         let front = |s: &PlaneSegment| (s.center() - self.frame.o).dot(&self.frame.u) - s.depth_m() / 2.0;
         let s = steps[i];
