@@ -15,7 +15,7 @@ pub mod rectangles;
 
 pub use contact::{Contact, ContactSpec};
 pub use footholds::{Foot, Stance};
-pub use plan::{plan, plan_among, plan_approach, Plan, PlanParams};
+pub use plan::{plan, plan_among, plan_approach, plan_below, Plan, PlanParams};
 
 /// Why a climb was refused. Steps are numbered from 1, the lowest, in messages.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]

@@ -112,7 +112,23 @@ pub fn plan_among(
     max_stances: Option<usize>,
     p: &PlanParams,
 ) -> Result<Plan, PlanError> {
-    plan_stances(model, q0, rects, seen, max_stances, p, |start, pts| footholds(start, rects, pts, &p.gait))?
+    plan_below(model, q0, rects, rects.len(), seen, max_stances, p)
+}
+
+/// [`plan_among`] up to the `below` lowest rectangles of `rects` (a higher one left to be
+/// judged from nearer): the feet go on those only, the legs keep off all of `rects`.
+pub fn plan_below(
+    model: &RobotModel,
+    q0: &[f64],
+    rects: &[PlaneSegment],
+    below: usize,
+    seen: Arc<SeenPoints>,
+    max_stances: Option<usize>,
+    p: &PlanParams,
+) -> Result<Plan, PlanError> {
+    let lower: Vec<PlaneSegment> =
+        super::rectangles::by_height(rects).into_iter().take(below).cloned().collect();
+    plan_stances(model, q0, rects, seen, max_stances, p, |start, pts| footholds(start, &lower, pts, &p.gait))?
         .ok_or(PlanError::NoSteps)
 }
 
