@@ -409,13 +409,21 @@ impl<'m> Stabilizer<'m> {
             }
         }
         // One foot down (or none loaded): its CoP is where the CoM puts it; the offsets
-        // return to the plan, but for the other foot of a double support, touching the
-        // ground lightly, whose tangential force still yields.
+        // return to the plan, but for the other foot of a double support: touching the
+        // ground lightly, its tangential force still yields; wanted and not touching, it
+        // goes down to meet the ground.
         let double = supports.len() == 2;
         for (f, pose) in supports {
             let k = f.index();
             let light = measured[k].force_n.z > p.touchdown_force_n && !loaded(k);
             match wanted[k] {
+                Some(w)
+                    if double
+                        && measured[k].force_n.z <= p.touchdown_force_n
+                        && w.force_n.z > p.touchdown_force_n =>
+                {
+                    admittance::press(&mut self.offsets[k], p, dt)
+                }
                 Some(w) if double && light => admittance::light_contact(
                     &mut self.offsets[k],
                     &(pose.rotation * measured[k].force_n),
