@@ -340,11 +340,11 @@ fn a_rehearsal_on_the_perceived_world_writes_the_trajectory_only_when_it_passes(
     assert!(!traj && !rec, "nothing written for a refused climb");
     assert!(text.contains("REFUSED") && text.contains("higher than the legs can climb"), "{text}");
     // A plan that fails in the rehearsal: soles that grip less than even the stabilized climb
-    // needs (friction 0.2 in the rehearsal's world, which the checks judge by; the stabilizer keeps a
-    // loaded foot near 0.25-0.35 of its normal force) slip at the first step-up. Nothing
-    // written.
+    // needs (friction 0.1 in the rehearsal's world, which the checks judge by; the stabilizer
+    // keeps a loaded foot at 0.15-0.25 of its normal force, and the same rehearsal on 0.2
+    // passes at 0.16) slip at the first step-up. Nothing written.
     let slippery = dir.join("slippery.params.toml");
-    std::fs::write(&slippery, "[run]\nrehearsal_friction = 0.2\n").unwrap();
+    std::fs::write(&slippery, "[run]\nrehearsal_friction = 0.1\n").unwrap();
     let (code, traj, rec, text) =
         rehearse(&scenario(), "slippery", &["--params", slippery.to_str().unwrap()]);
     assert_eq!(code, Some(1), "{text}");

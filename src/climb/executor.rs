@@ -111,7 +111,8 @@ pub trait Executor {
     /// w x y z, joints).
     fn configuration(&self) -> Vec<f64>;
 
-    /// Holds the current posture for `seconds` (the servos settle before a scan).
+    /// Holds the current posture for at least `seconds` (the servos settle before a scan;
+    /// the simulated robot stands on until it is still).
     fn settle(&mut self, seconds: f64) -> Result<(), Self::Error>;
 
     /// Executes `plan` from the current state with every check; `observer` sees the state

@@ -43,6 +43,17 @@ pub struct RunParams {
     /// Standing still before each scan, seconds (the servos settle; the real robot scans
     /// standing still too).
     pub settle_s: f64,
+    /// After `settle_s`, the robot stands on until its base has moved no faster than this
+    /// for `still_s` in a row, m/s (at most `max_settle_s` in all): a plan starts from the
+    /// measured configuration, taken at rest (§6.2's motion is quasi-static). At x 2 speed
+    /// Exp. 1's floor walk ended with the robot swaying sideways at 0.1 m/s; the next plan
+    /// started mid-sway and the CoM left the right sole's polygon 43 ms in.
+    pub still_speed_m_s: f64,
+    /// How long the base must stay under `still_speed_m_s`, seconds (a sway's turning point
+    /// is slow for an instant: a plan started there, the robot tipping, failed at once).
+    pub still_s: f64,
+    /// Longest stand before a scan, seconds.
+    pub max_settle_s: f64,
     /// Friction coefficient of the surfaces of a hardware rehearsal's world (`run
     /// --hardware`: the perceived steps rebuilt in simulation, whose true friction nobody
     /// measured; the checks judge the rehearsal against it). Default 0.7, the plan's.
@@ -55,6 +66,9 @@ impl Default for RunParams {
             stances_per_scan: 1,
             max_cycles: 40,
             settle_s: 0.3,
+            still_speed_m_s: 0.01,
+            still_s: 0.2,
+            max_settle_s: 2.0,
             rehearsal_friction: crate::planning::contact::DEFAULT_FRICTION,
         }
     }
