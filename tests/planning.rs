@@ -405,18 +405,19 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
     use stairbench::planning::RefusalKind;
     use std::sync::Arc;
     let model = hrp4::model().unwrap();
-    // Exp. 1's flight `start_m` ahead, step 2 seen 0.2 m wide: its rectangles, and the
-    // robot standing at the start.
+    // Exp. 1's flight `start_m` ahead, step `narrow` seen 0.2 m wide: its rectangles, the
+    // whole flight's, and the robot standing at the start.
     let seen_from = |start_m: f64, narrow: usize| {
         let mut s = Scenario::default();
         s.staircase.start_m = [start_m, 0.0];
         let scene = common::scene_of(&s);
-        let mut rects = rectangles::from_step_tops(scene.steps());
-        let r = rects[narrow].clone();
+        let whole = rectangles::from_step_tops(scene.steps());
+        let mut rects = whole.clone();
+        let r = &whole[narrow];
         rects[narrow] = PlaneSegment::new(r.center(), r.along(), r.depth_m(), 0.2, Vector3::z(), 0).unwrap();
-        (rects, start_q(&model, &scene.robot_start()))
+        (rects, whole, start_q(&model, &scene.robot_start()))
     };
-    let (rects, q0) = seen_from(1.6, 1);
+    let (rects, _, q0) = seen_from(1.6, 1);
     let p = PlanParams::default();
     let floor = floor_seen([0.0, 1.6], 0.0);
     let Err(refused) = plan_among(&model, &q0, &rects, Arc::new(SeenPoints::new(floor.clone())), Some(1), &p)
@@ -466,22 +467,14 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
 
     // Standing within a stride of step 1: step 1 is climbed to look at step 2 again, its
     // own plan's first stance.
-    let (near_rects, q_near) = seen_from(0.25, 1);
+    let (near_rects, flight, q_near) = seen_from(0.25, 1);
     let near = |rects: &[PlaneSegment]| {
         plan_next(&model, &q_near, rects, Arc::new(SeenPoints::new(floor.clone())), 1, &p)
     };
     let Ok((up, why)) = near(&near_rects) else { panic!("step 1 not climbed to look again at step 2") };
     assert_eq!(why.map(|r| r.kind), Some(RefusalKind::OffTheSide));
-    let whole = rectangles::from_step_tops(
-        common::scene_of(&{
-            let mut s = Scenario::default();
-            s.staircase.start_m = [0.25, 0.0];
-            s
-        })
-        .steps(),
-    );
     let Ok(climb) =
-        plan_among(&model, &q_near, &whole, Arc::new(SeenPoints::new(floor.clone())), Some(1), &p)
+        plan_among(&model, &q_near, &flight, Arc::new(SeenPoints::new(floor.clone())), Some(1), &p)
     else {
         panic!("the whole flight refused")
     };
@@ -489,7 +482,7 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
     let off_m = (up.stances[0].right.translation.vector - climb.stances[0].right.translation.vector).norm();
     assert!(off_m < 1e-3, "the right foot {off_m:.4} m off where the whole flight's climb puts it");
     // Step 1 seen in part within a stride of it: nothing left to walk, the refusal stands.
-    let (narrow_first, _) = seen_from(0.25, 0);
+    let (narrow_first, _, _) = seen_from(0.25, 0);
     assert_eq!(
         near(&narrow_first).err().map(|r| r.kind),
         Some(RefusalKind::OffTheSide),

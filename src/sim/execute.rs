@@ -288,6 +288,11 @@ pub fn settle(world: &mut World, seconds: f64) {
     }
 }
 
+/// The speed of the robot's base (its free joint's linear velocity), m/s.
+fn base_speed_m_s(world: &World) -> f64 {
+    world.data().qvel()[..3].iter().map(|v| v * v).sum::<f64>().sqrt()
+}
+
 /// Holds the robot at its commanded posture until its base has moved no faster than
 /// `speed_m_s` for `still_s` seconds in a row (a sway's turning point is slow for an
 /// instant only), for at most `max_s` seconds; the time it stood, seconds.
@@ -295,8 +300,7 @@ pub fn settle_until_still(world: &mut World, speed_m_s: f64, still_s: f64, max_s
     let dt = world.model().opt().timestep;
     let (mut t_s, mut still_from_s) = (0.0, 0.0);
     while t_s + dt / 2.0 < max_s {
-        let v = &world.data().qvel()[..3];
-        if (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() > speed_m_s {
+        if base_speed_m_s(world) > speed_m_s {
             still_from_s = t_s + dt;
         } else if t_s - still_from_s + dt / 2.0 >= still_s {
             break;
@@ -401,7 +405,6 @@ mod tests {
         let scene = Scene::from_scenario(&crate::scenario::Scenario::default()).unwrap();
         let mut world = World::for_scene(&scene).unwrap();
         settle(&mut world, 0.5);
-        let base_speed = |w: &World| w.data().qvel()[..3].iter().map(|v| v * v).sum::<f64>().sqrt();
         let still = settle_until_still(&mut world, 0.01, 0.2, 2.0);
         assert!((still - 0.2).abs() < 0.002, "a still robot stood {still} s");
         world.data_mut().qvel_mut()[1] = 0.15;
@@ -409,7 +412,8 @@ mod tests {
         assert!(stood > 0.25 && stood < 2.0, "stood {stood} s");
         for _ in 0..100 {
             world.data_mut().step();
-            assert!(base_speed(&world) <= 0.01, "swaying again at {} m/s", base_speed(&world));
+            let v = base_speed_m_s(&world);
+            assert!(v <= 0.01, "swaying again at {v} m/s");
         }
     }
 }
