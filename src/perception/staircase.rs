@@ -142,8 +142,9 @@ pub fn extract(
     let segments = stair
         .iter()
         .filter_map(|c| {
-            let (ra, rb) = geom2d::extents(&c.xy, &along);
             let left = P2::new(-along.y, along.x);
+            let ra = dense_extent(&c.xy, &along, p.voxel_resolution_m, p.min_edge_row_fill);
+            let rb = dense_extent(&c.xy, &left, p.voxel_resolution_m, p.min_edge_row_fill);
             let mid = along * (ra[0] + ra[1]) / 2.0 + left * (rb[0] + rb[1]) / 2.0;
             let centre = Point3::new(mid.x, mid.y, c.height);
             let along3 = Vector3::new(along.x, along.y, 0.0);
@@ -151,6 +152,40 @@ pub fn extract(
         })
         .collect();
     Ok((segments, n_candidates))
+}
+
+/// The extent [min, max] of `xy` along `u`, less what lies beyond an empty row at either
+/// end: the points there, in rows (strips `row_m` wide across `u`) that hold fewer than
+/// `min_fill` of the median row's points, are strays apart from the surface (see
+/// `PerceptionParams::min_edge_row_fill`). The sparse rows next to the surface are its own
+/// edge, cut by the voxel grid, and stay.
+fn dense_extent(xy: &[P2], u: &P2, row_m: f64, min_fill: f64) -> [f64; 2] {
+    let along: Vec<f64> = xy.iter().map(|q| q.dot(u)).collect();
+    let lo = along.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = along.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if !(hi - lo).is_finite() || hi <= lo {
+        return [lo, hi];
+    }
+    let row = |t: f64| ((t - lo) / row_m) as usize;
+    let mut counts = vec![0usize; row(hi) + 1];
+    for &t in &along {
+        counts[row(t)] += 1;
+    }
+    let mut filled: Vec<usize> = counts.iter().copied().filter(|&n| n > 0).collect();
+    filled.sort_unstable();
+    let least = min_fill * filled[filled.len() / 2] as f64;
+    let dense = |n: &usize| *n as f64 >= least;
+    let (Some(first), Some(last)) = (counts.iter().position(dense), counts.iter().rposition(dense)) else {
+        return [lo, hi];
+    };
+    // The rows kept: from past the last empty row before the first dense one, to before
+    // the first empty row after the last dense one.
+    let from = counts[..first].iter().rposition(|&n| n == 0).map_or(0, |e| e + 1);
+    let to = counts[last..].iter().position(|&n| n == 0).map_or(counts.len(), |e| last + e);
+    along
+        .iter()
+        .filter(|&&t| (from..to).contains(&row(t)))
+        .fold([f64::INFINITY, f64::NEG_INFINITY], |[a, b], &t| [a.min(t), b.max(t)])
 }
 
 /// Whether a candidate is a surface a sole can use: its footprint (convex hull) at least
@@ -406,9 +441,17 @@ fn rectangle_axes(stair: &[&Candidate], sensor: &P2) -> P2 {
     let a = s.atan2(c) / 4.0;
     let axes = [P2::new(a.cos(), a.sin()), P2::new(-a.sin(), a.cos())];
     // Which axis, and which way: up the stairs (lowest to highest step), or, for a single
-    // step, away from the sensor.
+    // step, away from the sensor. Between steps, from middle to middle of their outlines,
+    // not from centroid to centroid: the voxels of a step seen in part crowd where the view
+    // is open (ci case 105, from step 3: the legs hid most of one side of step 4, its
+    // centroid 0.23 m off its middle across, and the flight's width was taken for its
+    // ascent: every rectangle of the view came out turned 26 degrees).
+    let middle = |c: &Candidate| {
+        let (ra, rb) = geom2d::extents(&c.hull, &axes[0]);
+        axes[0] * ((ra[0] + ra[1]) / 2.0) + axes[1] * ((rb[0] + rb[1]) / 2.0)
+    };
     let way = match (stair.first(), stair.last()) {
-        (Some(lo), Some(hi)) if stair.len() >= 2 => hi.centroid - lo.centroid,
+        (Some(lo), Some(hi)) if stair.len() >= 2 => middle(hi) - middle(lo),
         (Some(only), _) => only.centroid - sensor,
         _ => P2::x(),
     };
@@ -497,17 +540,75 @@ mod tests {
     /// A tread of `depth_m` by `width_m` from `front_m` along x, turned `yaw_deg`, every
     /// 2 cm, at height `z`.
     fn tread(front_m: f32, depth_m: f32, width_m: f32, yaw_deg: f32, z: f32) -> Candidate {
+        tread_seen(front_m, depth_m, width_m, yaw_deg, z, |_, _| true)
+    }
+
+    /// The voxels of [`tread`] that `seen(along_m, across_m)` keeps (tread coordinates
+    /// from its front's middle).
+    fn tread_seen(
+        front_m: f32,
+        depth_m: f32,
+        width_m: f32,
+        yaw_deg: f32,
+        z: f32,
+        seen: impl Fn(f32, f32) -> bool,
+    ) -> Candidate {
         let (s, c) = yaw_deg.to_radians().sin_cos();
         let (nx, ny) = ((depth_m / 0.02) as usize, (width_m / 0.02) as usize);
         let xy: Vec<(f32, f32)> = (0..=nx)
-            .flat_map(|i| {
-                (0..=ny).map(move |j| {
-                    let (a, b) = (front_m + i as f32 * 0.02, j as f32 * 0.02 - width_m / 2.0);
-                    (a * c - b * s, a * s + b * c)
-                })
-            })
+            .flat_map(|i| (0..=ny).map(move |j| (i as f32 * 0.02, j as f32 * 0.02 - width_m / 2.0)))
+            .filter(|&(a, b)| seen(a, b))
+            .map(|(a, b)| ((front_m + a) * c - b * s, (front_m + a) * s + b * c))
             .collect();
         candidate_at(&xy, z)
+    }
+
+    /// ci case 182's step 6 under 15 mm of range noise: rows of 2, 0 and 7 voxels ahead of
+    /// its rows of 28 or more (the riser's top, scattered along the rays). What lies beyond
+    /// the empty row is not tread; the sparse row next to it may be its edge cut by the grid
+    /// and stays (Exp. 1's treads end in rows of 5 and 1 after rows of 20). A tread seen one
+    /// row in two from afar keeps its whole depth.
+    #[test]
+    fn sparse_rows_beyond_a_gap_ahead_of_a_nose_are_not_tread() {
+        let p = PerceptionParams::default();
+        let v = p.voxel_resolution_m;
+        let row = |along_m: f64, n: usize| (0..n).map(move |j| P2::new(along_m, j as f64 * v));
+        // The tread from 0 to 0.26 m along x, 30 voxels a row; strays at -0.061 and -0.02 (off
+        // the rows' bounds: the rows start at the lowest point).
+        let tread: Vec<P2> = (0..=13).flat_map(|i| row(i as f64 * v, 30)).collect();
+        let with_strays: Vec<P2> = row(-0.061, 2).chain(row(-0.02, 7)).chain(tread.iter().copied()).collect();
+        let [front, back] = dense_extent(&with_strays, &P2::x(), v, p.min_edge_row_fill);
+        assert!(
+            (front + 0.02).abs() < 1e-9 && (back - 0.26).abs() < 1e-9,
+            "the tread spans {front:.3}..{back:.3} m"
+        );
+        // Sparse edge rows with no gap: kept, at both ends.
+        let cut: Vec<P2> =
+            row(-0.041, 1).chain(row(-0.02, 5)).chain(tread.iter().copied()).chain(row(0.28, 2)).collect();
+        assert_eq!(dense_extent(&cut, &P2::x(), v, p.min_edge_row_fill), [-0.041, 0.28]);
+        // A stray row beyond an empty one at the back: dropped.
+        let behind: Vec<P2> = tread.iter().copied().chain(row(0.30, 2)).collect();
+        assert!((dense_extent(&behind, &P2::x(), v, p.min_edge_row_fill)[1] - 0.26).abs() < 1e-9);
+        // One row in two seen: the whole depth.
+        let sparse: Vec<P2> = (0..=13).step_by(2).flat_map(|i| row(i as f64 * v, 30)).collect();
+        let [a, b] = dense_extent(&sparse, &P2::x(), v, p.min_edge_row_fill);
+        assert!(a.abs() < 1e-9 && (b - 0.24).abs() < 1e-9, "{a}..{b}");
+    }
+
+    /// ci case 105's view from step 3 of a flight yawed -19 degrees: the legs hide most of
+    /// step 4 but its left side and a row along its back (its outline whole, its voxels
+    /// crowded to one side: their centroid 0.3 m off its middle across); step 5 whole. The
+    /// ascent is read from the steps' middles, not taken across the flight.
+    #[test]
+    fn a_step_seen_on_one_side_does_not_turn_the_flight() {
+        let p = PerceptionParams::default();
+        let yaw_deg = -19.3;
+        let step_4 = tread_seen(0.0, 0.26, 1.44, yaw_deg, 0.64, |a, b| b > 0.1 || a > 0.24);
+        let step_5 = tread(0.274, 0.27, 1.44, yaw_deg, 0.80);
+        let sensor = P2::new(-0.5, 0.2);
+        let along = ascent_direction(&[&step_4, &step_5], &sensor, &p);
+        let off_deg = along.y.atan2(along.x).to_degrees() - f64::from(yaw_deg);
+        assert!(off_deg.abs() < 2.0, "the flight's ascent is {off_deg:.1} deg off");
     }
 
     /// ci case 54's view from the foot of the flight: the cluster is a 13 cm strip of step
