@@ -597,7 +597,7 @@ mod tests {
 
     /// ci case 105's view from step 3 of a flight yawed -19 degrees: the legs hide most of
     /// step 4 but its left side and a row along its back (its outline whole, its voxels
-    /// crowded to one side: their centroid 0.3 m off its middle across); step 5 whole. The
+    /// crowded to one side: their centroid 0.35 m off its middle across); step 5 whole. The
     /// ascent is read from the steps' middles, not taken across the flight.
     #[test]
     fn a_step_seen_on_one_side_does_not_turn_the_flight() {
