@@ -362,9 +362,9 @@ fn a_contact_moved_by_centimetres_is_reached_without_an_infeasible_ik() {
         max_contact_correction_rad_s: f64::INFINITY,
         ..IkParams::default()
     };
-    let mut t = Tracker::new(&model, &q0, &[], Default::default(), &uncapped).unwrap().online();
+    let mut t = Tracker::new(&model, &q0, &[], Default::default(), &uncapped).unwrap();
     assert!(t.tick(&targets, 0.005).is_err(), "the uncapped correction should be infeasible");
-    let mut t = Tracker::new(&model, &q0, &[], Default::default(), &IkParams::default()).unwrap().online();
+    let mut t = Tracker::new(&model, &q0, &[], Default::default(), &IkParams::default()).unwrap();
     for _ in 0..300 {
         t.tick(&targets, 0.005).unwrap();
     }

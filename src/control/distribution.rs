@@ -115,8 +115,12 @@ pub fn distribute(
         }
         tasks.push(Task { jacobian: row, velocity: DVector::zeros(1), weight: p.weight_pressure });
     }
-    let x =
-        ik::Solver::new(nv, 1e-9).with_fast_path().solve(&tasks, &[], std::slice::from_ref(&cones), &[])?;
+    let x = ik::Solver::new(nv, 1e-9).with_active_set(true).solve(
+        &tasks,
+        &[],
+        std::slice::from_ref(&cones),
+        &[],
+    )?;
     let wrenches: Vec<SoleWrench> =
         (0..n).map(|i| SoleWrench::from_vector(&x.fixed_rows::<6>(6 * i).into_owned())).collect();
     let contacts: Vec<&Contact> = supports.iter().map(|s| &s.contact).collect();

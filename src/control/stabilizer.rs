@@ -91,7 +91,7 @@ impl<'m> Stabilizer<'m> {
             p: p.clone(),
             friction: plan_params.step.friction,
             sole_half_m: hrp4::sole_half_m(model)?,
-            tracker: Tracker::new(model, &q0, &plan.blocks, plan.seen.clone(), &plan_params.ik)?.online(),
+            tracker: Tracker::new(model, &q0, &plan.blocks, plan.seen.clone(), &plan_params.ik)?,
             estimate: Kinematics::new(model),
             sensors,
             soles,
