@@ -150,7 +150,7 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
         };
         let Some(then) = planned else {
             // No plan followed this sweep (the top, or a refusal): the view still enters the map.
-            map.update(seen, params.step_map.same_step_m);
+            map.update(seen, &params.step_map);
             continue;
         };
         if then.q0.len() != model.nq() {

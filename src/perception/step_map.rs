@@ -17,11 +17,17 @@ pub struct StepMapParams {
     /// whose centre is within this distance or whose footprint it overlaps; known steps the
     /// new view misses (too close under the lidar, say) are kept. Metres.
     pub same_step_m: f64,
+    /// A view's rectangle turned from the known step's by more than this (on the nearest of
+    /// its axes) is not a view of that tread's outline, and gives it no edges; radians.
+    /// 20 degrees: partial views of one tread come back turned up to 12 degrees (ci suite
+    /// case 7) and their edges still hold; a view whose flight axis came from two near-square
+    /// pieces under 20 mm of noise came back turned 40 degrees (smoke suite, `noisy-20mm`).
+    pub max_view_turn_rad: f64,
 }
 
 impl Default for StepMapParams {
     fn default() -> Self {
-        Self { ahead_margin_m: 0.05, same_step_m: 0.15 }
+        Self { ahead_margin_m: 0.05, same_step_m: 0.15, max_view_turn_rad: 20f64.to_radians() }
     }
 }
 
@@ -44,8 +50,8 @@ pub struct StepMap {
 
 impl StepMap {
     /// Merges a view's rectangles (see [`merge`]).
-    pub fn update(&mut self, seen: Vec<PlaneSegment>, same_m: f64) {
-        self.known = merge(&self.known, seen, same_m);
+    pub fn update(&mut self, seen: Vec<PlaneSegment>, p: &StepMapParams) {
+        self.known = merge(&self.known, seen, p);
     }
 
     /// The steps higher than `feet_z` plus `margin_m` (the ones still to climb).
@@ -63,7 +69,7 @@ impl StepMap {
         min_tread_m: f64,
         p: &StepMapParams,
     ) -> NextInput {
-        self.update(seen, p.same_step_m);
+        self.update(seen, p);
         without_partial_top(self.ahead(feet_z, p.ahead_margin_m), min_tread_m)
     }
 }
@@ -92,18 +98,19 @@ pub fn without_partial_top(mut ahead: Vec<PlaneSegment>, min_tread_m: f64) -> Ne
 /// pieces side by side, each merged with the known step into a whole tread; the two at one
 /// height left the first no depth up to the "next" one's front, and its foot was planned
 /// on the nose (the robot fell).
-pub fn merge(known: &[PlaneSegment], seen: Vec<PlaneSegment>, same_m: f64) -> Vec<PlaneSegment> {
-    let matches = |a: &PlaneSegment, b: &PlaneSegment| same_step(a, b, same_m);
+pub fn merge(known: &[PlaneSegment], seen: Vec<PlaneSegment>, p: &StepMapParams) -> Vec<PlaneSegment> {
+    let matches = |a: &PlaneSegment, b: &PlaneSegment| same_step(a, b, p.same_step_m);
+    let merged = |s: &PlaneSegment, k: &PlaneSegment| merge_view(s, k, p.max_view_turn_rad);
     let kept: Vec<PlaneSegment> =
         known.iter().filter(|k| !seen.iter().any(|s| matches(k, s))).cloned().collect();
     let mut updated: Vec<PlaneSegment> = Vec::with_capacity(seen.len());
     for s in seen {
         let s = match known.iter().find(|k| matches(k, &s)) {
-            Some(k) => merge_view(&s, k),
+            Some(k) => merged(&s, k),
             None => s,
         };
         match updated.iter_mut().find(|u| matches(u, &s)) {
-            Some(u) => *u = merge_view(&s, u),
+            Some(u) => *u = merged(&s, u),
             None => updated.push(s),
         }
     }
@@ -138,7 +145,9 @@ fn same_step(a: &PlaneSegment, b: &PlaneSegment, same_m: f64) -> bool {
 
 /// The new view `s` of the known step `k`: the view of the two that rests on more voxels
 /// (the fuller), stretched along the ascent to the other's edges where they reach farther.
-/// Each view misses part of a tread, never adds one: close to a riser the legs hide its
+/// Each view misses part of a tread, and does not add one as long as its rectangle lies
+/// along the known one (within `max_turn_rad`; a view turned beyond it gives no edges, see
+/// [`StepMapParams::max_view_turn_rad`]): close to a riser the legs hide its
 /// front (the nose), and from afar the next step's nose hides its back (Exp. 2, step 6: the
 /// farthest view, on the most voxels, ended 4 cm short of the back; the closer ones within
 /// 1 cm), and 8 voxels of a tread (ci suite case 15) ended 7 cm short of the 417 of the
@@ -163,7 +172,7 @@ fn same_step(a: &PlaneSegment, b: &PlaneSegment, same_m: f64) -> bool {
 /// returns them) has a front corner up to `width/2 * sin(yaw)` ahead of its front edge, and
 /// taking that corner for the edge moved the nose toward the robot at every merge (on the
 /// 50 cm Exp. 1 treads, 1.2-1.6 cm over three scans: the heel came down on the nose).
-fn merge_view(s: &PlaneSegment, k: &PlaneSegment) -> PlaneSegment {
+fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSegment {
     let (fuller, other) = if k.voxel_count() > s.voxel_count() { (k, s) } else { (s, k) };
     // Which of its axes is the ascent, a view of one tread only guesses (see `axis_nearest`):
     // the known step's says, even when the new view is the fuller (ci suite case 16: the top
@@ -171,6 +180,9 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment) -> PlaneSegment {
     let fuller = axis_nearest(fuller, &k.along());
     let along = fuller.along();
     let other = axis_nearest(other, &along);
+    if other.along().dot(&along) < max_turn_rad.cos() {
+        return fuller;
+    }
     let c = fuller.center();
     let edge =
         |r: &PlaneSegment, sign: f64| (r.center() + r.along() * (sign * r.depth_m() / 2.0) - c).dot(&along);
@@ -233,7 +245,7 @@ mod tests {
         let known = vec![step(0.735, 0.2, 0.27), step(1.005, 0.4, 0.27)];
         // From close to the riser: step 2's far half only, step 1 unseen, step 3 new.
         let seen = vec![step(1.08, 0.4, 0.12), step(1.275, 0.6, 0.27)];
-        let merged = merge(&known, seen, 0.15);
+        let merged = merge(&known, seen, &StepMapParams::default());
         assert_eq!(merged.len(), 3);
         let at = |z: f64| merged.iter().find(|r| (r.height_m() - z).abs() < 1e-9).expect("step at z");
         assert_eq!(at(0.2).depth_m(), 0.27, "step 1, unseen, is kept");
@@ -241,7 +253,7 @@ mod tests {
         assert!((at(0.4).center().x - 1.005).abs() < 1e-9);
         assert!((at(0.6).depth_m() - 0.27).abs() < 1e-9, "step 3 is added");
         // A re-estimate on as many voxels takes its own height and back edge, and the nearer nose.
-        let merged = merge(&known, vec![step(1.01, 0.41, 0.26)], 0.15);
+        let merged = merge(&known, vec![step(1.01, 0.41, 0.26)], &StepMapParams::default());
         let s2 = merged.iter().find(|r| (r.height_m() - 0.41).abs() < 1e-9).expect("re-estimated");
         assert!(!merged.iter().any(|r| (r.height_m() - 0.4).abs() < 1e-9));
         let (front, back) = (s2.center().x - s2.depth_m() / 2.0, s2.center().x + s2.depth_m() / 2.0);
@@ -254,14 +266,14 @@ mod tests {
         // the near part of the step before it: one tread each, not two at one height.
         let known = vec![step(1.005, 0.4, 0.27), step(1.775, 0.6, 1.27)];
         let seen = vec![step(2.38, 0.6, 0.06), step(1.1, 0.4, 0.08)];
-        let merged = merge(&known, seen, 0.15);
+        let merged = merge(&known, seen, &StepMapParams::default());
         assert_eq!(merged.len(), 2, "{merged:?}");
         let landing = merged.iter().find(|r| (r.height_m() - 0.6).abs() < 1e-9).expect("landing");
         let (front, back) =
             (landing.center().x - landing.depth_m() / 2.0, landing.center().x + landing.depth_m() / 2.0);
         assert!((front - 1.14).abs() < 1e-9 && (back - 2.41).abs() < 1e-9, "landing {front}..{back}");
         // Two treads at one height that do not overlap stay two (a landing between flights).
-        let apart = merge(&[step(1.0, 0.4, 0.27)], vec![step(1.6, 0.4, 0.27)], 0.15);
+        let apart = merge(&[step(1.0, 0.4, 0.27)], vec![step(1.6, 0.4, 0.27)], &StepMapParams::default());
         assert_eq!(apart.len(), 2);
     }
 
@@ -277,7 +289,7 @@ mod tests {
             level(Point3::new(0.70, -0.34, 0.511), Vector3::x(), 0.28, 0.18, 60),
             level(Point3::new(0.74, -0.07, 0.515), Vector3::x(), 0.23, 0.29, 90),
         ];
-        let merged = merge(&known, seen, 0.15);
+        let merged = merge(&known, seen, &StepMapParams::default());
         let at_3: Vec<&PlaneSegment> = merged.iter().filter(|r| (r.height_m() - 0.51).abs() < 0.02).collect();
         assert_eq!(at_3.len(), 1, "{at_3:?}");
         let front = at_3[0].center().x - at_3[0].depth_m() / 2.0;
@@ -290,7 +302,7 @@ mod tests {
         // ci case 9: 0.71 m of a 1.33 m tread, on its left, seen from close.
         let known = level(Point3::new(1.31, 0.0, 0.17), Vector3::x(), 0.26, 1.33, 308);
         let side = level(Point3::new(1.38, 0.24, 0.17), Vector3::x(), 0.12, 0.71, 54);
-        let merged = merge(std::slice::from_ref(&known), vec![side], 0.15);
+        let merged = merge(std::slice::from_ref(&known), vec![side], &StepMapParams::default());
         assert_eq!(merged.len(), 1);
         assert!((merged[0].width_m() - 1.33).abs() < 1e-9 && merged[0].center().y.abs() < 1e-9, "{merged:?}");
         assert_eq!(merged[0].voxel_count(), 308, "the fuller view's count stays");
@@ -302,17 +314,17 @@ mod tests {
         let tilt = Vector3::new((3f64).to_radians().sin(), 0.0, (3f64).to_radians().cos());
         let partial = PlaneSegment::new(Point3::new(1.075, 0.0, 0.4), Vector3::x(), 0.13, 0.5, tilt, 5)
             .expect("valid rectangle");
-        let merged = merge(std::slice::from_ref(&full), vec![partial.clone()], 0.15);
+        let merged = merge(std::slice::from_ref(&full), vec![partial.clone()], &StepMapParams::default());
         assert_eq!(merged.len(), 1);
         assert_eq!(merged[0].normal(), full.normal(), "the fuller view's plane is kept");
         assert!((merged[0].depth_m() - 0.27).abs() < 1e-9);
         // A view on more voxels than the known one brings its own plane.
-        let merged = merge(&[partial], vec![full.clone()], 0.15);
+        let merged = merge(&[partial], vec![full.clone()], &StepMapParams::default());
         assert_eq!(merged[0].normal(), full.normal());
         let fuller_tilted =
             PlaneSegment::new(Point3::new(1.005, 0.0, 0.4), Vector3::x(), 0.27, 0.5, tilt, 20)
                 .expect("valid rectangle");
-        let merged = merge(&[full], vec![fuller_tilted.clone()], 0.15);
+        let merged = merge(&[full], vec![fuller_tilted.clone()], &StepMapParams::default());
         assert_eq!(merged[0].normal(), fuller_tilted.normal());
     }
 
@@ -323,7 +335,7 @@ mod tests {
         let known = level(Point3::new(1.64, 0.01, 0.37), Vector3::x(), 0.29, 1.46, 506);
         // The far 0.225 m of the tread's left part, described as 1.08 m "deep" along +y.
         let swapped = level(Point3::new(1.6725, 0.2, 0.37), Vector3::y(), 1.08, 0.225, 260);
-        let merged = merge(std::slice::from_ref(&known), vec![swapped], 0.15);
+        let merged = merge(std::slice::from_ref(&known), vec![swapped], &StepMapParams::default());
         assert_eq!(merged.len(), 1);
         let m = &merged[0];
         assert!((m.along() - Vector3::x()).norm() < 1e-9, "ascent {:?}", m.along());
@@ -332,7 +344,7 @@ mod tests {
         assert!((m.center() - known.center()).norm() < 1e-9);
         // ci suite case 16: the swapped view is the fuller one; the known ascent still holds.
         let whole = level(Point3::new(1.64, 0.01, 0.37), Vector3::y(), 1.46, 0.27, 520);
-        let merged = merge(std::slice::from_ref(&known), vec![whole], 0.15);
+        let merged = merge(std::slice::from_ref(&known), vec![whole], &StepMapParams::default());
         let m = &merged[0];
         assert!((m.along() - Vector3::x()).norm() < 1e-9, "ascent {:?}", m.along());
         assert!(
@@ -349,7 +361,7 @@ mod tests {
     fn a_sparse_view_does_not_cut_a_tread() {
         let known = level(Point3::new(1.505, 0.0, 0.51), Vector3::x(), 0.30, 0.94, 417);
         let sparse = level(Point3::new(1.489, 0.06, 0.505), Vector3::x(), 0.186, 0.7, 8);
-        let merged = merge(std::slice::from_ref(&known), vec![sparse], 0.15);
+        let merged = merge(std::slice::from_ref(&known), vec![sparse], &StepMapParams::default());
         assert_eq!(merged.len(), 1);
         assert!((merged[0].depth_m() - 0.30).abs() < 1e-9, "depth {}", merged[0].depth_m());
         assert!((merged[0].center() - known.center()).norm() < 1e-9);
@@ -361,7 +373,7 @@ mod tests {
     fn a_closer_view_brings_the_back_the_farther_one_missed() {
         let far = level(Point3::new(2.028, 0.0, 1.08), Vector3::x(), 0.249, 1.24, 1067);
         let close = level(Point3::new(2.054, 0.0, 1.08), Vector3::x(), 0.284, 1.24, 966);
-        let merged = merge(std::slice::from_ref(&far), vec![close], 0.15);
+        let merged = merge(std::slice::from_ref(&far), vec![close], &StepMapParams::default());
         let m = &merged[0];
         let (front, back) = (m.center().x - m.depth_m() / 2.0, m.center().x + m.depth_m() / 2.0);
         assert!((front - 1.9035).abs() < 1e-9 && (back - 2.196).abs() < 1e-9, "{front} {back}");
@@ -372,7 +384,7 @@ mod tests {
     fn a_sparse_view_does_not_move_a_step_height() {
         let landing = level(Point3::new(4.06, 0.36, 1.004), Vector3::x(), 1.35, 1.42, 3671);
         let sparse = level(Point3::new(3.82, 0.28, 0.987), Vector3::x(), 0.7, 1.32, 14);
-        let merged = merge(std::slice::from_ref(&landing), vec![sparse], 0.15);
+        let merged = merge(std::slice::from_ref(&landing), vec![sparse], &StepMapParams::default());
         assert_eq!(merged.len(), 1);
         assert!((merged[0].height_m() - 1.004).abs() < 1e-12, "height {}", merged[0].height_m());
         assert!((merged[0].center().z - 1.004).abs() < 1e-12);
@@ -401,7 +413,7 @@ mod tests {
         let yaw = 12f64.to_radians();
         let turned = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
         let partial = level(Point3::new(2.97, -0.35, 1.02), turned, 0.32, 0.98, 557);
-        let merged = merge(std::slice::from_ref(&full), vec![partial.clone()], 0.15);
+        let merged = merge(std::slice::from_ref(&full), vec![partial.clone()], &StepMapParams::default());
         assert_eq!(merged.len(), 1);
         let m = &merged[0];
         assert!(
@@ -417,8 +429,30 @@ mod tests {
         let back = (partial.center() + partial.along() * 0.16).x;
         assert!((e[0] - f[0]).abs() < 1e-9 && (e[1] - back.max(f[1])).abs() < 1e-9, "{e:?} {f:?}");
         // A fuller new view brings its own direction.
-        let merged = merge(&[partial], vec![full.clone()], 0.15);
+        let merged = merge(&[partial], vec![full.clone()], &StepMapParams::default());
         assert!((merged[0].along() - full.along()).norm() < 1e-9);
+    }
+
+    /// Smoke suite, `noisy-20mm` (20 mm of range noise), view 3: perception found step 1
+    /// as a 25-voxel piece at one side and step 2 as 84 voxels; the flight's axis, taken
+    /// from those two near-square pieces, came out 40 degrees off and step 2's rectangle
+    /// 0.78 m by 0.65 m. Its edges, projected on the known ascent, brought step 2's front
+    /// 5 cm toward the robot, and a foot was planned off step 1's back. A view turned that
+    /// far from the known step gives it no edges; one turned a little still does.
+    #[test]
+    fn a_view_turned_far_from_the_known_step_gives_it_no_edges() {
+        let p = StepMapParams::default();
+        let known = level(Point3::new(1.0, 0.0, 0.34), Vector3::x(), 0.28, 0.93, 135);
+        let at = |deg: f64| Vector3::new(deg.to_radians().cos(), deg.to_radians().sin(), 0.0);
+        let broken = level(Point3::new(1.05, 0.0, 0.34), at(40.0), 0.78, 0.65, 84);
+        let merged = merge(std::slice::from_ref(&known), vec![broken], &p);
+        assert_eq!(merged.len(), 1);
+        assert_eq!(merged[0], known, "the known step is kept as it was");
+        // Turned 5 degrees, a view reaching 2 cm farther back still brings its back edge.
+        let behind = level(Point3::new(1.02, 0.0, 0.34), at(5.0), 0.28, 0.9, 60);
+        let merged = merge(&[known], vec![behind], &p);
+        let back = merged[0].center().x + merged[0].depth_m() / 2.0;
+        assert!((back - (1.02 + 0.14 * 5f64.to_radians().cos())).abs() < 1e-9, "back edge at {back}");
     }
 
     #[test]
@@ -472,15 +506,15 @@ mod tests {
         };
         let mut map = StepMap::default();
         for i in 0..6 {
-            map.update(vec![view(0.0, 0.27, if i % 2 == 0 { 1.5 } else { -1.5 })], 0.15);
+            map.update(vec![view(0.0, 0.27, if i % 2 == 0 { 1.5 } else { -1.5 })], &StepMapParams::default());
         }
         assert_eq!(map.known.len(), 1);
         let s = &map.known[0];
         assert!((s.depth_m() - 0.27).abs() < 1e-9, "depth {} after six views of one step", s.depth_m());
         assert!((s.center() - Point3::new(1.0, 0.0, 0.4)).norm() < 1e-9);
         // A view whose front edge is 1 cm nearer (same back edge) does move the nose by 1 cm.
-        map.update(vec![view(-0.005, 0.28, 0.0)], 0.15);
-        map.update(vec![view(0.0, 0.27, 0.0)], 0.15);
+        map.update(vec![view(-0.005, 0.28, 0.0)], &StepMapParams::default());
+        map.update(vec![view(0.0, 0.27, 0.0)], &StepMapParams::default());
         assert!((map.known[0].depth_m() - 0.28).abs() < 1e-9, "{}", map.known[0].depth_m());
     }
 }
