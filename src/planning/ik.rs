@@ -206,7 +206,8 @@ impl Solver {
             .map(Limit::Row)
             .chain((0..nv).filter(|&i| upper[i].is_finite()).map(Limit::Upper))
             .chain((0..nv).filter(|&i| lower[i].is_finite()).map(Limit::Lower));
-        // A limit's row (as a closure writing it) and right-hand side: row . x <= rhs.
+        // Each limit reads row . x <= rhs: its right-hand side, its row's value at x, and
+        // whether a guess carried over from the last tick still names one of this QP's limits.
         let rhs = |l: Limit| match l {
             Limit::Row(r) => rows[r].0.bound[rows[r].1],
             Limit::Upper(i) => upper[i],
