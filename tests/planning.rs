@@ -439,11 +439,12 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
         assert!(f.translation.z.abs() < 1e-9 && walk.stances[0].step.is_none(), "on the floor");
     }
 
-    // A box in the way, 30 cm tall from 0.2 m ahead: nothing is walked.
+    // A box in the way, 30 cm tall from 0.2 m ahead: nothing is walked, and the climb's
+    // own floor walk is refused for it (before any step is judged).
     let mut boxed = floor.clone();
     boxed.extend(floor_seen([0.2, 0.6], 0.3));
     let stopped = plan_next(&model, &q0, &rects, Arc::new(SeenPoints::new(boxed)), 1, &p);
-    assert_eq!(stopped.err().map(|r| r.kind), Some(RefusalKind::OffTheSide), "walked into a box");
+    assert_eq!(stopped.err().map(|r| r.kind), Some(RefusalKind::FloorObstructed), "walked into a box");
 
     // No floor seen at all: only the stances within the lidar's blind reach, of all the walk's.
     let g = GaitParams::default();
@@ -488,4 +489,47 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
         Some(RefusalKind::OffTheSide),
         "climbed a narrow step 1"
     );
+}
+
+/// The toes of the floor stances before the first step stay off its true riser when the
+/// front edge comes from a scan under 20 mm of range noise (the paper's Exp. 1, seeds 0-9):
+/// perception puts that edge up to 31 mm onto the tread (seed 5), and with the toes 3 cm
+/// behind the edge as perceived they ended past the true riser (wide suite case 14: the
+/// swinging foot struck it and the robot fell).
+#[test]
+fn the_floor_stances_keep_the_toes_off_the_true_riser_under_range_noise() {
+    use stairbench::perception::{perceive, PerceptionParams};
+    use stairbench::planning::footholds::{footholds, GaitParams};
+    use stairbench::planning::plan::stance_at;
+    use stairbench::sensor::AssembleParams;
+    let model = hrp4::model().unwrap();
+    let p = GaitParams::default();
+    let mut planned = 0;
+    for seed in 0..10 {
+        let mut s = Scenario::default();
+        s.lidar.noise_sigma_m = 0.02;
+        s.seed = seed;
+        assert_eq!(s.staircase.yaw_deg, 0.0, "the riser is at x = start_m[0]");
+        let riser_x = s.staircase.start_m[0];
+        let scene = common::scene_of(&s);
+        let cloud = stairbench::sim::scan_scenario(&s, &mut |_, _| {})
+            .unwrap()
+            .sweep
+            .assemble(&AssembleParams::default())
+            .unwrap();
+        let Ok(seen) = perceive(&cloud, &PerceptionParams::default()) else { continue };
+        let start = stance_at(&model, &start_q(&model, &scene.robot_start())).unwrap();
+        let Ok(stances) = footholds(&start, &seen.segments, &[], &p) else { continue };
+        planned += 1;
+        for st in stances.iter().filter(|st| st.step.is_none()) {
+            for sole in [&st.right, &st.left] {
+                let toe_x = (sole * Point3::new(p.sole_length_m / 2.0, 0.0, 0.0)).x;
+                assert!(
+                    toe_x <= riser_x - 0.01,
+                    "seed {seed}: toe at {toe_x:.3} m, the riser at {riser_x:.3} m"
+                );
+            }
+        }
+    }
+    assert!(planned >= 3, "only {planned} of 10 scans gave a plan");
 }

@@ -14,7 +14,8 @@ pub struct StepMapParams {
     /// Steps lower than the feet plus this are behind the robot, metres.
     pub ahead_margin_m: f64,
     /// A new view's rectangle replaces a known one at its height (within a third of this)
-    /// whose centre is within this distance or whose footprint it overlaps; known steps the
+    /// whose centre is within this distance, whose footprint it overlaps, or which it lies
+    /// beside across the ascent, over the same depth, less than this apart; known steps the
     /// new view misses (too close under the lidar, say) are kept. Metres.
     pub same_step_m: f64,
     /// A view's rectangle turned from the known step's by more than this (on the nearest of
@@ -99,7 +100,7 @@ pub fn without_partial_top(mut ahead: Vec<PlaneSegment>, min_tread_m: f64) -> Ne
 /// height left the first no depth up to the "next" one's front, and its foot was planned
 /// on the nose (the robot fell).
 pub fn merge(known: &[PlaneSegment], seen: Vec<PlaneSegment>, p: &StepMapParams) -> Vec<PlaneSegment> {
-    let matches = |a: &PlaneSegment, b: &PlaneSegment| same_step(a, b, p.same_step_m);
+    let matches = |a: &PlaneSegment, b: &PlaneSegment| same_step(a, b, p);
     let merged = |s: &PlaneSegment, k: &PlaneSegment| merge_view(s, k, p.max_view_turn_rad);
     let kept: Vec<PlaneSegment> =
         known.iter().filter(|k| !seen.iter().any(|s| matches(k, s))).cloned().collect();
@@ -117,30 +118,56 @@ pub fn merge(known: &[PlaneSegment], seen: Vec<PlaneSegment>, p: &StepMapParams)
     updated.into_iter().chain(kept).collect()
 }
 
-/// Whether `a` and `b` are views of one tread: at one height (within `same_m / 3`), and
-/// centred within `same_m` of each other or with overlapping footprints. Centres alone
-/// missed partial views of a deep tread: from the last step, the near 6 cm of a 1.27 m
-/// landing has its centre 0.6 m from the whole landing's, and both stayed in the map, two
-/// treads at one height (a rise of 0, a stride backwards: Exp. 2 refused at step 9).
-fn same_step(a: &PlaneSegment, b: &PlaneSegment, same_m: f64) -> bool {
-    if (a.height_m() - b.height_m()).abs() >= same_m / 3.0 {
+/// Whether `a` and `b` are views of one tread: at one height (within `same_step_m / 3`),
+/// and centred within `same_step_m` of each other, or with overlapping footprints, or side
+/// by side. Centres alone missed partial views of a deep tread: from the last step, the near
+/// 6 cm of a 1.27 m landing has its centre 0.6 m from the whole landing's, and both stayed
+/// in the map, two treads at one height (a rise of 0, a stride backwards: Exp. 2 refused at
+/// step 9).
+fn same_step(a: &PlaneSegment, b: &PlaneSegment, p: &StepMapParams) -> bool {
+    if (a.height_m() - b.height_m()).abs() >= p.same_step_m / 3.0 {
         return false;
     }
-    if (a.center() - b.center()).norm() < same_m {
+    if (a.center() - b.center()).norm() < p.same_step_m {
         return true;
     }
     // Two rectangles overlap when no axis of either separates them (separating axes).
-    let span = |r: &PlaneSegment, axis: &nalgebra::Vector3<f64>| {
-        r.corners().iter().fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], c| {
-            let t = c.coords.dot(axis);
-            [lo.min(t), hi.max(t)]
-        })
-    };
     let overlap = |x: [f64; 2], y: [f64; 2]| x[1].min(y[1]) - x[0].max(y[0]) > 0.0;
-    [a.along(), b.along()].iter().all(|u| {
+    let overlapping = [a.along(), b.along()].iter().all(|u| {
         let w = nalgebra::Vector3::z().cross(u);
         overlap(span(a, u), span(b, u)) && overlap(span(a, &w), span(b, &w))
+    });
+    overlapping || side_by_side(a, b, p)
+}
+
+/// The extent of `r`'s corners along `axis`.
+fn span(r: &PlaneSegment, axis: &nalgebra::Vector3<f64>) -> [f64; 2] {
+    r.corners().iter().fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], c| {
+        let t = c.coords.dot(axis);
+        [lo.min(t), hi.max(t)]
     })
+}
+
+/// Whether `a` and `b` are two pieces of one tread side by side: lying along each other
+/// (within `max_view_turn_rad`), over the same depth (their spans along the ascent overlap
+/// by at least half the shallower's), less than `same_step_m` apart across. Under 21 mm of
+/// noise the wide suite's case 14 saw step 1's right end from afar (0.24 m wide) and, from
+/// nearer, its middle (0.60 m wide), 6 mm apart: two treads at one height, the first "3 mm
+/// deep up to the next one's front", and the climb was refused. Treads of a flight are a
+/// rise apart in height; at one height and over one depth, pieces side by side are one.
+fn side_by_side(a: &PlaneSegment, b: &PlaneSegment, p: &StepMapParams) -> bool {
+    let u = a.along();
+    let b = axis_nearest(b, &u);
+    if b.along().dot(&u) < p.max_view_turn_rad.cos() {
+        return false;
+    }
+    let w = nalgebra::Vector3::z().cross(&u);
+    let (a_along, b_along) = (span(a, &u), span(&b, &u));
+    let shared = a_along[1].min(b_along[1]) - a_along[0].max(b_along[0]);
+    let shallower = (a_along[1] - a_along[0]).min(b_along[1] - b_along[0]);
+    let (a_across, b_across) = (span(a, &w), span(&b, &w));
+    let gap = (b_across[0] - a_across[1]).max(a_across[0] - b_across[1]);
+    shared >= shallower / 2.0 && gap < p.same_step_m
 }
 
 /// The new view `s` of the known step `k`: the view of the two that rests on more voxels
@@ -297,6 +324,25 @@ mod tests {
         assert_eq!(merged.len(), 2);
     }
 
+    /// Wide suite case 14 (21 mm of noise): step 1's right end seen from afar, its middle
+    /// from nearer, 6 mm apart across: one step, not two at one height (the first was left
+    /// "3 mm deep up to the next one's front" and the climb refused). A piece beside it
+    /// over another depth, or turned across it, stays apart.
+    #[test]
+    fn pieces_of_a_tread_side_by_side_are_one_step() {
+        let end = level(Point3::new(0.146, -0.40, 0.152), Vector3::x(), 0.244, 0.235, 60);
+        let middle = level(Point3::new(0.152, 0.025, 0.152), Vector3::x(), 0.272, 0.601, 150);
+        let merged = merge(std::slice::from_ref(&end), vec![middle.clone()], &StepMapParams::default());
+        assert_eq!(merged.len(), 1, "{merged:?}");
+        let front = merged[0].center().x - merged[0].depth_m() / 2.0;
+        assert!((front - 0.016).abs() < 1e-9 && (merged[0].width_m() - 0.601).abs() < 1e-9, "{merged:?}");
+        let p = StepMapParams::default();
+        let behind = level(Point3::new(0.40, -0.40, 0.152), Vector3::x(), 0.10, 0.235, 60);
+        assert!(!same_step(&behind, &middle, &p), "over another depth");
+        let turned = level(Point3::new(0.146, -0.55, 0.152), Vector3::new(1.0, 1.0, 0.0), 0.244, 0.235, 60);
+        assert!(!same_step(&turned, &middle, &p), "turned 45 degrees");
+    }
+
     #[test]
     fn a_view_of_one_side_of_a_step_does_not_narrow_it() {
         // ci case 9: 0.71 m of a 1.33 m tread, on its left, seen from close.
@@ -400,9 +446,10 @@ mod tests {
         // a's spans along x and y, but apart along its own diagonal axes.
         let turned = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
         let b = level(Point3::new(1.55, 0.29, 0.4), turned, 0.1, 0.1, 10);
-        assert!(!same_step(&a, &b, 0.15) && !same_step(&b, &a, 0.15));
+        let p = StepMapParams::default();
+        assert!(!same_step(&a, &b, &p) && !same_step(&b, &a, &p));
         let inside = level(Point3::new(1.4, 0.1, 0.4), turned, 0.1, 0.1, 10);
-        assert!(same_step(&a, &inside, 0.15) && same_step(&inside, &a, 0.15));
+        assert!(same_step(&a, &inside, &p) && same_step(&inside, &a, &p));
     }
 
     /// ci suite case 7: a view of half a tread (the legs hide the rest) came out turned 12

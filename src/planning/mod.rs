@@ -46,14 +46,27 @@ pub enum PlanError {
         min_m: f64,
     },
     /// A rise far above the others: a step in between was not seen.
-    #[error("step {}: rise {rise_m:.3} m is {:.1} times the median rise {median_m:.3} m: a step is missing below it", .step + 1, .rise_m / .median_m)]
+    #[error("step {}: rise {rise_m:.3} m is {:.1} times the flight's usual rise {usual_m:.3} m: a step is missing below it", .step + 1, .rise_m / .usual_m)]
     MissingStep {
         /// 0-based step.
         step: usize,
         /// Its rise.
         rise_m: f64,
-        /// Median rise of the staircase.
-        median_m: f64,
+        /// The flight's usual rise: the median of three or more rises, the lower of two.
+        usual_m: f64,
+    },
+    /// The lidar saw something standing on the floor where a floor stance puts a sole: a
+    /// step perception did not take for one, or an obstacle.
+    #[error("stance {}: the lidar saw {points} points standing up to {height_m:.3} m above the floor under the {foot:?} sole (a step not perceived, or an obstacle)", .stance + 1)]
+    FloorObstructed {
+        /// 0-based stance.
+        stance: usize,
+        /// Which foot.
+        foot: Foot,
+        /// The surroundings' points under the sole above the floor's band.
+        points: usize,
+        /// The highest of them above the floor, metres.
+        height_m: f64,
     },
     /// A rise the legs cannot climb.
     #[error("step {}: rise {rise_m:.3} m is higher than the legs can climb ({max_m:.3} m)", .step + 1)]
@@ -209,6 +222,8 @@ pub enum RefusalKind {
     ShortTread,
     /// [`PlanError::MissingStep`].
     MissingStep,
+    /// [`PlanError::FloorObstructed`].
+    FloorObstructed,
     /// [`PlanError::HighRise`].
     HighRise,
     /// [`PlanError::Gap`].
@@ -288,8 +303,11 @@ impl PlanError {
             PlanError::ShortTread { step, depth_m, min_m } => {
                 (K::ShortTread, Some(*step), None, None, m(*depth_m, *min_m))
             }
-            PlanError::MissingStep { step, rise_m, median_m } => {
-                (K::MissingStep, Some(*step), None, None, m(*rise_m, *median_m))
+            PlanError::MissingStep { step, rise_m, usual_m } => {
+                (K::MissingStep, Some(*step), None, None, m(*rise_m, *usual_m))
+            }
+            PlanError::FloorObstructed { stance, height_m, .. } => {
+                (K::FloorObstructed, None, Some(*stance), None, (Some(*height_m), None, Some("m")))
             }
             PlanError::HighRise { step, rise_m, max_m } => {
                 (K::HighRise, Some(*step), None, None, m(*rise_m, *max_m))
