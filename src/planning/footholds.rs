@@ -229,19 +229,7 @@ pub fn footholds(
         }
         if i == 0 {
             let walk = lay.floor_walk(front, along, p);
-            for (k, stance) in walk.iter().enumerate() {
-                for foot in Foot::BOTH {
-                    let under = UnderSole::count(stance.foot(foot), seen, lay.floor_z, p);
-                    if under.standing >= p.floor_obstruction_returns.max(1) {
-                        return Err(PlanError::FloorObstructed {
-                            stance: k,
-                            foot,
-                            points: under.standing,
-                            height_m: under.highest_m,
-                        });
-                    }
-                }
-            }
+            unobstructed(&walk, seen, lay.floor_z, p)?;
             if !walk.is_empty() {
                 prev_along = Layout::last_floor_along(front, p);
             }
@@ -302,9 +290,37 @@ fn usual_rise_m(rises: &[f64]) -> Option<f64> {
     }
 }
 
-/// Points under a sole standing above the floor, from this many on, are a surface there;
-/// one is a stray (a noise spike, a mixed pixel at a riser's top).
+/// The approach walk ([`approach`]) stops before a sole with this many points standing
+/// under it: it walks toward a flight refused from afar, over ground no plan has judged,
+/// and errs toward stopping (a lone point is a stray: a noise spike, a mixed pixel at a
+/// riser's top). A climb's own floor walk refuses only a surface
+/// ([`GaitParams::floor_obstruction_returns`], see [`unobstructed`]).
 const STANDING_RETURNS: usize = 2;
+
+/// `Ok` when no sole of the floor stances `walk` stands where the lidar saw a surface on
+/// the floor (at least `floor_obstruction_returns` of `seen` standing under it); else the
+/// first such stance and foot.
+fn unobstructed(
+    walk: &[Stance],
+    seen: &[Point3<f64>],
+    floor_z: f64,
+    p: &GaitParams,
+) -> Result<(), PlanError> {
+    for (stance, st) in walk.iter().enumerate() {
+        for foot in Foot::BOTH {
+            let under = UnderSole::count(st.foot(foot), seen, floor_z, p);
+            if under.standing >= p.floor_obstruction_returns.max(1) {
+                return Err(PlanError::FloorObstructed {
+                    stance,
+                    foot,
+                    points: under.standing,
+                    height_m: under.highest_m,
+                });
+            }
+        }
+    }
+    Ok(())
+}
 
 /// The lidar's returns under a sole on the floor: the surroundings' points inside the sole's
 /// outline within `floor_band_m` of the floor's height, and those above that band and below
