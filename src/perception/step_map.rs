@@ -195,10 +195,12 @@ fn side_by_side(a: &PlaneSegment, b: &PlaneSegment, p: &StepMapParams) -> bool {
 ///   degrees (full views: under 1 degree), and a foot planned on that tilt came down on its
 ///   toe or heel.
 ///
-/// An edge's place is its midpoint's: a rectangle yawed by a degree or two (as perception
-/// returns them) has a front corner up to `width/2 * sin(yaw)` ahead of its front edge, and
-/// taking that corner for the edge moved the nose toward the robot at every merge (on the
-/// 50 cm Exp. 1 treads, 1.2-1.6 cm over three scans: the heel came down on the nose).
+/// An edge's place is as far as the view surely saw tread ([`surely_seen`]), not its corner:
+/// a rectangle yawed by a degree or two (as perception returns them) has a front corner up
+/// to `width/2 * sin(yaw)` ahead of its front edge, and taking that corner for the edge
+/// moved the nose toward the robot at every merge (on the 50 cm Exp. 1 treads, 1.2-1.6 cm
+/// over three scans: the heel came down on the nose); nor, for a turned view, its edge's
+/// midpoint (wide suite case 14: 8 cm beyond the tread at both ends).
 fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSegment {
     let (fuller, other) = if k.voxel_count() > s.voxel_count() { (k, s) } else { (s, k) };
     // Which of its axes is the ascent, a view of one tread only guesses (see `axis_nearest`):
@@ -211,10 +213,8 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
         return fuller;
     }
     let c = fuller.center();
-    let edge =
-        |r: &PlaneSegment, sign: f64| (r.center() + r.along() * (sign * r.depth_m() / 2.0) - c).dot(&along);
-    let front = edge(&fuller, -1.0).min(edge(&other, -1.0));
-    let back = edge(&fuller, 1.0).max(edge(&other, 1.0));
+    let front = surely_seen(&fuller, &c, &along, -1.0).min(surely_seen(&other, &c, &along, -1.0));
+    let back = surely_seen(&fuller, &c, &along, 1.0).max(surely_seen(&other, &c, &along, 1.0));
     PlaneSegment::new(
         c + along * ((front + back) / 2.0),
         along,
@@ -224,6 +224,29 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
         fuller.voxel_count(),
     )
     .unwrap_or(fuller)
+}
+
+/// How far along `along` (from `c`) the view `r` surely saw tread at its front (`sign`
+/// -1) or back (+1) edge: the edge's midpoint, drawn inward by `width/2 * sin(turn)`, the
+/// turn being the angle between `r`'s axis and `along`. A view's rectangle is the extent of
+/// its voxels along its own axes, so they touch its front edge somewhere along it; when the
+/// rectangle is turned against the known ascent, that touching point lies anywhere within
+/// `width/2 * sin(turn)` of the midpoint along the ascent, and only the inner bound is
+/// sure. A turned rectangle of a tread reaches beyond it at both ends by about
+/// `(width * sin(turn) * cos(turn) - depth * sin(turn)^2) / 2`: wide suite case 14 (21 mm
+/// of noise) first saw step 6 in a view whose flight axis came out turned 19.7 degrees,
+/// 0.46 m deep and 0.68 m wide on a 0.289 m tread, and its midpoints, taken as edges,
+/// stretched the merged step 8 cm beyond the tread at both ends (a heel came down 25 mm
+/// over step 5's front edge). For a view along the known ascent, the midpoint.
+fn surely_seen(
+    r: &PlaneSegment,
+    c: &nalgebra::Point3<f64>,
+    along: &nalgebra::Vector3<f64>,
+    sign: f64,
+) -> f64 {
+    let sin_turn = r.along().cross(along).norm();
+    let midpoint = (r.center() + r.along() * (sign * r.depth_m() / 2.0) - c).dot(along);
+    midpoint - sign * r.width_m() / 2.0 * sin_turn
 }
 
 /// `r`, the same rectangle, described with the one of its four horizontal axes (ascent,
@@ -376,6 +399,53 @@ mod tests {
 
     /// ci suite case 11: with one tread in view, perception took its width for its depth
     /// (ascent turned 90 degrees); the merge must read that view along the known ascent.
+    /// A view's rectangle is the extent of its voxels along its own axes; turned against the
+    /// tread, it reaches beyond the tread at both ends. What it surely saw lies on the tread,
+    /// at any turn, and is the edge itself when it is not turned.
+    #[test]
+    fn a_turned_view_surely_saw_only_tread() {
+        let (depth_m, seen_width_m) = (0.289, 0.68);
+        let strip = [(0.0, -0.34), (0.0, 0.34), (depth_m, -0.34), (depth_m, 0.34)];
+        for deg in [0.0, 2.0, 5.0, 12.0, 19.7] {
+            let (s, c) = f64::to_radians(deg).sin_cos();
+            let (u, w) = (Vector3::new(c, s, 0.0), Vector3::new(-s, c, 0.0));
+            let span = |axis: &Vector3<f64>| {
+                strip
+                    .iter()
+                    .map(|&(x, y)| x * axis.x + y * axis.y)
+                    .fold([f64::MAX, f64::MIN], |[a, b], t| [a.min(t), b.max(t)])
+            };
+            let (a, b) = (span(&u), span(&w));
+            let centre = u * ((a[0] + a[1]) / 2.0) + w * ((b[0] + b[1]) / 2.0);
+            let r = level(Point3::from(centre), u, a[1] - a[0], b[1] - b[0], 100);
+            assert!((r.width_m() - seen_width_m).abs() < 0.25, "the strip's bounding rectangle");
+            let o = Point3::origin();
+            let (front, back) =
+                (surely_seen(&r, &o, &Vector3::x(), -1.0), surely_seen(&r, &o, &Vector3::x(), 1.0));
+            assert!(front >= -1e-12 && back <= depth_m + 1e-12, "{deg} deg: {front:.4}..{back:.4}");
+            if deg == 0.0 {
+                assert!(front.abs() < 1e-12 && (back - depth_m).abs() < 1e-12);
+            }
+        }
+    }
+
+    /// Wide suite case 14 (21 mm of noise), in the flight's frame: step 6 (true 1.444 m to
+    /// 1.733 m along the flight) was first seen in a view whose axis came out turned 19.7
+    /// degrees, 0.462 m by 0.678 m; the next view saw it along the flight, 0.322 m deep. The
+    /// merged step must not reach the turned rectangle's midpoints (1.367 m and 1.80 m: a
+    /// heel was planned 25 mm over the step below's front edge).
+    #[test]
+    fn a_turned_view_does_not_stretch_a_step() {
+        let at = |deg: f64| Vector3::new(deg.to_radians().cos(), deg.to_radians().sin(), 0.0);
+        let turned = level(Point3::new(1.585, 0.223, 0.905), at(19.7), 0.462, 0.678, 254);
+        let along = level(Point3::new(1.585, 0.005, 0.905), at(0.6), 0.322, 1.090, 405);
+        let merged = merge(std::slice::from_ref(&turned), vec![along], &StepMapParams::default());
+        assert_eq!(merged.len(), 1);
+        let m = &merged[0];
+        let (front, back) = (m.center().x - m.depth_m() / 2.0, m.center().x + m.depth_m() / 2.0);
+        assert!(front > 1.444 - 0.025 && back < 1.733 + 0.025, "step 6 at {front:.3}..{back:.3} m");
+    }
+
     #[test]
     fn a_view_with_its_axes_swapped_is_read_along_the_known_ascent() {
         let known = level(Point3::new(1.64, 0.01, 0.37), Vector3::x(), 0.29, 1.46, 506);
@@ -468,13 +538,13 @@ mod tests {
             "direction {:?} (the partial view's turned)",
             m.along()
         );
-        // The nose stays the known view's; the back edge is the farther of the two along the
-        // kept axis (here the partial view's, its midpoint at 3.127 m).
+        // The nose and the back stay the known view's: the partial view's back midpoint lies
+        // 4.7 cm beyond (3.127 m), but its rectangle, turned 12 degrees on 0.98 m, surely saw
+        // tread only to 3.025 m (see `surely_seen`).
         let edges =
             |r: &PlaneSegment| [-1.0, 1.0].map(|k| (r.center() + r.along() * (k * r.depth_m() / 2.0)).x);
         let (e, f) = (edges(m), edges(&full));
-        let back = (partial.center() + partial.along() * 0.16).x;
-        assert!((e[0] - f[0]).abs() < 1e-9 && (e[1] - back.max(f[1])).abs() < 1e-9, "{e:?} {f:?}");
+        assert!((e[0] - f[0]).abs() < 1e-9 && (e[1] - f[1]).abs() < 1e-9, "{e:?} {f:?}");
         // A fuller new view brings its own direction.
         let merged = merge(&[partial], vec![full.clone()], &StepMapParams::default());
         assert!((merged[0].along() - full.along()).norm() < 1e-9);
@@ -495,11 +565,13 @@ mod tests {
         let merged = merge(std::slice::from_ref(&known), vec![broken], &p);
         assert_eq!(merged.len(), 1);
         assert_eq!(merged[0], known, "the known step is kept as it was");
-        // Turned 5 degrees, a view reaching 2 cm farther back still brings its back edge.
-        let behind = level(Point3::new(1.02, 0.0, 0.34), at(5.0), 0.28, 0.9, 60);
+        // Turned 5 degrees, a view reaching 6 cm farther back still brings its back edge, as
+        // far as it surely saw tread (its midpoint drawn in by 0.45 m x sin 5 deg).
+        let behind = level(Point3::new(1.06, 0.0, 0.34), at(5.0), 0.28, 0.9, 60);
         let merged = merge(&[known], vec![behind], &p);
         let back = merged[0].center().x + merged[0].depth_m() / 2.0;
-        assert!((back - (1.02 + 0.14 * 5f64.to_radians().cos())).abs() < 1e-9, "back edge at {back}");
+        let (s, c) = 5f64.to_radians().sin_cos();
+        assert!((back - (1.06 + 0.14 * c - 0.45 * s)).abs() < 1e-9, "back edge at {back}");
     }
 
     #[test]
