@@ -170,6 +170,40 @@ fn a_tread_under_range_noise_comes_out_level() {
     }
 }
 
+/// Twice the data sheet's range noise (20 mm), the paper's Exp. 1 seen from the start,
+/// noise draws 0-9: the sweep's noise is measured within 10 %, k grows to 20, and every
+/// draw finds the first step on the true one (IoU at least 0.6, height within 1 cm). On
+/// the paper's k = 10 whatever the noise, the normals of the near, steeply seen tread are
+/// noise and the first step was lost in 6 of 10 draws (wide suite: 7 flights refused, "a
+/// step is missing", for it); the test checks that case is still shown.
+#[test]
+fn the_first_step_is_found_under_twice_the_data_sheets_noise() {
+    let p = PerceptionParams::default();
+    let paper_k = PerceptionParams { k_grows_with_noise: false, ..p.clone() };
+    let (mut found, mut found_paper_k) = (0, 0);
+    for seed in 0..10 {
+        let mut s = exp1(0.02);
+        s.seed = seed;
+        let scene = common::scene_of(&s);
+        let cloud = scan(&s);
+        let r = perceive(&cloud, &p).unwrap();
+        let noise_mm = r.counts.range_noise_mm.expect("a sweep's noise is measured");
+        assert!((noise_mm / 20.0 - 1.0).abs() < 0.1, "seed {seed}: {noise_mm:.1} mm measured");
+        assert_eq!(r.counts.normal_neighbours, 20, "seed {seed}");
+        let first = &metrics::score(&r.segments, scene.steps(), 0.02).steps[0];
+        if first.found && first.iou >= 0.6 && first.height_error_m.abs() < 0.01 {
+            found += 1;
+        }
+        if perceive(&cloud, &paper_k)
+            .is_ok_and(|r| metrics::score(&r.segments, scene.steps(), 0.02).steps[0].found)
+        {
+            found_paper_k += 1;
+        }
+    }
+    assert_eq!(found, 10, "the first step found on the true one in {found} of 10 draws");
+    assert!(found_paper_k <= 7, "k = 10 found it in {found_paper_k} of 10: the case is not shown");
+}
+
 #[test]
 fn grid_neighbourhoods_match_the_kd_tree() {
     let cloud = scan(&exp1(0.01));

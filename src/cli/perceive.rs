@@ -21,7 +21,8 @@ pub struct PerceiveArgs {
     /// A scenario (file or name: its world is scanned first), a cloud (.ply, .pcd), or voxel
     /// representatives as x,y,z rows (.txt, e.g. the paper's voxels.txt: Filters 1-2 skipped).
     input: Option<PathBuf>,
-    /// k, the neighbours of the normal estimation (paper §5: 10).
+    /// Estimate the normals on exactly k neighbours (default: the paper's k = 10 of §5,
+    /// grown in proportion to the sweep's measured range noise above 10 mm).
     #[arg(short, long)]
     k: Option<usize>,
     /// Neighbourhood search of the normal estimation (auto: the scan grid when the cloud
@@ -82,6 +83,7 @@ pub fn run(a: PerceiveArgs) -> Result<ExitCode> {
     let mut params = PerceptionParams::default();
     if let Some(k) = a.k {
         params.normal_neighbours = k;
+        params.k_grows_with_noise = false;
     }
     params.neighbour_search = match a.search {
         SearchArg::Auto => NeighbourSearch::Auto,
@@ -150,6 +152,13 @@ fn print_tables(r: &Perception, score: Option<&metrics::Score>) {
         "{} points -> {} after Filter 1 -> {} voxels -> {} after Filter 2 -> {} supervoxels -> {} clusters, {} after Filter 3 -> {} planes -> {} segments -> {} steps",
         c.points, c.after_filter1, c.voxels, c.after_filter2, c.supervoxels, c.clusters, c.after_filter3, c.planes, c.segments, r.segments.len()
     );
+    match c.range_noise_mm {
+        Some(mm) => println!(
+            "normals on k = {} neighbours (range noise {mm:.1} mm, measured on the sweep)",
+            c.normal_neighbours
+        ),
+        None => println!("normals on k = {} neighbours", c.normal_neighbours),
+    }
     println!("step  height   depth   width   area     voxels  centre (x, y)");
     for (i, s) in r.segments.iter().enumerate() {
         let ctr = s.center();
