@@ -154,7 +154,7 @@ impl PerceptionParams {
             return bad("distance_impact_factor", "must be in (0, 1)");
         }
         if !(3..=MAX_NEIGHBOURS).contains(&self.normal_neighbours) {
-            return bad("normal_neighbours", "must be in [3, 100]");
+            return bad("normal_neighbours", &format!("must be in [3, {MAX_NEIGHBOURS}]"));
         }
         if self.min_adjacent_voxels > 26 {
             return bad("min_adjacent_voxels", "must be at most 26 (a voxel has 26 neighbours)");
@@ -362,7 +362,7 @@ impl PlaneSegment {
 /// Wall time of each phase, milliseconds.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct PhaseTimings {
-    /// Normal estimation.
+    /// Normal estimation (with the measure of the sweep's range noise).
     pub normals: f64,
     /// Filter 1 (slope).
     pub filter1: f64,

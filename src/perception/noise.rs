@@ -20,17 +20,18 @@ pub fn range_noise_m(cloud: &PointCloud) -> Option<f64> {
     let v = cloud.viewpoint().cast::<f32>();
     let points = cloud.points();
     let range = |c: u32| {
-        let p = points.get(c as usize)?;
+        let p = points.get(c as usize).filter(|_| c != ScanGrid::EMPTY)?;
         let r = (p - v).norm();
         r.is_finite().then_some(f64::from(r))
     };
     let mut second: Vec<f64> = Vec::with_capacity(points.len());
+    let mut ranges: Vec<Option<f64>> = Vec::with_capacity(grid.beams());
     for row in grid.cells().chunks(grid.beams()) {
-        for w in row.windows(3) {
-            if w.iter().all(|&c| c != ScanGrid::EMPTY) {
-                if let (Some(a), Some(b), Some(c)) = (range(w[0]), range(w[1]), range(w[2])) {
-                    second.push((a - 2.0 * b + c).abs());
-                }
+        ranges.clear();
+        ranges.extend(row.iter().map(|&c| range(c)));
+        for w in ranges.windows(3) {
+            if let [Some(a), Some(b), Some(c)] = *w {
+                second.push((a - 2.0 * b + c).abs());
             }
         }
     }
