@@ -397,15 +397,15 @@ mod tests {
         assert_eq!(merged[0].normal(), fuller_tilted.normal());
     }
 
-    /// ci suite case 11: with one tread in view, perception took its width for its depth
-    /// (ascent turned 90 degrees); the merge must read that view along the known ascent.
     /// A view's rectangle is the extent of its voxels along its own axes; turned against the
     /// tread, it reaches beyond the tread at both ends. What it surely saw lies on the tread,
     /// at any turn, and is the edge itself when it is not turned.
     #[test]
     fn a_turned_view_surely_saw_only_tread() {
-        let (depth_m, seen_width_m) = (0.289, 0.68);
-        let strip = [(0.0, -0.34), (0.0, 0.34), (depth_m, -0.34), (depth_m, 0.34)];
+        // A tread 0.289 m deep seen over 0.68 m of its width.
+        let (depth_m, half_width_m) = (0.289, 0.34);
+        let strip =
+            [(0.0, -half_width_m), (0.0, half_width_m), (depth_m, -half_width_m), (depth_m, half_width_m)];
         for deg in [0.0, 2.0, 5.0, 12.0, 19.7] {
             let (s, c) = f64::to_radians(deg).sin_cos();
             let (u, w) = (Vector3::new(c, s, 0.0), Vector3::new(-s, c, 0.0));
@@ -418,7 +418,6 @@ mod tests {
             let (a, b) = (span(&u), span(&w));
             let centre = u * ((a[0] + a[1]) / 2.0) + w * ((b[0] + b[1]) / 2.0);
             let r = level(Point3::from(centre), u, a[1] - a[0], b[1] - b[0], 100);
-            assert!((r.width_m() - seen_width_m).abs() < 0.25, "the strip's bounding rectangle");
             let o = Point3::origin();
             let (front, back) =
                 (surely_seen(&r, &o, &Vector3::x(), -1.0), surely_seen(&r, &o, &Vector3::x(), 1.0));
@@ -446,6 +445,8 @@ mod tests {
         assert!(front > 1.444 - 0.025 && back < 1.733 + 0.025, "step 6 at {front:.3}..{back:.3} m");
     }
 
+    /// ci suite case 11: with one tread in view, perception took its width for its depth
+    /// (ascent turned 90 degrees); the merge must read that view along the known ascent.
     #[test]
     fn a_view_with_its_axes_swapped_is_read_along_the_known_ascent() {
         let known = level(Point3::new(1.64, 0.01, 0.37), Vector3::x(), 0.29, 1.46, 506);
