@@ -208,6 +208,18 @@ fn print_tables(p: &Plan, wall_s: f64) {
         Some(d) => println!("legs: at least {:.1} mm from the steps", d * 1e3),
         None => println!("legs: never near a step"),
     }
+    match &t.nearest_body_surface {
+        Some(n) => println!(
+            "body: at least {:.1} mm from the seen surfaces ({} by ({:.3}, {:.3}, {:.3}) m at {:.2} s)",
+            t.min_body_clearance_m.unwrap_or(f64::NAN) * 1e3,
+            n.limb,
+            n.point_m[0],
+            n.point_m[1],
+            n.point_m[2],
+            n.t_s
+        ),
+        None => println!("body: never near a seen surface"),
+    }
     println!(
         "planning took {:.2} s: gait and polygons {:.1} ms, IK {} ticks at {:.3} ms each",
         wall_s,

@@ -179,6 +179,9 @@ pub struct Tracking {
     /// `None` when none came within `clearance_range_m`.
     #[serde(default)]
     pub min_body_clearance_m: Option<f64>,
+    /// Where that least body clearance was: the capsule, the seen point and the time.
+    #[serde(default)]
+    pub nearest_body_surface: Option<NearestSurface>,
     /// QPs solved.
     pub ik_ticks: usize,
     /// Of them, the QPs the active sets did not solve and clarabel did (all of them with
@@ -187,6 +190,17 @@ pub struct Tracking {
     pub ik_interior_point_qps: usize,
     /// Wall time in the IK (kinematics, QP build, solve), seconds.
     pub ik_time_s: f64,
+}
+
+/// Where the body came nearest a surface the lidar saw.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct NearestSurface {
+    /// The body's capsule (its link's name).
+    pub limb: String,
+    /// The seen point (a voxel's centroid), world frame, metres.
+    pub point_m: [f64; 3],
+    /// The trajectory's time, seconds.
+    pub t_s: f64,
 }
 
 /// Smooth time law on [0, 1]: 3 t^2 - 2 t^3 and its derivative.
@@ -318,8 +332,8 @@ pub struct Tracker<'m> {
 }
 
 impl<'m> Tracker<'m> {
-    /// A tracker from configuration `q0` (whose joints are also the posture term's reference
-    /// and whose base orientation the base task holds), keeping the legs `p.leg_clearance_m`
+    /// A tracker from configuration `q0` (whose joints are also the posture term's reference;
+    /// the base task holds the base upright, facing where the feet point), keeping the legs `p.leg_clearance_m`
     /// off `blocks` and the rest of the body `p.body_clearance_m` off the `seen` surfaces.
     pub fn new(
         model: &'m RobotModel,
@@ -334,9 +348,10 @@ impl<'m> Tracker<'m> {
         let upper = upper_body_mask(model, &feet);
         let limbs = clearance::limbs(model, &feet);
         let upper_limbs = clearance::upper_limbs(model, &feet);
-        // The base held upright at its starting heading: a reference taken from q0 as it is
-        // would keep whatever tilt the last motion left, and the tilts of successive plans
-        // would add up (Exp. 2 ended its 11 steps pitched 14 deg forward).
+        // The base held upright: a reference taken from q0 as it is would keep whatever tilt
+        // the last motion left, and the tilts of successive plans would add up (Exp. 2 ended
+        // its 11 steps pitched 14 deg forward). Its heading follows the feet (see `tick`);
+        // this one is for targets without a foot.
         let (_, _, yaw) = kin.link_pose(0).rotation.euler_angles();
         let base_ref = nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, yaw);
         let (com_jac, frame_jac) = (kin.new_com_jacobian(), kin.new_frame_jacobian());
@@ -472,10 +487,12 @@ impl<'m> Tracker<'m> {
             p.posture_gain_per_s,
             p.weight_posture,
         ));
+        let base_ref = feet_heading(targets)
+            .map_or(self.base_ref, |yaw| nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, yaw));
         tasks.push(ik::base_orientation_task(
             &self.kin,
             &mut self.frame_jac,
-            &self.base_ref,
+            &base_ref,
             p.posture_gain_per_s,
             p.weight_posture,
         ));
@@ -500,6 +517,24 @@ impl<'m> Tracker<'m> {
         self.update_clearances();
         Ok(())
     }
+}
+
+/// The mean heading of the feet `targets` hold and move (radians about z), `None` without
+/// a foot: the base faces where the feet point. Held at its starting heading instead, a
+/// robot that started turned from the flight climbed with its pelvis turned, the hips
+/// twisted to point the feet up the steps (wide suite case 38: 17 deg; stepping onto the
+/// first step in a stairwell, the plan's pelvis rolled the chest to within the body's 3 cm
+/// clearance of a wall, the IK then yawed it 18 deg within half a second, and the robot
+/// fell).
+pub fn feet_heading(targets: &Targets) -> Option<f64> {
+    let poses = targets.support.iter().map(|(_, p)| p).chain(targets.swing.iter().map(|(_, p, _)| p));
+    let sum: nalgebra::Vector2<f64> = poses
+        .map(|p| {
+            let x = p.rotation * nalgebra::Vector3::x();
+            nalgebra::Vector2::new(x.x, x.y).try_normalize(1e-9).unwrap_or_else(nalgebra::Vector2::zeros)
+        })
+        .sum();
+    (sum.norm() > 1e-9).then(|| sum.y.atan2(sum.x))
 }
 
 /// The free foot's target at fraction `tau` of segment `seg` (`None` without one).
@@ -573,9 +608,16 @@ pub fn track(
                 }
             }
             if let Some((d, limb, point)) = tracker.least_body_clearance() {
-                stats.min_body_clearance_m = Some(stats.min_body_clearance_m.map_or(d, |m: f64| m.min(d)));
+                let at = tracker.seen().points()[point];
+                if stats.min_body_clearance_m.is_none_or(|m| d < m) {
+                    stats.min_body_clearance_m = Some(d);
+                    stats.nearest_body_surface = Some(NearestSurface {
+                        limb: tracker.upper_limb_name(limb).to_string(),
+                        point_m: [at.x, at.y, at.z],
+                        t_s: t,
+                    });
+                }
                 if d < 0.0 {
-                    let at = tracker.seen().points()[point];
                     return Err(PlanError::BodyTouchesSurface {
                         segment: si,
                         limb: tracker.upper_limb_name(limb).to_string(),
