@@ -526,7 +526,7 @@ impl<'m> Tracker<'m> {
 /// first step in a stairwell, the plan's pelvis rolled the chest to within the body's 3 cm
 /// clearance of a wall, the IK then yawed it 18 deg within half a second, and the robot
 /// fell).
-pub fn feet_heading(targets: &Targets) -> Option<f64> {
+fn feet_heading(targets: &Targets) -> Option<f64> {
     let poses = targets.support.iter().map(|(_, p)| p).chain(targets.swing.iter().map(|(_, p, _)| p));
     let sum: nalgebra::Vector2<f64> = poses
         .map(|p| {
@@ -665,4 +665,34 @@ pub fn track(
         });
     }
     Ok((JointTrajectory { rate_hz: p.rate_hz, samples }, stats))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sole(yaw_deg: f64) -> Isometry3<f64> {
+        Isometry3::rotation(nalgebra::Vector3::z() * yaw_deg.to_radians())
+    }
+
+    #[test]
+    fn the_heading_is_the_feet_mean_across_the_wrap() {
+        let heading = |support: &[(Foot, Isometry3<f64>)], swing: Option<f64>| {
+            let targets = Targets {
+                com: Point3::origin(),
+                com_velocity: nalgebra::Vector3::zeros(),
+                swing: swing.map(|y| (Foot::Right, sole(y), Vector6::zeros())),
+                support,
+            };
+            feet_heading(&targets).map(f64::to_degrees)
+        };
+        let both = [(Foot::Right, sole(10.0)), (Foot::Left, sole(30.0))];
+        assert!((heading(&both, None).unwrap() - 20.0).abs() < 1e-9);
+        // A support foot and the swinging one's target count alike.
+        assert!((heading(&both[1..], Some(10.0)).unwrap() - 20.0).abs() < 1e-9);
+        // 170 and -170 deg are 20 deg apart about 180, not about 0.
+        let wrap = [(Foot::Right, sole(170.0)), (Foot::Left, sole(-170.0))];
+        assert!((heading(&wrap, None).unwrap().abs() - 180.0).abs() < 1e-9);
+        assert_eq!(heading(&[], None), None);
+    }
 }
