@@ -323,6 +323,14 @@ fn the_ik_keeps_the_body_off_a_wall_the_lidar_saw() {
     let among = plan_among(&model, &q0, &rects, seen, Some(2), &p).expect("planned among the wall");
     let (least, _) = upper_body_reach(&among, &wall);
     assert!(least >= p.ik.body_clearance_m - 1e-3, "the body came within {least} m of the wall");
+    // The plan says where: its least body clearance is the brute-force one, at a wall point.
+    let nearest = among.tracking.nearest_body_surface.as_ref().expect("the body came near the wall");
+    assert!(
+        (nearest.clearance_m - least).abs() < 1e-6,
+        "reported {} m, brute force {least} m",
+        nearest.clearance_m
+    );
+    assert!(wall.iter().any(|q| (q.coords - Vector3::from(nearest.point_m)).norm() < 1e-9));
     assert_eq!(among.stances, blind.stances, "the lanes were held: only the IK acted");
     // The wall where the body stands: refused, naming the limb, not planned through.
     let through: Vec<Point3<f64>> = wall.iter().map(|q| Point3::new(q.x, reach_y - 0.2, q.z)).collect();

@@ -211,7 +211,7 @@ fn print_tables(p: &Plan, wall_s: f64) {
     match &t.nearest_body_surface {
         Some(n) => println!(
             "body: at least {:.1} mm from the seen surfaces ({} by ({:.3}, {:.3}, {:.3}) m at {:.2} s)",
-            t.min_body_clearance_m.unwrap_or(f64::NAN) * 1e3,
+            n.clearance_m * 1e3,
             n.limb,
             n.point_m[0],
             n.point_m[1],

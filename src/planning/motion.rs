@@ -175,11 +175,8 @@ pub struct Tracking {
     /// Least distance between a leg capsule and a step over the trajectory, metres; `None`
     /// when no step came within `clearance_range_m` of the legs.
     pub min_leg_clearance_m: Option<f64>,
-    /// Least distance between the rest of the body and a surface the lidar saw, metres;
+    /// Least distance between the rest of the body and a surface the lidar saw, and where;
     /// `None` when none came within `clearance_range_m`.
-    #[serde(default)]
-    pub min_body_clearance_m: Option<f64>,
-    /// Where that least body clearance was: the capsule, the seen point and the time.
     #[serde(default)]
     pub nearest_body_surface: Option<NearestSurface>,
     /// QPs solved.
@@ -195,6 +192,8 @@ pub struct Tracking {
 /// Where the body came nearest a surface the lidar saw.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NearestSurface {
+    /// Distance from the capsule's surface to the point, metres (negative: inside it).
+    pub clearance_m: f64,
     /// The body's capsule (its link's name).
     pub limb: String,
     /// The seen point (a voxel's centroid), world frame, metres.
@@ -609,9 +608,9 @@ pub fn track(
             }
             if let Some((d, limb, point)) = tracker.least_body_clearance() {
                 let at = tracker.seen().points()[point];
-                if stats.min_body_clearance_m.is_none_or(|m| d < m) {
-                    stats.min_body_clearance_m = Some(d);
+                if stats.nearest_body_surface.as_ref().is_none_or(|n| d < n.clearance_m) {
                     stats.nearest_body_surface = Some(NearestSurface {
+                        clearance_m: d,
                         limb: tracker.upper_limb_name(limb).to_string(),
                         point_m: [at.x, at.y, at.z],
                         t_s: t,
