@@ -103,6 +103,12 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
     let model = stairbench::robot::hrp4::model()?;
     let mut map = StepMap::default();
     let mut around = Surroundings::default();
+    // The floor the climb started from, as the loop took it: the feet at the first plan.
+    let start_floor_z_m = rec
+        .sweeps
+        .iter()
+        .find_map(|s| s.plan.as_ref())
+        .map_or(f64::NAN, |first| feet_height_m(&model, &first.q0));
     let (mut differ, mut compared) = (0, 0);
     for (i, RecordedSweep { stamp_s, sweep, perception, plan: planned, trajectory, .. }) in
         rec.sweeps.iter().enumerate()
@@ -176,7 +182,15 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
         let verdict =
             // As many stances as were planned then (the loop plans a few per scan, a rehearsal
             // all it sees).
-            match plan_next(&model, &then.q0, &next.ahead, surfaces, then.stances.len(), &params.plan) {
+            match plan_next(
+                &model,
+                &then.q0,
+                &next.ahead,
+                surfaces,
+                then.stances.len(),
+                start_floor_z_m,
+                &params.plan,
+            ) {
                 Err(e) => {
                     differ += 1;
                     format!("DIFFERENT: refused now ({})", e.message)

@@ -138,10 +138,13 @@ pub fn run<E: Executor>(
     let mut map = StepMap::default();
     let mut around = Surroundings::default();
     let mut last_cycle = 0;
+    // The floor the climb starts from: the only one the loop walks on to look closer.
+    let mut start_floor = None;
     for cycle in 1..=p.run.max_cycles {
         last_cycle = cycle;
         robot.settle(p.run.settle_s).map_err(failed)?;
         let q = robot.configuration();
+        let start_floor_z_m = *start_floor.get_or_insert_with(|| feet_height_m(model, &q));
         let t = Instant::now();
         let stamp_s = robot.now_s();
         let sweep = match source.sweep(cancel, &mut |_, _| {}) {
@@ -197,7 +200,7 @@ pub fn run<E: Executor>(
         let t = Instant::now();
         let surfaces = Arc::new(SeenPoints::new(around.points(p.surroundings)));
         let (planned, closer_look) =
-            match plan_next(model, &q, &ahead, surfaces, p.run.stances_per_scan, p.plan) {
+            match plan_next(model, &q, &ahead, surfaces, p.run.stances_per_scan, start_floor_z_m, p.plan) {
                 Ok(x) => x,
                 Err(refusal) => {
                     report.stop = Some(StopReason::Refused { cycle, refusal: *refusal });
@@ -268,16 +271,22 @@ pub fn run<E: Executor>(
 ///   stance is on the flight (ci suite case 175: from step 4 of 12, step 10, seen 0.91 m of
 ///   its 1.33 m width at the edge of the lidar's view, refused the climb "would overhang
 ///   its side");
-/// - else the first stances of the walk on the floor toward them.
+/// - else, with the feet on the floor the climb started from (within `floor_band_m` of
+///   `start_floor_z_m`), the first stances of the walk on the floor toward them. Never from
+///   a step: the walk's "floor" would be the tread under the feet, and its stances within
+///   the lidar's blind reach need no returns under them (ci suite case 83: from the top
+///   tread, toward a strip seen on the room's wall, the right foot went 0.19 m past the
+///   tread's back edge and the robot fell).
 ///
 /// The refusal when neither is possible (nothing left to walk on the floor, a refused next
-/// step), or they are refused too.
+/// step, feet on a step), or they are refused too.
 pub fn plan_next(
     model: &RobotModel,
     q: &[f64],
     ahead: &[PlaneSegment],
     surfaces: Arc<SeenPoints>,
     stances: usize,
+    start_floor_z_m: f64,
     p: &PlanParams,
 ) -> Result<(Plan, Option<Refusal>), Box<Refusal>> {
     let refusal = match plan_among(model, q, ahead, surfaces.clone(), Some(stances), p) {
@@ -293,6 +302,10 @@ pub fn plan_next(
                 return Ok((plan, Some(refusal)));
             }
         }
+    }
+    let on_start_floor = (feet_height_m(model, q) - start_floor_z_m).abs() <= p.gait.floor_band_m;
+    if !on_start_floor {
+        return Err(Box::new(refusal));
     }
     match plan_approach(model, q, ahead, surfaces, Some(stances), p) {
         Ok(Some(walk)) => Ok((walk, Some(refusal))),

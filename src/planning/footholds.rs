@@ -203,15 +203,19 @@ pub fn footholds(
     let mut prev_along = lay.start_along;
     for (i, s) in steps.iter().enumerate() {
         let c = s.center();
-        let (front, along, usable_m) = lay.foothold_along(&steps, i, p);
-        if usable_m < p.min_tread_m {
-            return Err(PlanError::ShortTread { step: i, depth_m: usable_m, min_m: p.min_tread_m });
-        }
+        // The rise before the depth: a depth may grow from nearer (a step seen in part), a
+        // rise does not, and a refusal for the depth sends the loop nearer to look again
+        // (ci suite case 83: a 6 cm strip seen 1.03 m above the top tread, refused as
+        // short, was walked toward off the tread's back edge).
         if let Some(usual_m) = usual.filter(|&u| rises[i] >= p.missing_step_ratio * u) {
             return Err(PlanError::MissingStep { step: i, rise_m: rises[i], usual_m });
         }
         if rises[i] > p.max_rise_m {
             return Err(PlanError::HighRise { step: i, rise_m: rises[i], max_m: p.max_rise_m });
+        }
+        let (front, along, usable_m) = lay.foothold_along(&steps, i, p);
+        if usable_m < p.min_tread_m {
+            return Err(PlanError::ShortTread { step: i, depth_m: usable_m, min_m: p.min_tread_m });
         }
         if i > 0 {
             let back = (steps[i - 1].center() - o).dot(&u) + steps[i - 1].depth_m() / 2.0;
@@ -782,6 +786,20 @@ mod tests {
         assert!((on_step_1.right.translation.x - 0.635).abs() < 1e-9, "{}", on_step_1.right.translation.x);
         let on_step_2 = stances.iter().find(|s| s.step == Some(1)).expect("a stance on step 2");
         assert!((on_step_2.right.translation.x - 0.905).abs() < 1e-9, "the top step: its own middle");
+    }
+
+    /// The ci suite's case 83: from the top tread (0.461 m), a strip 6 cm deep seen 1.03 m
+    /// above the feet (on the room's far wall). Its rise is judged before its depth: refused
+    /// as too high, which a closer look cannot undo, not as a short tread, which sent the
+    /// loop walking toward it.
+    #[test]
+    fn a_rise_is_judged_before_the_depth() {
+        let sole = |y: f64| Isometry3::translation(0.3, y, 0.461);
+        let start = Stance { right: sole(-0.1), left: sole(0.1), step: Some(2) };
+        match footholds(&start, &[tread(1.1, 1.496, 0.058)], &[], &GaitParams::default()) {
+            Err(PlanError::HighRise { step: 0, rise_m, .. }) => assert!((rise_m - 1.035).abs() < 1e-9),
+            other => panic!("expected a rise too high, got {other:?}"),
+        }
     }
 
     /// The ci suite's case 188: a view split a tread in two pieces at one height, one 4 mm
