@@ -76,7 +76,8 @@ pub fn extract(
     // Filter 3's rule (§4.2) on each joined part too: RANSAC may split a cluster, and a
     // leftover whose footprint is smaller than the sole is not a foothold (seen: 6 voxels
     // of a step's tread, 5 deg off level, 1.5 cm above it, taken for another step turned
-    // 90 deg), nor are voxels too few to cover their footprint (`min_segment_cover`).
+    // 90 deg), nor are voxels too few to cover their footprint (`min_segment_cover`), nor
+    // a part whose own plane is steeper than Filter 1's slope ([`is_surface`]).
     let cands: Vec<Candidate> =
         join_touching(vc, parts, p).into_iter().filter(|c| is_surface(c, &up, p)).collect();
     let n_candidates = cands.len();
