@@ -562,7 +562,8 @@ mod tests {
 
     /// ci case 83: a strip 6 cm by 1.2 m on a wall, its voxels' plane 54.5 deg from level,
     /// is no surface, though its footprint holds a sole's area and its voxels cover it; the
-    /// same strip level, or tilted 10 deg, is one.
+    /// same strip level, or tilted 10 deg, is one, and tilted 20 deg (past Filter 1's 15) is
+    /// not.
     #[test]
     fn a_strip_of_a_wall_is_not_a_surface() {
         let p = PerceptionParams::default();
@@ -579,6 +580,7 @@ mod tests {
         assert!(!is_surface(&wall, &Vector3::z(), &p), "a wall's strip taken for a surface");
         assert!(is_surface(&strip(0.0), &Vector3::z(), &p));
         assert!(is_surface(&strip(10.0), &Vector3::z(), &p));
+        assert!(!is_surface(&strip(20.0), &Vector3::z(), &p), "a 20 deg ramp taken for a surface");
     }
 
     /// A tread of `depth_m` by `width_m` from `front_m` along x, turned `yaw_deg`, every

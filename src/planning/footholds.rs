@@ -61,7 +61,10 @@ pub struct GaitParams {
     /// Shortest tread a foot is placed on. The sole is 24 cm; the default lets it overhang a
     /// perceived rectangle by 1 cm at each end, since perception under-measures a tread by
     /// up to about half a voxel per edge (§4, v = 2 cm; the paper's Exp. 1 step 1 is
-    /// 23.2 cm deep on a 27 cm tread).
+    /// 23.2 cm deep on a 27 cm tread). Between two steps the toe's end is the next riser,
+    /// not air: the foot centred on a tread under the sole's length plus clearances puts the
+    /// toe on it (the envelope's 0.24 m column strikes), and moving the foot back trades
+    /// that for the heel over the nose (measured in BENCHMARKS.md, not settled).
     pub min_tread_m: f64,
     /// Highest rise between consecutive treads the legs can climb (HRP-4's 24 cm step,
     /// §6.3, is within; the knee's fold and the trailing leg's reach set the limit).
