@@ -171,6 +171,22 @@ fn the_papers_rectangles_are_planned() {
     check(&plan, None);
 }
 
+/// High rises on treads deeper than the legs' stride allows for them (the envelope's cells
+/// 0.24 x 0.36 and 0.26 x 0.32-0.40 were refused: "the leading knee would fold beyond 125
+/// deg"): planned to the top from the true steps, every property checked.
+#[test]
+fn high_rises_on_deep_treads_are_planned_within_the_knee() {
+    for (rise_m, tread_m) in [(0.24, 0.36), (0.26, 0.32), (0.26, 0.40)] {
+        let mut s = Scenario::default();
+        s.staircase.rise_m = rise_m;
+        s.staircase.tread_m = tread_m;
+        let (scene, r) = scenario_plan(&s);
+        let plan = r.unwrap_or_else(|e| panic!("{rise_m} x {tread_m}: {e}"));
+        assert_eq!(plan.stances.last().and_then(|st| st.step), Some(scene.steps().len() - 1));
+        check(&plan, Some(&scene));
+    }
+}
+
 fn refusal(s: &Scenario) -> PlanError {
     match scenario_plan(s).1 {
         Ok(p) => panic!("the plan must be refused, got {} stances", p.stances.len()),
@@ -546,6 +562,7 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
 fn the_floor_stances_keep_the_toes_off_the_true_riser_under_range_noise() {
     use stairbench::perception::{perceive, PerceptionParams};
     use stairbench::planning::footholds::{footholds, GaitParams};
+    use stairbench::planning::gait::{Body, Legs, StepParams};
     use stairbench::planning::plan::stance_at;
     use stairbench::sensor::AssembleParams;
     let model = hrp4::model().unwrap();
@@ -564,8 +581,13 @@ fn the_floor_stances_keep_the_toes_off_the_true_riser_under_range_noise() {
             .assemble(&AssembleParams::default())
             .unwrap();
         let Ok(seen) = perceive(&cloud, &PerceptionParams::default()) else { continue };
-        let start = stance_at(&model, &start_q(&model, &scene.robot_start())).unwrap();
-        let Ok(stances) = footholds(&start, &seen.segments, &[], &p) else { continue };
+        let q = start_q(&model, &scene.robot_start());
+        let start = stance_at(&model, &q).unwrap();
+        let mut kin = Kinematics::new(&model);
+        kin.update(&q).unwrap();
+        let body = Body::measure(&kin, hrp4::sole_frames(&model).unwrap()).unwrap();
+        let legs = Legs::of(&body, &StepParams::default());
+        let Ok(stances) = footholds(&start, &seen.segments, &[], &legs, &p) else { continue };
         planned += 1;
         for st in stances.iter().filter(|st| st.step.is_none()) {
             for sole in [&st.right, &st.left] {

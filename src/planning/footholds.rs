@@ -7,6 +7,7 @@
 //! from the rectangle's plane and its yaw from the staircase. Steps the feet cannot use are
 //! refused here, with the reason, before any motion is computed.
 
+use super::gait::Legs;
 use super::PlanError;
 use crate::perception::PlaneSegment;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -176,13 +177,21 @@ impl Default for GaitParams {
     }
 }
 
+/// How far inside the legs' longest stride ([`Legs::max_stride_m`]) the footholds keep a
+/// step up, metres: the knee's check measures between the ankles, about 9 cm above the
+/// soles, which a tread's perceived tilt of a degree or two moves by up to 3 mm from the
+/// soles' centres; at the limit itself, rounding alone refused the envelope's 0.26 x 0.40.
+const KNEE_STRIDE_SLACK_M: f64 = 0.005;
+
 /// The stances after `start`, ending with both feet on the highest rectangle, or the reason
 /// the staircase cannot be climbed. `seen` are the surfaces the lidar saw (the
-/// surroundings' points; empty when nothing is known beside the steps).
+/// surroundings' points; empty when nothing is known beside the steps); `legs` limit how far
+/// apart the feet may stand for each step up.
 pub fn footholds(
     start: &Stance,
     rects: &[PlaneSegment],
     seen: &[Point3<f64>],
+    legs: &Legs,
     p: &GaitParams,
 ) -> Result<Vec<Stance>, PlanError> {
     if rects.is_empty() {
@@ -239,20 +248,45 @@ pub fn footholds(
                 });
             }
         }
+        // The stride a step up this rise allows: the gait's, and the legs' (a high rise
+        // with the feet far apart folds the leading knee past its limit: the envelope's
+        // 0.24-0.26 m rises on 0.32-0.40 m treads were refused for it).
+        let stride_max_m = p.max_stride_m.min(legs.max_stride_m(rises[i]) - KNEE_STRIDE_SLACK_M);
+        let heel_on_m = front + p.sole_length_m / 2.0 + p.edge_margin_m;
         if i == 0 {
-            let walk = lay.floor_walk(front, along, p);
+            // The floor walk: unless the foothold is within the gait's stride of the start
+            // and the nearest the foot may go on the tread within the legs' for the rise.
+            let within = along - lay.start_along <= p.max_stride_m
+                && along.min(heel_on_m) - lay.start_along <= stride_max_m;
+            let walk = if within { Vec::new() } else { lay.floor_walk(front, p) };
             unobstructed(&walk, seen, lay.floor_z, p)?;
             if !walk.is_empty() {
                 prev_along = Layout::last_floor_along(front, p);
             }
             out.extend(walk);
         }
-        // A tread deeper than the legs' stride (ci suite case 6: 0.368 m treads, the
-        // middles 0.402 m apart as seen): the foot goes back from the middle toward the
-        // front edge as far as the stride needs, the whole sole staying on the tread.
-        let heel_on_m = front + p.sole_length_m / 2.0 + p.edge_margin_m;
-        let along = if along - prev_along > p.max_stride_m {
-            (prev_along + p.max_stride_m).max(heel_on_m).min(along)
+        // A tread too deep for that stride even to the next front edge (a landing, or a
+        // high rise on a deep tread): the feet first walk across it toward its back, in
+        // strides of `approach_stride_m` at most, the toes ending `toe_gap_m` behind the
+        // next riser as the floor's last stance keeps them (the loop, planning from the
+        // tread, walks it as its floor).
+        if i > 0 && heel_on_m - prev_along > stride_max_m {
+            let below = steps[i - 1];
+            let (below_front, _, below_usable_m) = lay.foothold_along(&steps, i - 1, p);
+            let across = Layout::last_floor_along(below_front + below_usable_m, p);
+            let n = ((across - prev_along) / p.approach_stride_m).ceil().max(0.0) as usize;
+            for k in 1..=n {
+                let a = prev_along + (across - prev_along) * k as f64 / n as f64;
+                let up = below.normal().into_inner();
+                out.push(lay.stance_in(lanes, a + p.test_foothold_shift_m, below.center(), up, Some(i - 1)));
+            }
+            prev_along = prev_along.max(across);
+        }
+        // A tread deeper than the stride (ci suite case 6: 0.368 m treads, the middles
+        // 0.402 m apart as seen): the foot goes back from the middle toward the front edge
+        // as far as the stride needs, the whole sole staying on the tread.
+        let along = if along - prev_along > stride_max_m {
+            (prev_along + stride_max_m).max(heel_on_m).min(along)
         } else {
             along
         };
@@ -279,7 +313,10 @@ pub fn approach(start: &Stance, rects: &[PlaneSegment], seen: &[Point3<f64>], p:
     let steps = super::rectangles::by_height(rects);
     let lay = Layout::new(start, &steps, seen, p);
     let (front, along, _) = lay.foothold_along(&steps, 0, p);
-    let mut walk = lay.floor_walk(front, along, p);
+    if along - lay.start_along <= p.max_stride_m {
+        return Vec::new();
+    }
+    let mut walk = lay.floor_walk(front, p);
     let seen_free = |f: &Isometry3<f64>| {
         let blind = (f.translation.vector - lay.frame.o.coords).dot(&lay.frame.u) - lay.start_along
             < p.approach_blind_m;
@@ -477,14 +514,10 @@ impl Layout {
         Stance { right: foot(lanes[0]), left: foot(lanes[1]), step }
     }
 
-    /// The floor stances up to the first step, whose front edge is at `front` and foothold
-    /// at `along`: none when the foothold is within a stride of the start; else strides of
-    /// at most `approach_stride_m`, the toes staying behind its riser, the lanes moving
-    /// aside a share each stance.
-    fn floor_walk(&self, front: f64, along: f64, p: &GaitParams) -> Vec<Stance> {
-        if along - self.start_along <= p.max_stride_m {
-            return Vec::new();
-        }
+    /// The floor stances up to the first step, whose front edge is at `front`: strides of
+    /// at most `approach_stride_m`, the toes ending `toe_gap_m` behind its riser, the lanes
+    /// moving aside a share each stance (none when the start is there already).
+    fn floor_walk(&self, front: f64, p: &GaitParams) -> Vec<Stance> {
         let last = Self::last_floor_along(front, p);
         let n = ((last - self.start_along) / p.approach_stride_m).ceil().max(0.0) as usize;
         let floor = Point3::new(self.frame.o.x, self.frame.o.y, self.floor_z);
@@ -565,6 +598,10 @@ mod tests {
     use super::*;
     use nalgebra::Point3;
 
+    /// About HRP-4's legs: thigh and shank 0.353 m, the trailing leg to 95 % of their length,
+    /// the knee folded to 125 deg at most (the planner measures them on the model).
+    const LEGS: Legs = Legs { reach_m: 0.95 * 0.706, fold_m: 0.326 };
+
     /// The smoke suite's case 8: a 0.5 m flight yawed 15.5 degrees, the robot off its centre
     /// line; the step map's steps carry directions 13.8, 14.5 and 15.5 degrees (each from its
     /// fuller view). Planned along step 1's direction, the landing 1 m up came out 3 cm
@@ -600,7 +637,7 @@ mod tests {
         };
         let stance = Stance { right: sole(-0.165), left: sole(0.025), step: None };
         let p = GaitParams::default();
-        let stances = footholds(&stance, &rects, &[], &p).expect("planned");
+        let stances = footholds(&stance, &rects, &[], &LEGS, &p).expect("planned");
         let top = stances.last().expect("a stance");
         let landing = &rects[2];
         for foot in [&top.right, &top.left] {
@@ -628,7 +665,7 @@ mod tests {
         // Floor seen from the feet to the first riser, 4 cm either side of its height.
         let mut floor = grid(0.04, 0.0, 0.45);
         floor.extend(grid(-0.04, 0.0, 0.45));
-        let walk = footholds(&stance, &rects, &floor, &p).expect("planned over seen floor");
+        let walk = footholds(&stance, &rects, &floor, &LEGS, &p).expect("planned over seen floor");
         assert!(walk[0].step.is_none(), "a floor stance first");
         // Two strays above the floor under the sole (a noisy riser's scatter): no surface.
         let sole = walk[0].right.translation.vector;
@@ -637,11 +674,11 @@ mod tests {
             Point3::new(sole.x + 0.1, sole.y, 0.17),
             Point3::new(sole.x + 0.1, sole.y + 0.03, 0.16),
         ]);
-        footholds(&stance, &rects, &strays, &p).expect("planned over two strays");
+        footholds(&stance, &rects, &strays, &LEGS, &p).expect("planned over two strays");
         // A 12 cm high box top under the floor stance, seen.
         let mut boxed = floor.clone();
         boxed.extend(grid(0.12, 0.25, 0.40));
-        match footholds(&stance, &rects, &boxed, &p) {
+        match footholds(&stance, &rects, &boxed, &LEGS, &p) {
             Err(PlanError::FloorObstructed { stance: 0, points, height_m, .. }) => {
                 assert!(
                     points >= p.floor_obstruction_returns && (height_m - 0.12).abs() < 1e-9,
@@ -665,13 +702,13 @@ mod tests {
         let rects = [step(0.5, 0.263), step(0.83, 0.395)];
         let sole = |y: f64| Isometry3::translation(0.0, y, 0.0);
         let stance = Stance { right: sole(-0.095), left: sole(0.095), step: None };
-        match footholds(&stance, &rects, &[], &GaitParams::default()) {
+        match footholds(&stance, &rects, &[], &LEGS, &GaitParams::default()) {
             Err(PlanError::MissingStep { step: 0, usual_m, .. }) => assert!((usual_m - 0.132).abs() < 1e-9),
             other => panic!("expected a missing step below step 1, got {other:?}"),
         }
         // Two equal rises are a flight.
         let even = [step(0.5, 0.132), step(0.83, 0.264)];
-        footholds(&stance, &even, &[], &GaitParams::default()).expect("planned");
+        footholds(&stance, &even, &[], &LEGS, &GaitParams::default()).expect("planned");
     }
 
     /// A straight flight of three 17 cm steps along x, 0.9 m wide, the robot standing on
@@ -712,14 +749,14 @@ mod tests {
     fn lanes_move_off_a_wall_beside_the_flight_and_stay_without_one() {
         let p = GaitParams::default();
         let (rects, stance) = flight_and_stance(0.15);
-        let free = footholds(&stance, &rects, &[], &p).expect("planned");
+        let free = footholds(&stance, &rects, &[], &LEGS, &p).expect("planned");
         assert!(lanes_of(&free).iter().all(|y| (y - 0.15).abs() < 1e-9), "no wall: lanes kept");
         // A low box beside (its top below the hands) moves nothing either.
         let low: Vec<Point3<f64>> = wall(0.45).into_iter().filter(|q| q.z < 0.3).collect();
-        let beside_low = footholds(&stance, &rects, &low, &p).expect("planned");
+        let beside_low = footholds(&stance, &rects, &low, &LEGS, &p).expect("planned");
         assert_eq!(lanes_of(&beside_low), lanes_of(&free));
         // A wall at y = 0.45: the midline goes to 0.45 - 0.36 = 0.09, by the top for good.
-        let walled = footholds(&stance, &rects, &wall(0.45), &p).expect("planned");
+        let walled = footholds(&stance, &rects, &wall(0.45), &LEGS, &p).expect("planned");
         let lanes = lanes_of(&walled);
         assert!(lanes.iter().all(|y| *y <= 0.15 + 1e-9 && *y >= 0.09 - 1e-9), "{lanes:?}");
         assert!((lanes.last().expect("stances") - 0.09).abs() < 1e-9, "{lanes:?}");
@@ -730,7 +767,7 @@ mod tests {
         // Walls on both sides closer than the body's width: the middle.
         let mut both = wall(0.35);
         both.extend(wall(-0.2));
-        let pinched = footholds(&stance, &rects, &both, &p).expect("planned");
+        let pinched = footholds(&stance, &rects, &both, &LEGS, &p).expect("planned");
         assert!((lanes_of(&pinched).last().expect("stances") - 0.075).abs() < 1e-9);
     }
 
@@ -744,7 +781,7 @@ mod tests {
         rects[2] =
             PlaneSegment::new(top.center(), -top.along(), top.depth_m(), top.width_m(), Vector3::z(), 3000)
                 .expect("valid rectangle");
-        let stances = footholds(&stance, &rects, &[], &GaitParams::default()).expect("planned");
+        let stances = footholds(&stance, &rects, &[], &LEGS, &GaitParams::default()).expect("planned");
         let on_top = stances.last().expect("stances");
         assert_eq!(on_top.step, Some(2));
         assert!((on_top.right.translation.x - 1.2).abs() < 1e-9, "{}", on_top.right.translation.x);
@@ -753,7 +790,7 @@ mod tests {
             PlaneSegment::new(top.center(), Vector3::y(), 0.28, 0.9, Vector3::z(), 10).expect("valid");
         rects[2] = turned;
         assert!(matches!(
-            footholds(&stance, &rects, &[], &GaitParams::default()),
+            footholds(&stance, &rects, &[], &LEGS, &GaitParams::default()),
             Err(PlanError::NotStraight { step: 2, .. })
         ));
     }
@@ -782,6 +819,7 @@ mod tests {
             &Stance { right: sole(-0.1), left: sole(0.1), step: None },
             &rects,
             &[],
+            &LEGS,
             &GaitParams::default(),
         )
         .expect("planned");
@@ -799,7 +837,7 @@ mod tests {
     fn a_rise_is_judged_before_the_depth() {
         let sole = |y: f64| Isometry3::translation(0.3, y, 0.461);
         let start = Stance { right: sole(-0.1), left: sole(0.1), step: Some(2) };
-        match footholds(&start, &[tread(1.1, 1.496, 0.058)], &[], &GaitParams::default()) {
+        match footholds(&start, &[tread(1.1, 1.496, 0.058)], &[], &LEGS, &GaitParams::default()) {
             Err(PlanError::HighRise { step: 0, rise_m, .. }) => assert!((rise_m - 1.035).abs() < 1e-9),
             other => panic!("expected a rise too high, got {other:?}"),
         }
@@ -815,13 +853,13 @@ mod tests {
         let start = Stance { right: sole(-0.1), left: sole(0.1), step: None };
         let p = GaitParams::default();
         let split = [tread(0.5, 0.17, 0.29), tread(0.504, 0.172, 0.286), tread(0.79, 0.34, 0.27)];
-        match footholds(&start, &split, &[], &p) {
+        match footholds(&start, &split, &[], &LEGS, &p) {
             Err(PlanError::ShortTread { step: 0, depth_m, .. }) => assert!((depth_m - 0.004).abs() < 1e-9),
             other => panic!("a foothold on the nose: {other:?}"),
         }
         // The next step's front 0.25 m past: the sole fits, planned.
         let whole = [tread(0.5, 0.17, 0.29), tread(0.75, 0.34, 0.27)];
-        assert!(footholds(&start, &whole, &[], &p).is_ok());
+        assert!(footholds(&start, &whole, &[], &LEGS, &p).is_ok());
     }
 
     /// Treads deeper than the stride: the ci suite's case 6 (0.368 m treads, their middles
@@ -853,7 +891,7 @@ mod tests {
         let start = Stance { right: sole(-0.1), left: sole(0.1), step: None };
         // Step 3's front 0.402 m past step 2's (as the view of ci 6 had it), 36 cm treads.
         let rects = flight(&[(0.5, 0.36), (0.868, 0.36), (1.27, 0.36)]);
-        let stances = footholds(&start, &rects, &[], &p).expect("planned within the stride");
+        let stances = footholds(&start, &rects, &[], &LEGS, &p).expect("planned within the stride");
         let xs: Vec<f64> =
             stances.iter().filter(|s| s.step.is_some()).map(|s| s.right.translation.x).collect();
         for (k, w) in xs.windows(2).enumerate() {
@@ -868,8 +906,66 @@ mod tests {
             assert!(x + p.sole_length_m / 2.0 <= front + r.depth_m() + 1e-9, "toes off the tread at {x:.3}");
         }
         assert!(xs[2] < 1.27 + 0.18 - 1e-3, "step 3's foot went back from where it would go: {:.3}", xs[2]);
-        // After a 0.6 m tread, step 3's whole sole is not within a stride: still refused.
-        let far = flight(&[(0.5, 0.36), (0.868, 0.6), (1.468, 0.36)]);
-        assert!(matches!(footholds(&start, &far, &[], &p), Err(PlanError::Stride { step: 2, .. })));
+        // After a 1.2 m landing, step 3's whole sole is not within a stride: the feet walk
+        // across the landing first, every stride within the gait's.
+        let far = flight(&[(0.5, 0.36), (0.868, 1.2), (2.068, 0.36)]);
+        let stances = footholds(&start, &far, &[], &LEGS, &p).expect("planned across the landing");
+        let xs: Vec<f64> = stances.iter().map(|s| s.right.translation.x).collect();
+        assert!(xs.windows(2).all(|w| w[1] > w[0] && w[1] - w[0] <= p.max_stride_m + 1e-9), "{xs:?}");
+        assert!(stances.iter().filter(|s| s.step == Some(1)).count() >= 4, "{xs:?}");
+    }
+
+    /// High rises on deep treads (the envelope's 0.26 m x 0.40 m): the feet a tread's depth
+    /// apart fold the leading knee past its limit, and the climb was refused for it. Each
+    /// step up keeps the feet within the stride the legs allow for its rise: the foot goes
+    /// toward the nose, and where even that is too far the feet first walk across the tread
+    /// below to its back; every sole stays on its tread, the toes off the next riser.
+    #[test]
+    fn a_high_rise_on_a_deep_tread_keeps_the_feet_within_the_knees_stride() {
+        let p = GaitParams::default();
+        let (rise, depth) = (0.26, 0.40);
+        let rects: Vec<PlaneSegment> =
+            (0..3).map(|i| tread(1.0 + depth * i as f64, rise * (i + 1) as f64, depth)).collect();
+        let sole = |y: f64| Isometry3::translation(0.3, y, 0.0);
+        let start = Stance { right: sole(-0.1), left: sole(0.1), step: None };
+        let stances = footholds(&start, &rects, &[], &LEGS, &p).expect("planned within the knee's stride");
+        let mut prev = &start;
+        for (k, st) in stances.iter().enumerate() {
+            let (from, to) = (prev.left.translation, st.right.translation);
+            let (d, up) = (to.x - from.x, to.z - from.z);
+            assert!(d >= 0.0 && d <= p.max_stride_m + 1e-9, "stance {k}: stride {d:.3} m");
+            if up > 1e-6 {
+                let max = LEGS.max_stride_m(up);
+                assert!(
+                    d <= max + 1e-9,
+                    "stance {k}: {d:.3} m apart for a {up:.2} m rise, the knee allows {max:.3}"
+                );
+            }
+            if let Some(i) = st.step {
+                let front = 1.0 + depth * i as f64;
+                for f in [&st.right, &st.left] {
+                    let x = f.translation.x;
+                    assert!(
+                        (f.translation.z - rise * (i + 1) as f64).abs() < 1e-9,
+                        "stance {k} off its tread"
+                    );
+                    assert!(
+                        x - p.sole_length_m / 2.0 >= front + p.edge_margin_m - 1e-9,
+                        "stance {k}: heel over the nose"
+                    );
+                    assert!(
+                        x + p.sole_length_m / 2.0 <= front + depth - p.toe_gap_m + 1e-9,
+                        "stance {k}: toes at the riser"
+                    );
+                }
+            }
+            prev = st;
+        }
+        // Three steps up, and a walk across each of the two lower treads.
+        assert_eq!(stances.iter().filter(|s| s.step.is_some()).count(), 5);
+        // The gait's own limit alone (legs that reach far) keeps the tread's middle.
+        let long = Legs { reach_m: 2.0, fold_m: 0.326 };
+        let free = footholds(&start, &rects, &[], &long, &p).expect("planned");
+        assert_eq!(free.iter().filter(|s| s.step.is_some()).count(), 3);
     }
 }

@@ -157,6 +157,42 @@ impl StepParams {
     }
 }
 
+/// What the legs allow a step up (§6.3), from the body's figures and the gait's limits: the
+/// trailing leg reaches `reach_fraction` of its length, the leading knee folds at most
+/// `knee_max_rad`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Legs {
+    /// Hip pitch to ankle pitch, the farthest the trailing leg may reach, metres.
+    pub reach_m: f64,
+    /// Least height of the hip above the leading ankle with the knee at its largest fold,
+    /// metres.
+    pub fold_m: f64,
+}
+
+impl Legs {
+    /// The limits of `body`'s legs under `p`.
+    pub fn of(body: &Body, p: &StepParams) -> Self {
+        let (t, s) = (body.thigh_m, body.shank_m);
+        Self {
+            reach_m: p.reach_fraction * (t + s),
+            fold_m: (t * t + s * s + 2.0 * t * s * p.knee_max_rad.cos()).sqrt(),
+        }
+    }
+
+    /// Longest distance along the ascent between the trailing and the leading ankle for a
+    /// step up `rise_m`: the hip over the leading ankle, as high as the trailing leg reaches
+    /// from there, must stand `fold_m` above it (the check of [`segments`]); 0 when no
+    /// distance allows the rise.
+    pub fn max_stride_m(&self, rise_m: f64) -> f64 {
+        let h = (self.fold_m + rise_m).max(0.0);
+        if h >= self.reach_m {
+            0.0
+        } else {
+            (self.reach_m * self.reach_m - h * h).sqrt()
+        }
+    }
+}
+
 /// The figures of the body the gait needs, measured on the model in the start posture.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Body {
@@ -221,8 +257,9 @@ pub fn segments(
     let mut out: Vec<Segment> = Vec::new();
     let mut from = start.clone();
     let mut c = com;
+    let legs = Legs::of(body, p);
     for (k, to) in stances.iter().enumerate() {
-        let step = one_step(c, &from, to, k, body, p)?;
+        let step = one_step(c, &from, to, k, body, &legs, p)?;
         c = step.last().map(|s| s.com_end).unwrap_or(c);
         out.extend(step);
         from = to.clone();
@@ -240,6 +277,7 @@ fn one_step(
     to: &Stance,
     k: usize,
     body: &Body,
+    legs: &Legs,
     p: &StepParams,
 ) -> Result<Vec<Segment>, PlanError> {
     let (lo_z, lead_z) = (from.left.translation.z, to.right.translation.z);
@@ -247,13 +285,12 @@ fn one_step(
     let lead_ankle = body.ankle(Foot::Right, &to.right);
     let trail_ankle = body.ankle(Foot::Left, &from.left);
     // (1): over the left ankle, low enough that the right leg reaches its target from there.
-    let z1 =
-        com.z.min(hip_height_max(body, p, &trail_ankle, &lead_ankle, &forward, k)? + body.com_above_hip_m);
+    let z1 = com.z.min(hip_height_max(legs, &trail_ankle, &lead_ankle, &forward, k)? + body.com_above_hip_m);
     let w1 = over(trail_ankle, z1);
     // (3): over the right ankle, as high as the trailing leg reaches, no higher than standing.
-    let hip3 = hip_height_max(body, p, &lead_ankle, &trail_ankle, &forward, k)?
+    let hip3 = hip_height_max(legs, &lead_ankle, &trail_ankle, &forward, k)?
         .min(lo_z.min(lead_z) + body.com_height_m - body.com_above_hip_m);
-    check_fold(body, p, hip3 - lead_ankle.z, k)?;
+    check_fold(legs, p, hip3 - lead_ankle.z, k)?;
     let w3 = over(lead_ankle, hip3 + body.com_above_hip_m);
     // (4): standing height over the right ankle. (5): between the soles.
     let w4 = over(lead_ankle, lead_z + body.com_height_m);
@@ -310,14 +347,13 @@ fn over(p: Point3<f64>, z: f64) -> Point3<f64> {
 /// The highest the hip over `over` can be while the leg still reaches `ankle` (within
 /// `reach_fraction` of its length), the distance measured along `forward`.
 fn hip_height_max(
-    body: &Body,
-    p: &StepParams,
+    legs: &Legs,
     over: &Point3<f64>,
     ankle: &Point3<f64>,
     forward: &Vector3<f64>,
     stance: usize,
 ) -> Result<f64, PlanError> {
-    let reach = p.reach_fraction * (body.thigh_m + body.shank_m);
+    let reach = legs.reach_m;
     let d = (ankle - over).dot(forward).abs();
     if d >= reach {
         return Err(PlanError::LegReach { stance, apart_m: d, reach_m: reach });
@@ -327,14 +363,12 @@ fn hip_height_max(
 
 /// Refuses a stance whose leading knee would fold beyond `knee_max_rad` with the hip
 /// `hip_above_ankle_m` over the ankle.
-fn check_fold(body: &Body, p: &StepParams, hip_above_ankle_m: f64, stance: usize) -> Result<(), PlanError> {
-    let (t, s) = (body.thigh_m, body.shank_m);
-    let fold = (t * t + s * s + 2.0 * t * s * p.knee_max_rad.cos()).sqrt();
-    if hip_above_ankle_m < fold {
+fn check_fold(legs: &Legs, p: &StepParams, hip_above_ankle_m: f64, stance: usize) -> Result<(), PlanError> {
+    if hip_above_ankle_m < legs.fold_m {
         return Err(PlanError::KneeFold {
             stance,
             hip_above_ankle_m,
-            needs_m: fold,
+            needs_m: legs.fold_m,
             knee_max_rad: p.knee_max_rad,
         });
     }

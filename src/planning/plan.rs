@@ -3,7 +3,7 @@
 
 use super::clearance::{step_blocks, SeenPoints};
 use super::footholds::{approach, footholds, GaitParams, Stance};
-use super::gait::{segments, Body, Segment, StepParams};
+use super::gait::{segments, Body, Legs, Segment, StepParams};
 use super::motion::{track, IkParams, JointTrajectory, Tracking};
 use super::PlanError;
 use crate::perception::PlaneSegment;
@@ -128,8 +128,10 @@ pub fn plan_below(
 ) -> Result<Plan, PlanError> {
     let lower: Vec<PlaneSegment> =
         super::rectangles::by_height(rects).into_iter().take(below).cloned().collect();
-    plan_stances(model, q0, rects, seen, max_stances, p, |start, pts| footholds(start, &lower, pts, &p.gait))?
-        .ok_or(PlanError::NoSteps)
+    plan_stances(model, q0, rects, seen, max_stances, p, |start, pts, legs| {
+        footholds(start, &lower, pts, legs, &p.gait)
+    })?
+    .ok_or(PlanError::NoSteps)
 }
 
 /// The walk on the floor toward the flight of `rects` ([`approach`]), its first
@@ -144,13 +146,13 @@ pub fn plan_approach(
     max_stances: Option<usize>,
     p: &PlanParams,
 ) -> Result<Option<Plan>, PlanError> {
-    plan_stances(model, q0, rects, seen, max_stances, p, |start, pts| {
+    plan_stances(model, q0, rects, seen, max_stances, p, |start, pts, _| {
         Ok(approach(start, rects, pts, &p.gait))
     })
 }
 
 /// A plan through the stances `stances_from` gives from the start stance and the seen
-/// surfaces (the first `max_stances` of them): the gait's segments and the joint
+/// surfaces and the legs' limits (the first `max_stances` of them): the gait's segments and the joint
 /// trajectory, the legs kept off `rects` and the body off `seen`; `None` for no stances.
 fn plan_stances(
     model: &RobotModel,
@@ -159,21 +161,21 @@ fn plan_stances(
     seen: Arc<SeenPoints>,
     max_stances: Option<usize>,
     p: &PlanParams,
-    stances_from: impl FnOnce(&Stance, &[nalgebra::Point3<f64>]) -> Result<Vec<Stance>, PlanError>,
+    stances_from: impl FnOnce(&Stance, &[nalgebra::Point3<f64>], &Legs) -> Result<Vec<Stance>, PlanError>,
 ) -> Result<Option<Plan>, PlanError> {
     let started = Instant::now();
     let soles = hrp4::sole_frames(model)?;
     let mut kin = Kinematics::new(model);
     kin.update(q0)?;
     let start = stance_of(&kin, soles);
-    let mut stances = stances_from(&start, seen.points())?;
+    let body = Body::measure(&kin, soles)?;
+    let mut stances = stances_from(&start, seen.points(), &Legs::of(&body, &p.step))?;
     if let Some(n) = max_stances {
         stances.truncate(n);
     }
     if stances.is_empty() {
         return Ok(None);
     }
-    let body = Body::measure(&kin, soles)?;
     let segs = segments(kin.com(), &start, &stances, &body, &p.step)?;
     let gait_time_s = started.elapsed().as_secs_f64();
     // The steps as solids down to below the feet: what the legs must keep clear of.
