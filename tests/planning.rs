@@ -187,6 +187,56 @@ fn high_rises_on_deep_treads_are_planned_within_the_knee() {
     }
 }
 
+/// The footholds' reach ([`Legs::max_stride_m`]) and the gait's own knee check agree: a
+/// step up with the feet just inside the legs' stride for its rise is planned, just beyond
+/// it refused for the knee; on treads tilted 2 degrees (a perceived tilt), within the
+/// footholds' 5 mm slack.
+#[test]
+fn the_legs_stride_is_the_gaits_knee_check() {
+    use stairbench::planning::gait::{segments, Body, Legs, StepParams};
+    let model = hrp4::model().unwrap();
+    let q0 = start_q(&model, &Isometry3::identity());
+    let mut kin = Kinematics::new(&model);
+    kin.update(&q0).unwrap();
+    let soles = hrp4::sole_frames(&model).unwrap();
+    let body = Body::measure(&kin, soles).unwrap();
+    let p = StepParams::default();
+    let legs = Legs::of(&body, &p);
+    let start = stairbench::planning::plan::stance_of(&kin, soles);
+    let x0 = start.left.translation.x;
+    let step_at = |d: f64, rise: f64, tilt_deg: f64| {
+        let tilt = UnitQuaternion::from_euler_angles(0.0, -tilt_deg.to_radians(), 0.0);
+        let sole = |s: &Isometry3<f64>| {
+            Isometry3::from_parts(Translation3::new(x0 + d, s.translation.y, rise), tilt * s.rotation)
+        };
+        let to = stairbench::planning::Stance {
+            right: sole(&start.right),
+            left: sole(&start.left),
+            step: Some(0),
+        };
+        segments(kin.com(), &start, &[to], &body, &p)
+    };
+    for rise in [0.22, 0.26] {
+        let max = legs.max_stride_m(rise);
+        assert!(max > 0.28 && max < 0.40, "{rise}: {max}");
+        assert!(
+            step_at(max - 1e-4, rise, 0.0).is_ok(),
+            "{rise} m at {:.4} m: {:?}",
+            max - 1e-4,
+            step_at(max - 1e-4, rise, 0.0).err()
+        );
+        assert!(
+            matches!(step_at(max + 1e-3, rise, 0.0), Err(PlanError::KneeFold { .. })),
+            "{rise} m at {:.4} m: {:?}",
+            max + 1e-3,
+            step_at(max + 1e-3, rise, 0.0).map(|_| ())
+        );
+        for tilt in [-2.0, 2.0] {
+            assert!(step_at(max - 5e-3, rise, tilt).is_ok(), "{rise} m tilted {tilt} deg");
+        }
+    }
+}
+
 fn refusal(s: &Scenario) -> PlanError {
     match scenario_plan(s).1 {
         Ok(p) => panic!("the plan must be refused, got {} stances", p.stances.len()),
@@ -562,8 +612,8 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
 fn the_floor_stances_keep_the_toes_off_the_true_riser_under_range_noise() {
     use stairbench::perception::{perceive, PerceptionParams};
     use stairbench::planning::footholds::{footholds, GaitParams};
-    use stairbench::planning::gait::{Body, Legs, StepParams};
-    use stairbench::planning::plan::stance_at;
+    use stairbench::planning::gait::StepParams;
+    use stairbench::planning::plan::{legs_at, stance_at};
     use stairbench::sensor::AssembleParams;
     let model = hrp4::model().unwrap();
     let p = GaitParams::default();
@@ -583,10 +633,7 @@ fn the_floor_stances_keep_the_toes_off_the_true_riser_under_range_noise() {
         let Ok(seen) = perceive(&cloud, &PerceptionParams::default()) else { continue };
         let q = start_q(&model, &scene.robot_start());
         let start = stance_at(&model, &q).unwrap();
-        let mut kin = Kinematics::new(&model);
-        kin.update(&q).unwrap();
-        let body = Body::measure(&kin, hrp4::sole_frames(&model).unwrap()).unwrap();
-        let legs = Legs::of(&body, &StepParams::default());
+        let legs = legs_at(&model, &q, &StepParams::default()).unwrap();
         let Ok(stances) = footholds(&start, &seen.segments, &[], &legs, &p) else { continue };
         planned += 1;
         for st in stances.iter().filter(|st| st.step.is_none()) {

@@ -178,9 +178,10 @@ impl Default for GaitParams {
 }
 
 /// How far inside the legs' longest stride ([`Legs::max_stride_m`]) the footholds keep a
-/// step up, metres: the knee's check measures between the ankles, about 9 cm above the
-/// soles, which a tread's perceived tilt of a degree or two moves by up to 3 mm from the
-/// soles' centres; at the limit itself, rounding alone refused the envelope's 0.26 x 0.40.
+/// step up, metres: the gait's knee check measures between the ankles, about 9 cm above the
+/// soles, and a rise at the tread's centre, not under the foot; a perceived tilt of a
+/// degree moves those by a few millimetres. At the limit itself, rounding alone refused the
+/// envelope's 0.26 x 0.40. Beyond the limit itself the footholds refuse.
 const KNEE_STRIDE_SLACK_M: f64 = 0.005;
 
 /// The stances after `start`, ending with both feet on the highest rectangle, or the reason
@@ -248,48 +249,59 @@ pub fn footholds(
                 });
             }
         }
-        // The stride a step up this rise allows: the gait's, and the legs' (a high rise
-        // with the feet far apart folds the leading knee past its limit: the envelope's
-        // 0.24-0.26 m rises on 0.32-0.40 m treads were refused for it).
-        let stride_max_m = p.max_stride_m.min(legs.max_stride_m(rises[i]) - KNEE_STRIDE_SLACK_M);
-        let heel_on_m = front + p.sole_length_m / 2.0 + p.edge_margin_m;
+        // How far along the foot may go: within the gait's stride of the stance before, and
+        // within the legs' for this rise of its trailing foot (a high rise with the feet far
+        // apart folds the leading knee past its limit: the envelope's 0.24-0.26 m rises on
+        // 0.32-0.40 m treads were refused for it); the nearest it may go keeps the heel on
+        // the tread.
+        let knee_m = legs.max_stride_m(rises[i]);
+        let reach = |prev: f64, trail: f64| (prev + p.max_stride_m).min(trail + knee_m - KNEE_STRIDE_SLACK_M);
+        let nearest_m = along.min(front + p.sole_length_m / 2.0 + p.edge_margin_m);
+        // The foot that trails the first step up is the start's left (the gait's order).
+        let mut trail_along = if i == 0 { lay.start_left_along } else { prev_along };
         if i == 0 {
-            // The floor walk: unless the foothold is within the gait's stride of the start
-            // and the nearest the foot may go on the tread within the legs' for the rise.
-            let within = along - lay.start_along <= p.max_stride_m
-                && along.min(heel_on_m) - lay.start_along <= stride_max_m;
+            // The floor walk: unless the tread's middle is within the gait's stride of the
+            // start and its nearest foothold within reach.
+            let within =
+                along - lay.start_along <= p.max_stride_m && nearest_m <= reach(prev_along, trail_along);
             let walk = if within { Vec::new() } else { lay.floor_walk(front, p) };
-            unobstructed(&walk, seen, lay.floor_z, p)?;
+            unobstructed(&walk, out.len(), seen, lay.floor_z, p)?;
             if !walk.is_empty() {
-                prev_along = Layout::last_floor_along(front, p);
+                prev_along = Layout::toes_behind(front, p);
+                trail_along = prev_along;
             }
             out.extend(walk);
-        }
-        // A tread too deep for that stride even to the next front edge (a landing, or a
-        // high rise on a deep tread): the feet first walk across it toward its back, in
-        // strides of `approach_stride_m` at most, the toes ending `toe_gap_m` behind the
-        // next riser as the floor's last stance keeps them (the loop, planning from the
-        // tread, walks it as its floor).
-        if i > 0 && heel_on_m - prev_along > stride_max_m {
+        } else if nearest_m > reach(prev_along, trail_along) {
+            // A tread too deep for that reach (a landing, or a high rise on a deep tread):
+            // the feet first walk across it toward its back, the toes ending `toe_gap_m`
+            // behind the next riser as the floor's last stance keeps them (the loop,
+            // planning from the tread, walks it as its floor).
             let below = steps[i - 1];
             let (below_front, _, below_usable_m) = lay.foothold_along(&steps, i - 1, p);
-            let across = Layout::last_floor_along(below_front + below_usable_m, p);
-            let n = ((across - prev_along) / p.approach_stride_m).ceil().max(0.0) as usize;
-            for k in 1..=n {
-                let a = prev_along + (across - prev_along) * k as f64 / n as f64;
-                let up = below.normal().into_inner();
-                out.push(lay.stance_in(lanes, a + p.test_foothold_shift_m, below.center(), up, Some(i - 1)));
-            }
+            let across = Layout::toes_behind(below_front + below_usable_m, p);
+            let up = below.normal().into_inner();
+            let walk: Vec<Stance> = strides(prev_along, across, p.approach_stride_m)
+                .map(|a| lay.stance_in(lanes, a + p.test_foothold_shift_m, below.center(), up, Some(i - 1)))
+                .collect();
+            unobstructed(&walk, out.len(), seen, below.height_m(), p)?;
+            out.extend(walk);
             prev_along = prev_along.max(across);
+            trail_along = prev_along;
         }
-        // A tread deeper than the stride (ci suite case 6: 0.368 m treads, the middles
-        // 0.402 m apart as seen): the foot goes back from the middle toward the front edge
-        // as far as the stride needs, the whole sole staying on the tread.
-        let along = if along - prev_along > stride_max_m {
-            (prev_along + stride_max_m).max(heel_on_m).min(along)
-        } else {
-            along
-        };
+        // A tread deeper than the reach (ci suite case 6: 0.368 m treads, the middles 0.402
+        // m apart as seen): the foot goes back from the middle toward the front edge as far
+        // as the reach needs, the whole sole staying on the tread.
+        let far_m = reach(prev_along, trail_along);
+        let along = if along > far_m { far_m.max(nearest_m).min(along) } else { along };
+        if along - trail_along > knee_m {
+            let (d, r) = (along - trail_along, legs.reach_m);
+            return Err(PlanError::KneeFold {
+                stance: out.len(),
+                hip_above_ankle_m: (r * r - d * d).max(0.0).sqrt() - rises[i],
+                needs_m: legs.fold_m,
+                knee_max_rad: legs.knee_max_rad,
+            });
+        }
         let stride = along - prev_along;
         if stride > p.max_stride_m || stride < 0.0 {
             return Err(PlanError::Stride { step: i, stride_m: stride, max_m: p.max_stride_m });
@@ -298,6 +310,13 @@ pub fn footholds(
         prev_along = along;
     }
     Ok(out)
+}
+
+/// The positions along the ascent of a walk from `from` to `to` in equal strides of at most
+/// `stride_m`, `to` last; none when `to` is not ahead of `from`.
+fn strides(from: f64, to: f64, stride_m: f64) -> impl Iterator<Item = f64> {
+    let n = if to > from { ((to - from) / stride_m).ceil() as usize } else { 0 };
+    (1..=n).map(move |k| from + (to - from) * k as f64 / n as f64)
 }
 
 /// The stances on the floor that walk the feet from `start` toward the flight of `rects`,
@@ -346,16 +365,18 @@ fn usual_rise_m(rises: &[f64]) -> Option<f64> {
 /// ([`GaitParams::floor_obstruction_returns`], see [`unobstructed`]).
 const STANDING_RETURNS: usize = 2;
 
-/// `Ok` when no sole of the floor stances `walk` stands where the lidar saw a surface on
-/// the floor (at least `floor_obstruction_returns` of `seen` standing under it); else the
-/// first such stance and foot.
+/// `Ok` when no sole of the stances `walk` on a level floor at `floor_z` (the floor, or a
+/// tread walked across) stands where the lidar saw a surface on it (at least
+/// `floor_obstruction_returns` of `seen` standing under it); else the first such stance
+/// (counted from `first`, the plan's index of the walk's first) and foot.
 fn unobstructed(
     walk: &[Stance],
+    first: usize,
     seen: &[Point3<f64>],
     floor_z: f64,
     p: &GaitParams,
 ) -> Result<(), PlanError> {
-    for (stance, st) in walk.iter().enumerate() {
+    for (stance, st) in (first..).zip(walk) {
         for foot in Foot::BOTH {
             let under = UnderSole::count(st.foot(foot), seen, floor_z, p);
             if under.standing >= p.floor_obstruction_returns.max(1) {
@@ -429,6 +450,9 @@ struct Layout {
     start_lanes: [f64; 2],
     shift: f64,
     start_along: f64,
+    /// Where the start's left foot stands along the ascent (the gait's first step up
+    /// trails it).
+    start_left_along: f64,
     floor_z: f64,
 }
 
@@ -459,10 +483,11 @@ impl Layout {
         let floor_z = r0.z.min(l0.z);
         let start_lanes = [(r0 - o.coords).dot(&w), (l0 - o.coords).dot(&w)];
         let start_along = ((r0 + l0) / 2.0 - o.coords).dot(&u);
+        let start_left_along = (l0 - o.coords).dot(&u);
         let frame = Frame { o, u, w };
         let shift = frame.lane_shift(steps, seen, start_lanes, start_along, floor_z, p);
         let yaw = UnitQuaternion::from_euler_angles(0.0, 0.0, u.y.atan2(u.x));
-        Self { frame, rise, yaw, start_lanes, shift, start_along, floor_z }
+        Self { frame, rise, yaw, start_lanes, shift, start_along, start_left_along, floor_z }
     }
 
     /// A step's direction of ascent, pointing up the flight.
@@ -474,9 +499,9 @@ impl Layout {
         }
     }
 
-    /// Where the last floor stance stands along the ascent, before a first step whose front
-    /// edge is at `front`: the toes `toe_gap_m` behind its riser.
-    fn last_floor_along(front: f64, p: &GaitParams) -> f64 {
+    /// Where a stance before a riser at `front` stands along the ascent (the floor's last
+    /// before the first step, a walk's last across a tread): the toes `toe_gap_m` behind it.
+    fn toes_behind(front: f64, p: &GaitParams) -> f64 {
         front - p.sole_length_m / 2.0 - p.toe_gap_m
     }
 
@@ -518,13 +543,12 @@ impl Layout {
     /// at most `approach_stride_m`, the toes ending `toe_gap_m` behind its riser, the lanes
     /// moving aside a share each stance (none when the start is there already).
     fn floor_walk(&self, front: f64, p: &GaitParams) -> Vec<Stance> {
-        let last = Self::last_floor_along(front, p);
-        let n = ((last - self.start_along) / p.approach_stride_m).ceil().max(0.0) as usize;
+        let last = Self::toes_behind(front, p);
         let floor = Point3::new(self.frame.o.x, self.frame.o.y, self.floor_z);
-        (1..=n)
-            .map(|k| {
-                let f = k as f64 / n as f64;
-                let a = self.start_along + (last - self.start_along) * f;
+        let span = last - self.start_along;
+        strides(self.start_along, last, p.approach_stride_m)
+            .map(|a| {
+                let f = (a - self.start_along) / span;
                 self.stance_in(self.start_lanes.map(|l| l + self.shift * f), a, floor, Vector3::z(), None)
             })
             .collect()
@@ -600,7 +624,8 @@ mod tests {
 
     /// About HRP-4's legs: thigh and shank 0.353 m, the trailing leg to 95 % of their length,
     /// the knee folded to 125 deg at most (the planner measures them on the model).
-    const LEGS: Legs = Legs { reach_m: 0.95 * 0.706, fold_m: 0.326 };
+    const LEGS: Legs =
+        Legs { reach_m: 0.95 * 0.706, fold_m: 0.326, knee_max_rad: 125.0 * std::f64::consts::PI / 180.0 };
 
     /// The smoke suite's case 8: a 0.5 m flight yawed 15.5 degrees, the robot off its centre
     /// line; the step map's steps carry directions 13.8, 14.5 and 15.5 degrees (each from its
@@ -963,8 +988,17 @@ mod tests {
         }
         // Three steps up, and a walk across each of the two lower treads.
         assert_eq!(stances.iter().filter(|s| s.step.is_some()).count(), 5);
+        // A 0.28 m rise: the nearest footholds, toes behind the riser and heel on the tread,
+        // are beyond the knee's stride for it; refused here, before the floor walk's first
+        // stance could be taken (the loop takes one stance a scan).
+        let high: Vec<PlaneSegment> =
+            (0..3).map(|i| tread(1.0 + depth * i as f64, 0.28 * (i + 1) as f64, depth)).collect();
+        match footholds(&start, &high, &[], &LEGS, &p) {
+            Err(PlanError::KneeFold { stance, .. }) => assert!(stance > 0, "after the floor walk's stances"),
+            other => panic!("a 0.28 m rise on 0.40 m treads: {other:?}"),
+        }
         // The gait's own limit alone (legs that reach far) keeps the tread's middle.
-        let long = Legs { reach_m: 2.0, fold_m: 0.326 };
+        let long = Legs { reach_m: 2.0, ..LEGS };
         let free = footholds(&start, &rects, &[], &long, &p).expect("planned");
         assert_eq!(free.iter().filter(|s| s.step.is_some()).count(), 3);
     }

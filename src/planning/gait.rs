@@ -167,6 +167,8 @@ pub struct Legs {
     /// Least height of the hip above the leading ankle with the knee at its largest fold,
     /// metres.
     pub fold_m: f64,
+    /// The knee's largest fold, radians (`StepParams::knee_max_rad`).
+    pub knee_max_rad: f64,
 }
 
 impl Legs {
@@ -176,13 +178,15 @@ impl Legs {
         Self {
             reach_m: p.reach_fraction * (t + s),
             fold_m: (t * t + s * s + 2.0 * t * s * p.knee_max_rad.cos()).sqrt(),
+            knee_max_rad: p.knee_max_rad,
         }
     }
 
-    /// Longest distance along the ascent between the trailing and the leading ankle for a
-    /// step up `rise_m`: the hip over the leading ankle, as high as the trailing leg reaches
-    /// from there, must stand `fold_m` above it (the check of [`segments`]); 0 when no
-    /// distance allows the rise.
+    /// Longest horizontal distance along the ascent between the trailing and the leading
+    /// ankle for a step up `rise_m`: the hip over the leading ankle, as high as the trailing
+    /// leg reaches from there, must stand `fold_m` above it (the knee check of
+    /// [`segments`], whose other bound, the hip no higher than standing, binds only for
+    /// rises above HRP-4's 0.33 m); 0 when no distance allows the rise.
     pub fn max_stride_m(&self, rise_m: f64) -> f64 {
         let h = (self.fold_m + rise_m).max(0.0);
         if h >= self.reach_m {
@@ -281,7 +285,10 @@ fn one_step(
     p: &StepParams,
 ) -> Result<Vec<Segment>, PlanError> {
     let (lo_z, lead_z) = (from.left.translation.z, to.right.translation.z);
-    let forward = to.right.rotation * Vector3::x();
+    // Horizontal: the legs' reach is split into a height and a distance over the ground
+    // (the sole's own axis tilts with its tread and would count height as distance).
+    let forward =
+        (to.right.rotation * Vector3::x()).xy().push(0.0).try_normalize(1e-9).unwrap_or(Vector3::x());
     let lead_ankle = body.ankle(Foot::Right, &to.right);
     let trail_ankle = body.ankle(Foot::Left, &from.left);
     // (1): over the left ankle, low enough that the right leg reaches its target from there.

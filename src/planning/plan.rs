@@ -81,6 +81,13 @@ pub fn stance_of(kin: &Kinematics, soles: [usize; 2]) -> Stance {
     Stance { right: kin.frame_pose(soles[0]), left: kin.frame_pose(soles[1]), step: None }
 }
 
+/// The legs' limits ([`Legs`]) of the body standing at configuration `q`.
+pub fn legs_at(model: &RobotModel, q: &[f64], p: &StepParams) -> Result<Legs, PlanError> {
+    let mut kin = Kinematics::new(model);
+    kin.update(q)?;
+    Ok(Legs::of(&Body::measure(&kin, hrp4::sole_frames(model)?)?, p))
+}
+
 /// Where the feet are at configuration `q`.
 pub fn stance_at(model: &RobotModel, q: &[f64]) -> Result<Stance, PlanError> {
     let mut kin = Kinematics::new(model);
@@ -152,7 +159,7 @@ pub fn plan_approach(
 }
 
 /// A plan through the stances `stances_from` gives from the start stance and the seen
-/// surfaces and the legs' limits (the first `max_stances` of them): the gait's segments and the joint
+/// surfaces and the legs' limits, the first `max_stances` of them: the gait's segments and the joint
 /// trajectory, the legs kept off `rects` and the body off `seen`; `None` for no stances.
 fn plan_stances(
     model: &RobotModel,
