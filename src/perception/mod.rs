@@ -9,6 +9,7 @@ pub mod metrics;
 pub mod noise;
 pub mod normals;
 pub mod ransac;
+pub mod riser;
 pub mod staircase;
 pub mod step_map;
 pub mod supervoxel;
@@ -102,6 +103,9 @@ pub struct PerceptionParams {
     /// the voxel grid, holds any part of a row. A far tread sampled one row in two has
     /// empty rows between full ones: not sparse, kept.
     pub min_edge_row_fill: f64,
+    /// Beyond §4: each step's front edge placed on the riser below it, from the whole
+    /// cloud's returns there (see [`riser`]); `[perception.riser]` in a parameters file.
+    pub riser: riser::RiserParams,
 }
 
 impl Default for PerceptionParams {
@@ -128,6 +132,7 @@ impl Default for PerceptionParams {
             flight_gap_m: 0.10,
             min_segment_cover: 0.1,
             min_edge_row_fill: 0.25,
+            riser: riser::RiserParams::default(),
         }
     }
 }
@@ -158,6 +163,9 @@ impl PerceptionParams {
         }
         if self.min_adjacent_voxels > 26 {
             return bad("min_adjacent_voxels", "must be at most 26 (a voxel has 26 neighbours)");
+        }
+        if let Some((field, reason)) = self.riser.invalid() {
+            return bad(field, reason);
         }
         for (f, v) in [
             ("max_height_extent_m", self.max_height_extent_m),
@@ -253,6 +261,7 @@ pub struct PlaneSegment {
     normal: Vector3<f64>,
     height_m: f64,
     voxel_count: usize,
+    front_on_riser: bool,
 }
 
 /// A [`PlaneSegment`]'s fields as written, before they are checked.
@@ -262,6 +271,9 @@ struct PlaneSegmentData {
     normal: Vector3<f64>,
     height_m: f64,
     voxel_count: usize,
+    /// Absent from recordings made before fronts were placed on risers.
+    #[serde(default)]
+    front_on_riser: bool,
 }
 
 impl TryFrom<PlaneSegmentData> for PlaneSegment {
@@ -284,7 +296,13 @@ impl TryFrom<PlaneSegmentData> for PlaneSegment {
         if depth <= 0.0 || width <= 0.0 || !closes || !square || !ccw || d.normal.norm() < 1e-9 {
             return Err("a step rectangle's corners are not a counter-clockwise rectangle".into());
         }
-        Ok(Self { corners: d.corners, normal: d.normal, height_m: d.height_m, voxel_count: d.voxel_count })
+        Ok(Self {
+            corners: d.corners,
+            normal: d.normal,
+            height_m: d.height_m,
+            voxel_count: d.voxel_count,
+            front_on_riser: d.front_on_riser,
+        })
     }
 }
 
@@ -309,7 +327,7 @@ impl PlaneSegment {
         let left = Vector3::new(-along.y, along.x, 0.0);
         let (a, b) = (along * depth_m / 2.0, left * width_m / 2.0);
         let corners = [center - a - b, center + a - b, center + a + b, center - a + b];
-        Some(Self { corners, normal, height_m: center.z, voxel_count })
+        Some(Self { corners, normal, height_m: center.z, voxel_count, front_on_riser: false })
     }
 
     /// Corners counter-clockwise seen from above: front-right, back-right, back-left,
@@ -357,6 +375,18 @@ impl PlaneSegment {
     pub fn voxel_count(&self) -> usize {
         self.voxel_count
     }
+
+    /// Whether the front edge (the first two corners) was placed on the riser below it
+    /// ([`riser`]) rather than taken from the tread's voxels.
+    pub fn front_on_riser(&self) -> bool {
+        self.front_on_riser
+    }
+
+    /// The same rectangle, its front edge marked as placed on the riser (or not).
+    pub fn with_front_on_riser(mut self, on: bool) -> Self {
+        self.front_on_riser = on;
+        self
+    }
 }
 
 /// Wall time of each phase, milliseconds.
@@ -374,7 +404,7 @@ pub struct PhaseTimings {
     pub clusters: f64,
     /// RANSAC planes.
     pub ransac: f64,
-    /// Staircase extraction and rectangles.
+    /// Staircase extraction and rectangles (their fronts on the risers included).
     pub staircase: f64,
     /// Sum of the phases.
     pub total: f64,
@@ -410,6 +440,9 @@ pub struct Counts {
     /// The neighbours the normals were estimated on (k, grown with the noise).
     #[serde(default)]
     pub normal_neighbours: usize,
+    /// Steps whose front edge was placed on the riser below it ([`riser`]).
+    #[serde(default)]
+    pub riser_fronts: usize,
 }
 
 /// The intermediate results, for views and logs.
@@ -484,7 +517,13 @@ pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, 
     let voxels = voxel::filter_sparse(&all, p.min_adjacent_voxels);
     timings.voxels = ms(t);
     counts.after_filter2 = voxels.len();
-    from_voxels(voxels, cloud.viewpoint(), cloud.gravity(), p, timings, counts)
+    let mut found = from_voxels(voxels, cloud.viewpoint(), cloud.gravity(), p, timings, counts)?;
+    let t = Instant::now();
+    found.counts.riser_fronts =
+        riser::place_fronts(&mut found.segments, cloud.points(), &cloud.viewpoint(), &p.riser);
+    found.timings.staircase += ms(t);
+    found.timings.total += ms(t);
+    Ok(found)
 }
 
 /// The pipeline from voxel representatives that already passed Filters 1 and 2 (such as the
@@ -513,7 +552,13 @@ pub fn perceive_voxels(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perce
     timings.voxels = ms(t);
     counts.voxels = voxels.len();
     counts.after_filter2 = voxels.len();
-    from_voxels(voxels, cloud.viewpoint(), cloud.gravity(), p, timings, counts)
+    let mut found = from_voxels(voxels, cloud.viewpoint(), cloud.gravity(), p, timings, counts)?;
+    let t = Instant::now();
+    found.counts.riser_fronts =
+        riser::place_fronts(&mut found.segments, cloud.points(), &cloud.viewpoint(), &p.riser);
+    found.timings.staircase += ms(t);
+    found.timings.total += ms(t);
+    Ok(found)
 }
 
 fn from_voxels(

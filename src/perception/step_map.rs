@@ -213,7 +213,13 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
         return fuller;
     }
     let c = fuller.center();
-    let front = surely_seen(&fuller, &c, &along, -1.0).min(surely_seen(&other, &c, &along, -1.0));
+    let fronts = [&fuller, &other].map(|r| (surely_seen(r, &c, &along, -1.0), r.front_on_riser()));
+    // A front placed on its riser is the nose, and stands against one from voxels, which
+    // errs by centimetres under noise (perception's `riser`); of two alike, the farther out.
+    let (front, on_riser) = match fronts {
+        [(f, true), (_, false)] | [(_, false), (f, true)] => (f, true),
+        [(a, on), (b, _)] => (a.min(b), on),
+    };
     let back = surely_seen(&fuller, &c, &along, 1.0).max(surely_seen(&other, &c, &along, 1.0));
     PlaneSegment::new(
         c + along * ((front + back) / 2.0),
@@ -223,6 +229,7 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
         fuller.normal().into_inner(),
         fuller.voxel_count(),
     )
+    .map(|m| m.with_front_on_riser(on_riser))
     .unwrap_or(fuller)
 }
 
@@ -308,6 +315,31 @@ mod tests {
         assert!(!merged.iter().any(|r| (r.height_m() - 0.4).abs() < 1e-9));
         let (front, back) = (s2.center().x - s2.depth_m() / 2.0, s2.center().x + s2.depth_m() / 2.0);
         assert!((front - 0.87).abs() < 1e-9 && (back - 1.14).abs() < 1e-9, "{front} {back}");
+    }
+
+    /// A front placed on its riser stands against a view's from voxels farther out (under
+    /// noise those err by centimetres, and the farther out of two had put the nose over
+    /// air), whichever view is the fuller; two from voxels, or two on risers, the farther.
+    #[test]
+    fn a_front_on_its_riser_stands_against_one_from_voxels() {
+        let p = StepMapParams::default();
+        let front = |r: &PlaneSegment| r.center().x - r.depth_m() / 2.0;
+        // Known: the nose at 0.87 on its riser; seen nearer, its front 2 cm out, from voxels.
+        let on_riser = step(1.005, 0.4, 0.27).with_front_on_riser(true);
+        let out = level(Point3::new(0.995, 0.0, 0.4), Vector3::x(), 0.29, 0.5, 20);
+        let merged = merge(std::slice::from_ref(&on_riser), vec![out.clone()], &p);
+        assert!(
+            (front(&merged[0]) - 0.87).abs() < 1e-9 && merged[0].front_on_riser(),
+            "{}",
+            front(&merged[0])
+        );
+        assert!((front(&merged[0]) + merged[0].depth_m() - 1.14).abs() < 1e-9, "the back kept");
+        // The other way round, the new view on its riser: the same.
+        let merged = merge(std::slice::from_ref(&out), vec![on_riser.clone()], &p);
+        assert!((front(&merged[0]) - 0.87).abs() < 1e-9 && merged[0].front_on_riser());
+        // Both from voxels: the farther out, as before.
+        let merged = merge(std::slice::from_ref(&step(1.005, 0.4, 0.27)), vec![out], &p);
+        assert!((front(&merged[0]) - 0.85).abs() < 1e-9 && !merged[0].front_on_riser());
     }
 
     #[test]
