@@ -63,9 +63,10 @@ pub struct GaitParams {
     /// perceived rectangle by 1 cm at each end, since perception under-measures a tread by
     /// up to about half a voxel per edge (§4, v = 2 cm; the paper's Exp. 1 step 1 is
     /// 23.2 cm deep on a 27 cm tread). Between two steps the toe's end is the next riser,
-    /// not air: the foot centred on a tread under the sole's length plus clearances puts the
-    /// toe on it (the envelope's 0.24 m column strikes), and moving the foot back trades
-    /// that for the heel over the nose (measured in BENCHMARKS.md, not settled).
+    /// not air: there the toes keep `toe_clearance_m` behind the next front edge and the
+    /// heel overhangs the nose by `heel_overhang_m` at most, so such a tread needs the sole
+    /// plus the one less the other, 0.245 m (the fronts, placed on the risers by
+    /// perception, within a few millimetres of the noses).
     pub min_tread_m: f64,
     /// Highest rise between consecutive treads the legs can climb (HRP-4's 24 cm step,
     /// §6.3, is within; the knee's fold and the trailing leg's reach set the limit).
@@ -100,6 +101,14 @@ pub struct GaitParams {
     /// of noise, 13 mm at 20-25 mm, so 3 cm would again keep the toes off the riser (not
     /// changed yet: the suites were run at 5 cm).
     pub toe_gap_m: f64,
+    /// On a tread with a step above it, the toes stay at least this far behind that step's
+    /// front edge as perceived: on a tread shorter than the sole plus twice this, the foot
+    /// moves back from the middle, its heel toward the nose (the envelope's 0.24 m treads:
+    /// the foot centred on a usable 0.249 m put the toe 1 mm past the true riser).
+    pub toe_clearance_m: f64,
+    /// How far the heel may overhang a tread's front edge as perceived when the toes keep
+    /// `toe_clearance_m`; a tread that needs more is refused as short.
+    pub heel_overhang_m: f64,
     /// How far a sole may overhang its rectangle's side.
     pub side_overhang_m: f64,
     /// A foothold moved back from its tread's middle, so that the stride stays within
@@ -162,6 +171,8 @@ impl Default for GaitParams {
             approach_stride_m: 0.25,
             landing_foothold_m: 0.18,
             toe_gap_m: 0.05,
+            toe_clearance_m: 0.015,
+            heel_overhang_m: 0.01,
             side_overhang_m: 0.02,
             edge_margin_m: 0.02,
             sole_length_m: crate::robot::hrp4::SOLE_SIZE_M[0],
@@ -179,8 +190,8 @@ impl Default for GaitParams {
 
 /// How far inside the legs' longest stride ([`Legs::max_stride_m`]) the footholds keep a
 /// step up, metres: the gait's knee check measures between the ankles, about 9 cm above the
-/// soles, and a rise at the tread's centre, not under the foot; a perceived tilt of a
-/// degree moves those by a few millimetres. At the limit itself, rounding alone refused the
+/// soles, along the leading sole's tilted axis, and a rise at the tread's centre, not under
+/// the foot; a perceived tilt of a degree moves those by up to 4.5 mm. At the limit itself, rounding alone refused the
 /// envelope's 0.26 x 0.40. Beyond the limit itself the footholds refuse.
 const KNEE_STRIDE_SLACK_M: f64 = 0.005;
 
@@ -227,8 +238,10 @@ pub fn footholds(
             return Err(PlanError::HighRise { step: i, rise_m: rises[i], max_m: p.max_rise_m });
         }
         let (front, along, usable_m) = lay.foothold_along(&steps, i, p);
-        if usable_m < p.min_tread_m {
-            return Err(PlanError::ShortTread { step: i, depth_m: usable_m, min_m: p.min_tread_m });
+        let heel_over_m = front - (along - p.sole_length_m / 2.0);
+        if usable_m < p.min_tread_m || heel_over_m > p.heel_overhang_m {
+            let min_m = p.min_tread_m.max(p.sole_length_m + p.toe_clearance_m - p.heel_overhang_m);
+            return Err(PlanError::ShortTread { step: i, depth_m: usable_m, min_m });
         }
         if i > 0 {
             let back = (steps[i - 1].center() - o).dot(&u) + steps[i - 1].depth_m() / 2.0;
@@ -506,7 +519,8 @@ impl Layout {
     }
 
     /// Step `i`'s front edge, its foothold along the ascent, and its usable depth (up to the
-    /// next step's nose, at most its own). The foot goes in the middle of that depth: a
+    /// next step's nose, at most its own). The foot goes in the middle of that depth, or
+    /// back from it so the toes stay `toe_clearance_m` behind the next front edge: a
     /// tread's back edge is its view's least sure (the next nose hides it from afar, and its
     /// voxels reach past the riser), and the toes must stay off the next riser (ci suite: a
     /// tread seen 2 cm deep past it put the toes against it).
@@ -515,7 +529,9 @@ impl Layout {
         let s = steps[i];
         let next_front = steps.get(i + 1).map(|n| front(n));
         let usable_m = next_front.map_or(s.depth_m(), |n| (n - front(s)).clamp(0.0, s.depth_m()));
-        (front(s), front(s) + (usable_m / 2.0).min(p.landing_foothold_m), usable_m)
+        let middle = front(s) + (usable_m / 2.0).min(p.landing_foothold_m);
+        let along = next_front.map_or(middle, |n| middle.min(n - p.sole_length_m / 2.0 - p.toe_clearance_m));
+        (front(s), along, usable_m)
     }
 
     /// Both feet `along` the ascent in `lanes`, on the plane through `point` with normal `n`
@@ -1001,5 +1017,44 @@ mod tests {
         let long = Legs { reach_m: 2.0, ..LEGS };
         let free = footholds(&start, &rects, &[], &long, &p).expect("planned");
         assert_eq!(free.iter().filter(|s| s.step.is_some()).count(), 3);
+    }
+
+    /// A tread barely longer than the sole between two steps (the envelope's 0.24 m
+    /// column: the foot centred on it put its toe on the next riser and the swing struck
+    /// it): the toes keep `toe_clearance_m` behind the next front edge, the heel
+    /// overhanging the nose by `heel_overhang_m` at most; a tread that would need more is
+    /// refused as short, but not the top one, whose back edge is open.
+    #[test]
+    fn on_a_short_tread_the_toes_keep_off_the_next_riser() {
+        let p = GaitParams::default();
+        let sole = |y: f64| Isometry3::translation(0.3, y, 0.0);
+        let start = Stance { right: sole(-0.1), left: sole(0.1), step: None };
+        let flight = |depth: f64| -> Vec<PlaneSegment> {
+            (0..3).map(|i| tread(0.5 + depth * i as f64, 0.15 * (i + 1) as f64, depth)).collect()
+        };
+        let stances = footholds(&start, &flight(0.25), &[], &LEGS, &p).expect("a 0.25 m tread is used");
+        for st in stances.iter().filter(|s| s.step.is_some_and(|i| i < 2)) {
+            let i = st.step.unwrap_or(0);
+            let (front, next) = (0.5 + 0.25 * i as f64, 0.5 + 0.25 * (i + 1) as f64);
+            for f in [&st.right, &st.left] {
+                let x = f.translation.x;
+                assert!(
+                    x + p.sole_length_m / 2.0 <= next - p.toe_clearance_m + 1e-9,
+                    "step {i}: toe at {x:.3}"
+                );
+                assert!(
+                    x - p.sole_length_m / 2.0 >= front - p.heel_overhang_m - 1e-9,
+                    "step {i}: heel at {x:.3}"
+                );
+            }
+        }
+        match footholds(&start, &flight(0.24), &[], &LEGS, &p) {
+            Err(PlanError::ShortTread { step: 0, min_m, .. }) => {
+                assert!((min_m - 0.245).abs() < 1e-9, "{min_m}")
+            }
+            other => panic!("a 0.24 m tread between two steps: {other:?}"),
+        }
+        let top = [tread(0.5, 0.15, 0.24)];
+        assert!(footholds(&start, &top, &[], &LEGS, &p).is_ok(), "a lone 0.24 m tread has no riser behind");
     }
 }
