@@ -376,10 +376,25 @@ impl PlaneSegment {
         self.voxel_count
     }
 
-    /// Whether the front edge (the first two corners) was placed on the riser below it
+    /// Whether the front edge (corners 0 and 3) was placed on the riser below it
     /// ([`riser`]) rather than taken from the tread's voxels.
     pub fn front_on_riser(&self) -> bool {
         self.front_on_riser
+    }
+
+    /// A level tread 1 m wide ascending along x, its nose at `front_m`, its top at `z_m`
+    /// (for tests).
+    #[cfg(test)]
+    pub(crate) fn level_along_x(front_m: f64, z_m: f64, depth_m: f64) -> Self {
+        Self::new(
+            Point3::new(front_m + depth_m / 2.0, 0.0, z_m),
+            Vector3::x(),
+            depth_m,
+            1.0,
+            Vector3::z(),
+            100,
+        )
+        .expect("valid rectangle")
     }
 
     /// The same rectangle, its front edge marked as placed on the riser (or not).
@@ -461,6 +476,9 @@ pub struct Detail {
 pub struct Perception {
     /// The staircase's steps, nearest (lowest) first.
     pub segments: Vec<PlaneSegment>,
+    /// Height of the ground, metres: the segment under the sensor (the floor, or the tread
+    /// the robot stands on), else the lowest.
+    pub ground_m: f64,
     /// Time per phase.
     pub timings: PhaseTimings,
     /// Sizes of the intermediate results.
@@ -519,10 +537,16 @@ pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, 
     counts.after_filter2 = voxels.len();
     let mut found = from_voxels(voxels, cloud.viewpoint(), cloud.gravity(), p, timings, counts)?;
     let t = Instant::now();
-    found.counts.riser_fronts =
-        riser::place_fronts(&mut found.segments, cloud.points(), &cloud.viewpoint(), &p.riser);
-    found.timings.staircase += ms(t);
-    found.timings.total += ms(t);
+    found.counts.riser_fronts = riser::place_fronts(
+        &mut found.segments,
+        cloud.points(),
+        &cloud.viewpoint(),
+        Some(found.ground_m),
+        &p.riser,
+    );
+    let riser_ms = ms(t);
+    found.timings.staircase += riser_ms;
+    found.timings.total += riser_ms;
     Ok(found)
 }
 
@@ -552,13 +576,7 @@ pub fn perceive_voxels(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perce
     timings.voxels = ms(t);
     counts.voxels = voxels.len();
     counts.after_filter2 = voxels.len();
-    let mut found = from_voxels(voxels, cloud.viewpoint(), cloud.gravity(), p, timings, counts)?;
-    let t = Instant::now();
-    found.counts.riser_fronts =
-        riser::place_fronts(&mut found.segments, cloud.points(), &cloud.viewpoint(), &p.riser);
-    found.timings.staircase += ms(t);
-    found.timings.total += ms(t);
-    Ok(found)
+    from_voxels(voxels, cloud.viewpoint(), cloud.gravity(), p, timings, counts)
 }
 
 fn from_voxels(
@@ -606,7 +624,13 @@ fn from_voxels(
         + timings.clusters
         + timings.ransac
         + timings.staircase;
-    let (segments, n_segments) = result?;
+    let (segments, n_segments, ground_m) = result?;
     counts.segments = n_segments;
-    Ok(Perception { segments, timings, counts, detail: Detail { voxels, supervoxels: sv, clusters } })
+    Ok(Perception {
+        segments,
+        ground_m,
+        timings,
+        counts,
+        detail: Detail { voxels, supervoxels: sv, clusters },
+    })
 }

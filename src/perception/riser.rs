@@ -26,7 +26,7 @@ pub struct RiserParams {
     pub enabled: bool,
     /// Half the window, along the ascent about the segment's front edge, in which the riser
     /// is looked for, metres: the edges err by up to about 4 cm under 25 mm of noise.
-    pub window_m: f64,
+    pub half_window_m: f64,
     /// The band below the tread's top in which a return may be the riser's, metres below
     /// the top: [nearest, farthest]. Its near end keeps the tread's own returns out (they
     /// scatter about 1-2 cm in height under 10-25 mm of noise), its far end the tread or
@@ -47,7 +47,7 @@ impl Default for RiserParams {
     fn default() -> Self {
         Self {
             enabled: true,
-            window_m: 0.05,
+            half_window_m: 0.05,
             band_m: [0.02, 0.08],
             side_margin_m: 0.05,
             min_returns: 30,
@@ -60,8 +60,8 @@ impl RiserParams {
     /// Why the parameters are unusable, naming the field; `None` when they are fine.
     pub fn invalid(&self) -> Option<(&'static str, &'static str)> {
         let pos = |v: f64| v.is_finite() && v > 0.0;
-        if !pos(self.window_m) {
-            return Some(("riser.window_m", "must be > 0"));
+        if !pos(self.half_window_m) {
+            return Some(("riser.half_window_m", "must be > 0"));
         }
         if !(pos(self.band_m[0]) && self.band_m[1].is_finite() && self.band_m[1] > self.band_m[0]) {
             return Some(("riser.band_m", "must be [near, far] with 0 < near < far"));
@@ -76,21 +76,32 @@ impl RiserParams {
     }
 }
 
-/// Places each segment's front edge (the end nearer `viewpoint` along its ascent) on the
+/// Places each segment's front edge (its end against its ascent, facing `viewpoint`) on the
 /// riser below it where `points` show one whole (see the module's doc); the segment keeps
-/// its back edge, width, height and normal. Returns how many fronts moved.
+/// its back edge, width, height and normal, and is marked [`PlaneSegment::front_on_riser`].
+/// `ground_m` is the height of the surface the sensor stands over (the floor, or the tread
+/// under the robot), which bounds the band of the lowest segment as a tread below does.
+/// Left as they are: a segment whose front does not face the sensor (the sensor past its
+/// middle: a tread under or behind the robot), and a lone segment deeper than wide (with
+/// no flight to give its ascent, its "front" may be a side: the step's side face or a
+/// wall would be taken for its riser). Returns how many fronts moved.
 pub fn place_fronts(
     segments: &mut [PlaneSegment],
     points: &[Point3<f32>],
     viewpoint: &Point3<f64>,
+    ground_m: Option<f64>,
     p: &RiserParams,
 ) -> usize {
     if !p.enabled {
         return 0;
     }
-    let heights: Vec<f64> = segments.iter().map(|s| s.height_m()).collect();
+    let heights: Vec<f64> = segments.iter().map(|s| s.height_m()).chain(ground_m).collect();
+    let lone = segments.len() == 1;
     let mut moved = 0;
     for s in segments.iter_mut() {
+        if (viewpoint - s.center()).dot(&s.along()) >= 0.0 || (lone && s.depth_m() > s.width_m()) {
+            continue;
+        }
         let top = s.height_m();
         // The highest tread below this one (a rise of more than twice the band's near end).
         let below = heights
@@ -99,8 +110,8 @@ pub fn place_fronts(
             .filter(|&h| h < top - 2.0 * p.band_m[0])
             .fold(f64::NEG_INFINITY, f64::max);
         let band = [(top - p.band_m[1]).max(below + p.band_m[0]), top - p.band_m[0]];
-        if let Some(front) = riser_along(s, points, viewpoint, band, p) {
-            if let Some(placed) = with_front(s, viewpoint, front) {
+        if let Some(front) = riser_along(s, points, band, p) {
+            if let Some(placed) = with_front(s, front) {
                 *s = placed;
                 moved += 1;
             }
@@ -109,31 +120,13 @@ pub fn place_fronts(
     moved
 }
 
-/// The horizontal unit vector pointing from `s`'s centre toward its front (the end facing
-/// `viewpoint`).
-fn outward(s: &PlaneSegment, viewpoint: &Point3<f64>) -> Vector3<f64> {
-    let u = s.along();
-    let to_view = viewpoint - s.center();
-    if to_view.dot(&u) >= 0.0 {
-        u
-    } else {
-        -u
-    }
-}
-
-/// The riser's distance from `s`'s centre toward its front, metres, when the returns in
-/// `band` (heights) and the window about the front show one whole.
-fn riser_along(
-    s: &PlaneSegment,
-    points: &[Point3<f32>],
-    viewpoint: &Point3<f64>,
-    band: [f64; 2],
-    p: &RiserParams,
-) -> Option<f64> {
+/// The riser's distance from `s`'s centre toward its front (against its ascent), metres,
+/// when the returns in `band` (heights) and the window about the front show one whole.
+fn riser_along(s: &PlaneSegment, points: &[Point3<f32>], band: [f64; 2], p: &RiserParams) -> Option<f64> {
     if band[1] - band[0] < p.band_m[0] {
         return None;
     }
-    let out = outward(s, viewpoint);
+    let out = -s.along();
     let side = Vector3::new(-out.y, out.x, 0.0);
     let c = s.center();
     let front = s.depth_m() / 2.0;
@@ -146,7 +139,7 @@ fn riser_along(
         .map(|q| (q - c, q.z))
         .filter(|(d, _)| d.dot(&side).abs() < half_width)
         .map(|(d, z)| (d.dot(&out), z))
-        .filter(|(t, _)| (t - front).abs() < p.window_m && t.is_finite())
+        .filter(|(t, _)| (t - front).abs() < p.half_window_m && t.is_finite())
         .collect();
     if near.len() < p.min_returns {
         return None;
@@ -154,10 +147,11 @@ fn riser_along(
     // The median, twice again over the returns within a halved window about it: the riser's
     // returns are a dense peak, the treads' strays a thin spread on either side.
     let mut at = median(near.iter().map(|r| r.0).collect())?;
-    for w in [p.window_m / 2.0, p.window_m / 4.0] {
+    for w in [p.half_window_m / 2.0, p.half_window_m / 4.0] {
         at = median(near.iter().map(|r| r.0).filter(|t| (t - at).abs() < w).collect())?;
     }
-    let on: Vec<f64> = near.iter().filter(|r| (r.0 - at).abs() < p.window_m / 4.0).map(|r| r.1).collect();
+    let on: Vec<f64> =
+        near.iter().filter(|r| (r.0 - at).abs() < p.half_window_m / 4.0).map(|r| r.1).collect();
     let mid = (band[0] + band[1]) / 2.0;
     let upper = on.iter().filter(|&&z| z > mid).count();
     let least = (p.min_half_share * on.len() as f64).ceil() as usize;
@@ -165,10 +159,10 @@ fn riser_along(
     whole.then_some(at)
 }
 
-/// `s` with its front (toward `viewpoint`) `front_m` from its old centre, its back kept;
+/// `s` with its front `front_m` from its old centre against its ascent, its back kept;
 /// `None` when that leaves no depth.
-fn with_front(s: &PlaneSegment, viewpoint: &Point3<f64>, front_m: f64) -> Option<PlaneSegment> {
-    let out = outward(s, viewpoint);
+fn with_front(s: &PlaneSegment, front_m: f64) -> Option<PlaneSegment> {
+    let out = -s.along();
     let back_m = -s.depth_m() / 2.0;
     let depth_m = front_m - back_m;
     if depth_m <= 0.0 {
@@ -193,17 +187,9 @@ fn median(mut v: Vec<f64>) -> Option<f64> {
 mod tests {
     use super::*;
 
-    /// A tread 1 m wide ascending along x, its nose at `front`, its top at `z`.
+    /// A level tread 1 m wide ascending along x, its nose at `front`, its top at `z`.
     fn tread(front: f64, z: f64, depth: f64) -> PlaneSegment {
-        PlaneSegment::new(
-            Point3::new(front + depth / 2.0, 0.0, z),
-            Vector3::x(),
-            depth,
-            1.0,
-            Vector3::z(),
-            100,
-        )
-        .expect("valid rectangle")
+        PlaneSegment::level_along_x(front, z, depth)
     }
 
     /// Returns on a vertical plane at x from z0 to z1 (every 5 mm), across |y| < 0.4.
@@ -230,7 +216,7 @@ mod tests {
         // tread ahead of and behind the window.
         let mut riser = wall(1.0, 0.15, 0.3);
         riser.extend(wall(1.2, 0.285, 0.3));
-        assert_eq!(place_fronts(&mut one, &riser, &eye, &p), 1);
+        assert_eq!(place_fronts(&mut one, &riser, &eye, None, &p), 1);
         let front = one[0].center().x - one[0].depth_m() / 2.0;
         assert!((front - 1.0).abs() < 1e-3, "front at {front:.4}");
         assert!((one[0].center().x + one[0].depth_m() / 2.0 - 1.3).abs() < 1e-9, "the back kept");
@@ -238,19 +224,29 @@ mod tests {
         assert!(one[0].front_on_riser());
         // A riser seen only in its upper part (a view over the nose): not believed.
         let mut part = [seg.clone()];
-        assert_eq!(place_fronts(&mut part, &wall(1.0, 0.25, 0.3), &eye, &p), 0);
+        assert_eq!(place_fronts(&mut part, &wall(1.0, 0.25, 0.3), &eye, None, &p), 0);
         assert_eq!(part[0], seg);
         // Nothing within the window (the true nose 10 cm off): not believed.
         let mut far = [seg.clone()];
-        assert_eq!(place_fronts(&mut far, &wall(0.9, 0.15, 0.3), &eye, &p), 0);
+        assert_eq!(place_fronts(&mut far, &wall(0.9, 0.15, 0.3), &eye, None, &p), 0);
         // Disabled: the rectangles as §4 gives them.
         let mut off = [seg.clone()];
-        assert_eq!(place_fronts(&mut off, &riser, &eye, &RiserParams { enabled: false, ..p.clone() }), 0);
-        // Seen from the other side (the ascent reversed), the front is the other end.
+        assert_eq!(
+            place_fronts(&mut off, &riser, &eye, None, &RiserParams { enabled: false, ..p.clone() }),
+            0
+        );
+        // Seen from past its middle (a tread under or behind the robot), its front does not
+        // face the sensor: left as it is, whatever stands under its back edge.
         let mut back = [seg.clone()];
-        let behind = Point3::new(2.5, 0.0, 1.4);
-        assert_eq!(place_fronts(&mut back, &wall(1.32, 0.15, 0.3), &behind, &p), 1);
-        assert!((back[0].center().x + back[0].depth_m() / 2.0 - 1.32).abs() < 1e-3);
+        let behind = Point3::new(1.2, 0.0, 1.4);
+        assert_eq!(place_fronts(&mut back, &riser, &behind, None, &p), 0);
+        assert_eq!(back[0], seg);
+        // A lone segment deeper than wide may have its axes swapped: left as it is.
+        let deep = PlaneSegment::new(Point3::new(1.5, 0.0, 0.3), Vector3::x(), 1.0, 0.4, Vector3::z(), 100)
+            .expect("valid rectangle");
+        let mut lone = [deep.clone()];
+        assert_eq!(place_fronts(&mut lone, &wall(1.0, 0.15, 0.3), &eye, None, &p), 0);
+        assert_eq!(lone[0], deep);
     }
 
     #[test]
@@ -267,8 +263,16 @@ mod tests {
                 pts.extend(wall(0.776 + 0.002 * k as f64, z, z + 0.001));
             }
         }
-        place_fronts(&mut segs, &pts, &eye, &p);
+        place_fronts(&mut segs, &pts, &eye, None, &p);
         let front = segs[1].center().x - segs[1].depth_m() / 2.0;
         assert!((front - 0.8).abs() < 1e-3, "front at {front:.4}");
+        // The same with the lower tread known only as the ground under the sensor (the
+        // floor, or the tread the robot stands on).
+        let mut upper = [tread(0.825, 0.30, 0.3)];
+        place_fronts(&mut upper, &pts, &eye, Some(0.22), &p);
+        let front = upper[0].center().x - upper[0].depth_m() / 2.0;
+        assert!((front - 0.8).abs() < 1e-3, "front at {front:.4}");
+        let mut unbounded = [tread(0.825, 0.30, 0.3)];
+        assert_eq!(place_fronts(&mut unbounded, &pts, &eye, None, &p), 0, "the strays outnumber the riser");
     }
 }

@@ -38,7 +38,8 @@ struct Candidate {
     centroid: P2,
 }
 
-/// The steps (lowest first) and the number of candidate segments considered.
+/// The steps (lowest first), the number of candidate segments considered, and the ground's
+/// height (the candidate under the sensor, else the lowest), metres.
 pub fn extract(
     vc: &VoxelCloud,
     sv: &Supervoxels,
@@ -47,7 +48,7 @@ pub fn extract(
     viewpoint: &Point3<f64>,
     gravity: &Unit<Vector3<f64>>,
     p: &PerceptionParams,
-) -> Result<(Vec<PlaneSegment>, usize), PerceptionError> {
+) -> Result<(Vec<PlaneSegment>, usize, f64), PerceptionError> {
     let mut members: Vec<Vec<u32>> = vec![Vec::new(); sv.centres.len()];
     for (i, &l) in sv.labels.iter().enumerate() {
         if l != UNLABELLED {
@@ -152,7 +153,7 @@ pub fn extract(
             PlaneSegment::new(centre, along3, ra[1] - ra[0], rb[1] - rb[0], c.normal, c.voxels.len())
         })
         .collect();
-    Ok((segments, n_candidates))
+    Ok((segments, n_candidates, ground_h))
 }
 
 /// The extent [min, max] of `xy` along `u`, less what lies beyond an empty row at either

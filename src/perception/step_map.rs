@@ -213,7 +213,12 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
         return fuller;
     }
     let c = fuller.center();
-    let fronts = [&fuller, &other].map(|r| (surely_seen(r, &c, &along, -1.0), r.front_on_riser()));
+    // A front on its riser is the riser's median across the tread, its middle: no inward
+    // bound for a turned view (see `surely_seen`).
+    let fronts = [&fuller, &other].map(|r| match r.front_on_riser() {
+        true => ((r.center() - r.along() * (r.depth_m() / 2.0) - c).dot(&along), true),
+        false => (surely_seen(r, &c, &along, -1.0), false),
+    });
     // A front placed on its riser is the nose, and stands against one from voxels, which
     // errs by centimetres under noise (perception's `riser`); of two alike, the farther out.
     let (front, on_riser) = match fronts {
@@ -337,6 +342,15 @@ mod tests {
         // The other way round, the new view on its riser: the same.
         let merged = merge(std::slice::from_ref(&out), vec![on_riser.clone()], &p);
         assert!((front(&merged[0]) - 0.87).abs() < 1e-9 && merged[0].front_on_riser());
+        // A view turned 5 degrees, its front on the riser: its middle, not drawn inward by
+        // half its width's turn (the riser's median lies across the whole tread).
+        let turn = 5f64.to_radians();
+        let turned =
+            level(Point3::new(1.005, 0.0, 0.4), Vector3::new(turn.cos(), turn.sin(), 0.0), 0.27, 1.0, 20)
+                .with_front_on_riser(true);
+        let merged = merge(std::slice::from_ref(&out), vec![turned], &p);
+        let nose = merged[0].center().x - merged[0].depth_m() / 2.0 * merged[0].along().x;
+        assert!((nose - (1.005 - 0.135 * turn.cos())).abs() < 2e-3, "{nose}");
         // Both from voxels: the farther out, as before.
         let merged = merge(std::slice::from_ref(&step(1.005, 0.4, 0.27)), vec![out], &p);
         assert!((front(&merged[0]) - 0.85).abs() < 1e-9 && !merged[0].front_on_riser());
