@@ -533,7 +533,7 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
     assert!(matches!(refused, PlanError::OffTheSide { step: 1, .. }), "{refused}");
 
     let Ok((walk, why)) =
-        plan_next(&model, &q0, &rects, Arc::new(SeenPoints::new(floor.clone())), 1, 0.0, &p)
+        plan_next(&model, &q0, &rects, None, Arc::new(SeenPoints::new(floor.clone())), 1, 0.0, &p)
     else {
         panic!("no walk closer")
     };
@@ -548,14 +548,15 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
 
     // The same view with the feet 17 cm above the floor the climb started on (on a step,
     // ci case 83): that floor is not under the feet, nothing is walked, the refusal stands.
-    let from_step = plan_next(&model, &q0, &rects, Arc::new(SeenPoints::new(floor.clone())), 1, -0.17, &p);
+    let from_step =
+        plan_next(&model, &q0, &rects, None, Arc::new(SeenPoints::new(floor.clone())), 1, -0.17, &p);
     assert_eq!(from_step.err().map(|r| r.kind), Some(RefusalKind::OffTheSide), "walked off a step");
 
     // A box in the way, 30 cm tall from 0.2 m ahead: nothing is walked, and the climb's
     // own floor walk is refused for it (before any step is judged).
     let mut boxed = floor.clone();
     boxed.extend(floor_seen([0.2, 0.6], 0.3));
-    let stopped = plan_next(&model, &q0, &rects, Arc::new(SeenPoints::new(boxed)), 1, 0.0, &p);
+    let stopped = plan_next(&model, &q0, &rects, None, Arc::new(SeenPoints::new(boxed)), 1, 0.0, &p);
     assert_eq!(stopped.err().map(|r| r.kind), Some(RefusalKind::FloorObstructed), "walked into a box");
 
     // No floor seen at all: only the stances within the lidar's blind reach, of all the walk's.
@@ -582,7 +583,7 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
     // own plan's first stance.
     let (near_rects, flight, q_near) = seen_from(0.25, 1);
     let near = |rects: &[PlaneSegment]| {
-        plan_next(&model, &q_near, rects, Arc::new(SeenPoints::new(floor.clone())), 1, 0.0, &p)
+        plan_next(&model, &q_near, rects, None, Arc::new(SeenPoints::new(floor.clone())), 1, 0.0, &p)
     };
     let Ok((up, why)) = near(&near_rects) else { panic!("step 1 not climbed to look again at step 2") };
     assert_eq!(why.map(|r| r.kind), Some(RefusalKind::OffTheSide));

@@ -13,7 +13,7 @@ use stairbench::perception::perceive;
 use stairbench::perception::step_map::StepMap;
 use stairbench::perception::surroundings::Surroundings;
 use stairbench::planning::clearance::SeenPoints;
-use stairbench::planning::plan_among;
+use stairbench::planning::plan_below;
 use stairbench::scene::Scene;
 use stairbench::sensor::AssembleParams;
 use stairbench::sim::execute::{execute, settle};
@@ -101,13 +101,15 @@ pub fn run(
             top.depth_m()
         );
     }
-    let steps = next.ahead;
+    let steps = next.ahead.clone();
     // The body kept off every surface the sensor saw (walls, clutter), as the loop does:
     // the rehearsal's world holds the perceived steps only, the real one the rest too.
     let mut around = Surroundings::default();
     add_view(&mut around, &cloud, &model, &q0, &params.surroundings);
     let surfaces = Arc::new(SeenPoints::new(around.points(&params.surroundings)));
-    let planned = match plan_among(&model, &q0, &steps, surfaces, None, &params.plan) {
+    // The step left for a closer look bounds the tread below it, as in the loop.
+    let bounded: Vec<_> = steps.iter().chain(next.deferred.as_ref()).cloned().collect();
+    let planned = match plan_below(&model, &q0, &bounded, steps.len(), surfaces, None, &params.plan) {
         Ok(p) => p,
         Err(e) => {
             discard(rec);

@@ -186,6 +186,7 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
                 &model,
                 &then.q0,
                 &next.ahead,
+                next.deferred.as_ref(),
                 surfaces,
                 then.stances.len(),
                 start_floor_z_m,

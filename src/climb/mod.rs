@@ -24,7 +24,7 @@ use crate::perception::PlaneSegment;
 use crate::perception::{perceive, PerceptionError, PerceptionParams};
 use crate::planning::clearance::{body_capsules, SeenPoints};
 use crate::planning::plan::stance_at;
-use crate::planning::{plan_among, plan_approach, plan_below, Plan, PlanParams, Refusal};
+use crate::planning::{plan_approach, plan_below, Plan, PlanParams, Refusal};
 use crate::robot::model::RobotModel;
 use crate::robot::Kinematics;
 use crate::scene::Scene;
@@ -190,7 +190,7 @@ pub fn run<E: Executor>(
         add_view(&mut around, &cloud, model, &q, p.surroundings);
         let feet_z = feet_height_m(model, &q);
         let next = map.next_input(seen, feet_z, p.plan.gait.min_tread_m, p.step_map);
-        let ahead = next.ahead;
+        let ahead = &next.ahead;
         if ahead.is_empty() {
             if climbed(truth, model, &q) < truth.steps().len() {
                 report.stop = Some(StopReason::NoStaircaseAhead { cycle, last_view: nothing });
@@ -199,17 +199,25 @@ pub fn run<E: Executor>(
         }
         let t = Instant::now();
         let surfaces = Arc::new(SeenPoints::new(around.points(p.surroundings)));
-        let (planned, closer_look) =
-            match plan_next(model, &q, &ahead, surfaces, p.run.stances_per_scan, start_floor_z_m, p.plan) {
-                Ok(x) => x,
-                Err(refusal) => {
-                    report.stop = Some(StopReason::Refused { cycle, refusal: *refusal });
-                    break;
-                }
-            };
+        let (planned, closer_look) = match plan_next(
+            model,
+            &q,
+            ahead,
+            next.deferred.as_ref(),
+            surfaces,
+            p.run.stances_per_scan,
+            start_floor_z_m,
+            p.plan,
+        ) {
+            Ok(x) => x,
+            Err(refusal) => {
+                report.stop = Some(StopReason::Refused { cycle, refusal: *refusal });
+                break;
+            }
+        };
         let plan_s = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        observer.event(&Event::Plan { stamp_s: robot.now_s(), steps: &ahead, plan: &planned });
+        observer.event(&Event::Plan { stamp_s: robot.now_s(), steps: ahead, plan: &planned });
         let exec_start_s = robot.now_s();
         let mut execution = robot.execute(&planned, observer, cancel).map_err(failed)?;
         let execute_s = t.elapsed().as_secs_f64();
@@ -278,18 +286,26 @@ pub fn run<E: Executor>(
 ///   tread, toward a strip seen on the room's wall, the right foot went 0.19 m past the
 ///   tread's back edge and the robot fell).
 ///
+/// `beyond` is the step map's lowest step left for a closer look ([`NextInput::deferred`]):
+/// no foot goes on it, but its front bounds the tread below it (envelope 0.10 x 0.22: left
+/// out of the plan, step 2's tread was planned as the top, open behind, and the toe struck
+/// its riser).
+///
 /// The refusal when neither is possible (nothing left to walk on the floor, a refused next
 /// step, feet on a step), or they are refused too.
+#[allow(clippy::too_many_arguments)]
 pub fn plan_next(
     model: &RobotModel,
     q: &[f64],
     ahead: &[PlaneSegment],
+    beyond: Option<&PlaneSegment>,
     surfaces: Arc<SeenPoints>,
     stances: usize,
     start_floor_z_m: f64,
     p: &PlanParams,
 ) -> Result<(Plan, Option<Refusal>), Box<Refusal>> {
-    let refusal = match plan_among(model, q, ahead, surfaces.clone(), Some(stances), p) {
+    let steps: Vec<PlaneSegment> = ahead.iter().chain(beyond).cloned().collect();
+    let refusal = match plan_below(model, q, &steps, ahead.len(), surfaces.clone(), Some(stances), p) {
         Ok(plan) => return Ok((plan, None)),
         Err(e) => e.refusal(),
     };
@@ -297,7 +313,7 @@ pub fn plan_next(
         return Err(Box::new(refusal));
     }
     if let Some(below) = refusal.step.and_then(|s| s.checked_sub(1)).filter(|&b| b > 0) {
-        if let Ok(plan) = plan_below(model, q, ahead, below, surfaces.clone(), Some(stances), p) {
+        if let Ok(plan) = plan_below(model, q, &steps, below, surfaces.clone(), Some(stances), p) {
             if plan.stances.first().is_some_and(|s| s.step.is_some()) {
                 return Ok((plan, Some(refusal)));
             }

@@ -66,7 +66,8 @@ pub struct GaitParams {
     /// not air: there the toes keep `toe_clearance_m` behind the next front edge and the
     /// heel overhangs the nose by `heel_overhang_m` at most, so such a tread needs the sole
     /// plus the one less the other, 0.245 m (the fronts, placed on the risers by
-    /// perception, within a few millimetres of the noses).
+    /// perception, within a few millimetres of the noses); this limit holds for the top
+    /// tread, open behind, and for the step map's judgement of a partly seen highest step.
     pub min_tread_m: f64,
     /// Highest rise between consecutive treads the legs can climb (HRP-4's 24 cm step,
     /// §6.3, is within; the knee's fold and the trailing leg's reach set the limit).
@@ -206,11 +207,27 @@ pub fn footholds(
     legs: &Legs,
     p: &GaitParams,
 ) -> Result<Vec<Stance>, PlanError> {
-    if rects.is_empty() {
+    footholds_below(start, rects, rects.len(), seen, legs, p)
+}
+
+/// [`footholds`] on the `below` lowest rectangles of `rects` only, a higher one left to be
+/// judged from nearer; the next one still bounds the last's usable depth (envelope 0.10 x
+/// 0.22: with the partly seen step 3 left out, step 2 was judged as the top, open behind,
+/// the foot centred on it, and the toe struck step 3's riser).
+pub fn footholds_below(
+    start: &Stance,
+    rects: &[PlaneSegment],
+    below: usize,
+    seen: &[Point3<f64>],
+    legs: &Legs,
+    p: &GaitParams,
+) -> Result<Vec<Stance>, PlanError> {
+    let all = super::rectangles::by_height(rects);
+    let steps = &all[..below.min(all.len())];
+    if steps.is_empty() {
         return Err(PlanError::NoSteps);
     }
-    let steps = super::rectangles::by_height(rects);
-    let lay = Layout::new(start, &steps, seen, p);
+    let lay = Layout::new(start, steps, seen, p);
     let (o, u, w) = (lay.frame.o, lay.frame.u, lay.frame.w);
     let limit_rad = 10f64.to_radians();
     for (i, s) in steps.iter().enumerate() {
@@ -220,7 +237,7 @@ pub fn footholds(
         }
     }
     let lanes = lay.start_lanes.map(|l| l + lay.shift);
-    let rises = super::rectangles::rises_m(&steps, Some(lay.floor_z));
+    let rises = super::rectangles::rises_m(steps, Some(lay.floor_z));
     let usual = usual_rise_m(&rises);
 
     let mut out = Vec::new();
@@ -237,10 +254,12 @@ pub fn footholds(
         if rises[i] > p.max_rise_m {
             return Err(PlanError::HighRise { step: i, rise_m: rises[i], max_m: p.max_rise_m });
         }
-        let (front, along, usable_m) = lay.foothold_along(&steps, i, p);
+        let (front, along, usable_m) = lay.foothold_along(&all, i, p);
         let heel_over_m = front - (along - p.sole_length_m / 2.0);
-        if usable_m < p.min_tread_m || heel_over_m > p.heel_overhang_m {
-            let min_m = p.min_tread_m.max(p.sole_length_m + p.toe_clearance_m - p.heel_overhang_m);
+        if usable_m < p.min_tread_m || heel_over_m > p.heel_overhang_m + 1e-9 {
+            let toes_kept = all.get(i + 1).is_some_and(|n| n.front_on_riser());
+            let between_m = p.sole_length_m + p.toe_clearance_m - p.heel_overhang_m;
+            let min_m = if toes_kept { p.min_tread_m.max(between_m) } else { p.min_tread_m };
             return Err(PlanError::ShortTread { step: i, depth_m: usable_m, min_m });
         }
         if i > 0 {
@@ -290,7 +309,7 @@ pub fn footholds(
             // behind the next riser as the floor's last stance keeps them (the loop,
             // planning from the tread, walks it as its floor).
             let below = steps[i - 1];
-            let (below_front, _, below_usable_m) = lay.foothold_along(&steps, i - 1, p);
+            let (below_front, _, below_usable_m) = lay.foothold_along(&all, i - 1, p);
             let across = Layout::toes_behind(below_front + below_usable_m, p);
             let up = below.normal().into_inner();
             let walk: Vec<Stance> = strides(prev_along, across, p.approach_stride_m)
@@ -519,19 +538,23 @@ impl Layout {
     }
 
     /// Step `i`'s front edge, its foothold along the ascent, and its usable depth (up to the
-    /// next step's nose, at most its own). The foot goes in the middle of that depth, or
-    /// back from it so the toes stay `toe_clearance_m` behind the next front edge: a
+    /// next step's nose, at most its own). The foot goes in the middle of that depth: a
     /// tread's back edge is its view's least sure (the next nose hides it from afar, and its
     /// voxels reach past the riser), and the toes must stay off the next riser (ci suite: a
-    /// tread seen 2 cm deep past it put the toes against it).
+    /// tread seen 2 cm deep past it put the toes against it). Where the next front was
+    /// placed on its riser (perception's `riser`, within millimetres of the nose), the foot
+    /// goes back from the middle as far as the toes need to stay `toe_clearance_m` behind
+    /// it; a front from voxels errs by centimetres either way, and the middle is the best
+    /// guess (the paper's own rectangles: Exp. 1's step 1 0.222 m deep up to step 2).
     fn foothold_along(&self, steps: &[&PlaneSegment], i: usize, p: &GaitParams) -> (f64, f64, f64) {
         let front = |s: &PlaneSegment| (s.center() - self.frame.o).dot(&self.frame.u) - s.depth_m() / 2.0;
         let s = steps[i];
-        let next_front = steps.get(i + 1).map(|n| front(n));
-        let usable_m = next_front.map_or(s.depth_m(), |n| (n - front(s)).clamp(0.0, s.depth_m()));
+        let next = steps.get(i + 1);
+        let usable_m = next.map_or(s.depth_m(), |n| (front(n) - front(s)).clamp(0.0, s.depth_m()));
         let middle = front(s) + (usable_m / 2.0).min(p.landing_foothold_m);
-        let along = next_front.map_or(middle, |n| middle.min(n - p.sole_length_m / 2.0 - p.toe_clearance_m));
-        (front(s), along, usable_m)
+        let toes_kept =
+            next.filter(|n| n.front_on_riser()).map(|n| front(n) - p.sole_length_m / 2.0 - p.toe_clearance_m);
+        (front(s), toes_kept.map_or(middle, |a| middle.min(a)), usable_m)
     }
 
     /// Both feet `along` the ascent in `lanes`, on the plane through `point` with normal `n`
@@ -836,17 +859,9 @@ mod tests {
         ));
     }
 
-    /// A 1 m wide tread ascending along x, its front edge at `front`, its top at `z`.
+    /// A level tread 1 m wide ascending along x, its nose at `front`, its top at `z`.
     fn tread(front: f64, z: f64, depth: f64) -> PlaneSegment {
-        PlaneSegment::new(
-            Point3::new(front + depth / 2.0, 0.0, z),
-            Vector3::x(),
-            depth,
-            1.0,
-            Vector3::z(),
-            100,
-        )
-        .expect("valid rectangle")
+        PlaneSegment::level_along_x(front, z, depth)
     }
 
     /// A tread's back edge seen 2 cm past the next riser (voxels reach past it): the foot goes
@@ -1030,7 +1045,11 @@ mod tests {
         let sole = |y: f64| Isometry3::translation(0.3, y, 0.0);
         let start = Stance { right: sole(-0.1), left: sole(0.1), step: None };
         let flight = |depth: f64| -> Vec<PlaneSegment> {
-            (0..3).map(|i| tread(0.5 + depth * i as f64, 0.15 * (i + 1) as f64, depth)).collect()
+            (0..3)
+                .map(|i| {
+                    tread(0.5 + depth * i as f64, 0.15 * (i + 1) as f64, depth).with_front_on_riser(true)
+                })
+                .collect()
         };
         let stances = footholds(&start, &flight(0.25), &[], &LEGS, &p).expect("a 0.25 m tread is used");
         for st in stances.iter().filter(|s| s.step.is_some_and(|i| i < 2)) {
@@ -1056,5 +1075,31 @@ mod tests {
         }
         let top = [tread(0.5, 0.15, 0.24)];
         assert!(footholds(&start, &top, &[], &LEGS, &p).is_ok(), "a lone 0.24 m tread has no riser behind");
+        // Fronts from voxels (off by centimetres either way): the foot in the middle.
+        let voxels: Vec<PlaneSegment> =
+            (0..3).map(|i| tread(0.5 + 0.24 * i as f64, 0.15 * (i + 1) as f64, 0.24)).collect();
+        let stances = footholds(&start, &voxels, &[], &LEGS, &p).expect("the middle of a 0.24 m tread");
+        let first = stances.iter().find(|s| s.step == Some(0)).expect("step 1");
+        assert!((first.right.translation.x - 0.62).abs() < 1e-9);
+    }
+
+    /// The lowest steps planned alone, a higher one left for a closer look: the next one's
+    /// front still bounds the last planned tread (envelope 0.10 x 0.22 planned step 2 as
+    /// the top, open behind, and the toe struck step 3's riser).
+    #[test]
+    fn a_step_left_for_later_still_bounds_the_tread_below_it() {
+        let p = GaitParams::default();
+        let sole = |y: f64| Isometry3::translation(0.3, y, 0.0);
+        let start = Stance { right: sole(-0.1), left: sole(0.1), step: None };
+        let rects: Vec<PlaneSegment> = (0..3)
+            .map(|i| tread(0.5 + 0.23 * i as f64, 0.1 * (i + 1) as f64, 0.23).with_front_on_riser(true))
+            .collect();
+        assert!(matches!(
+            footholds_below(&start, &rects, 1, &[], &LEGS, &p),
+            Err(PlanError::ShortTread { step: 0, .. })
+        ));
+        // Alone (nothing known beyond it), a 0.23 m tread is the top, open behind.
+        let alone = footholds(&start, &rects[..1], &[], &LEGS, &p);
+        assert!(alone.is_ok(), "{alone:?}");
     }
 }

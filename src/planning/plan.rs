@@ -2,7 +2,7 @@
 //! gait's segments with their polygons and margins, and the joint trajectory out (§6).
 
 use super::clearance::{step_blocks, SeenPoints};
-use super::footholds::{approach, footholds, GaitParams, Stance};
+use super::footholds::{approach, footholds_below, GaitParams, Stance};
 use super::gait::{segments, Body, Legs, Segment, StepParams};
 use super::motion::{track, IkParams, JointTrajectory, Tracking};
 use super::PlanError;
@@ -133,10 +133,8 @@ pub fn plan_below(
     max_stances: Option<usize>,
     p: &PlanParams,
 ) -> Result<Plan, PlanError> {
-    let lower: Vec<PlaneSegment> =
-        super::rectangles::by_height(rects).into_iter().take(below).cloned().collect();
     plan_stances(model, q0, rects, seen, max_stances, p, |start, pts, legs| {
-        footholds(start, &lower, pts, legs, &p.gait)
+        footholds_below(start, rects, below, pts, legs, &p.gait)
     })?
     .ok_or(PlanError::NoSteps)
 }
