@@ -26,3 +26,4 @@ pub mod scenario;
 pub mod scene;
 pub mod sensor;
 pub mod sim;
+pub mod stats;

@@ -140,7 +140,7 @@ fn inputs(a: &PlanArgs, model: &RobotModel) -> Result<(Vec<PlaneSegment>, Vec<f6
 fn start_before(rects: &[PlaneSegment], floor_z: Option<f64>, standoff_m: f64) -> Result<Isometry3<f64>> {
     let by_height = rectangles::by_height(rects);
     let first = by_height[0];
-    let floor = match (floor_z, rectangles::median(&rectangles::rises_m(&by_height, None))) {
+    let floor = match (floor_z, stairbench::stats::median(rectangles::rises_m(&by_height, None))) {
         (Some(z), _) => z,
         (None, Some(rise)) => first.height_m() - rise,
         (None, None) => bail!("one step only: give the floor's height with --floor-z"),

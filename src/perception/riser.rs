@@ -14,6 +14,7 @@
 //! partial view of the floor below it) leaves the edge as it was.
 
 use super::PlaneSegment;
+use crate::stats::median;
 use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -146,9 +147,9 @@ fn riser_along(s: &PlaneSegment, points: &[Point3<f32>], band: [f64; 2], p: &Ris
     }
     // The median, twice again over the returns within a halved window about it: the riser's
     // returns are a dense peak, the treads' strays a thin spread on either side.
-    let mut at = median(near.iter().map(|r| r.0).collect())?;
+    let mut at = median(near.iter().map(|r| r.0))?;
     for w in [p.half_window_m / 2.0, p.half_window_m / 4.0] {
-        at = median(near.iter().map(|r| r.0).filter(|t| (t - at).abs() < w).collect())?;
+        at = median(near.iter().map(|r| r.0).filter(|t| (t - at).abs() < w))?;
     }
     let on: Vec<f64> =
         near.iter().filter(|r| (r.0 - at).abs() < p.half_window_m / 4.0).map(|r| r.1).collect();
@@ -171,16 +172,6 @@ fn with_front(s: &PlaneSegment, front_m: f64) -> Option<PlaneSegment> {
     let centre = s.center() + out * (front_m + back_m) / 2.0;
     PlaneSegment::new(centre, s.along(), depth_m, s.width_m(), s.normal().into_inner(), s.voxel_count())
         .map(|placed| placed.with_front_on_riser(true))
-}
-
-/// The median of `v` (the upper of an even count), `None` when empty.
-fn median(mut v: Vec<f64>) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    let k = v.len() / 2;
-    v.select_nth_unstable_by(k, f64::total_cmp);
-    Some(v[k])
 }
 
 #[cfg(test)]

@@ -386,7 +386,7 @@ fn usual_rise_m(rises: &[f64]) -> Option<f64> {
     match rises {
         [] | [_] => None,
         [a, b] => Some(a.min(*b)),
-        _ => super::rectangles::median(rises),
+        _ => crate::stats::median(rises.iter().copied()),
     }
 }
 

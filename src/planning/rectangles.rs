@@ -49,13 +49,6 @@ pub fn rises_m(sorted: &[&PlaneSegment], floor_z: Option<f64>) -> Vec<f64> {
     sorted.iter().skip(usize::from(floor_z.is_none())).zip(below).map(|(s, z)| s.height_m() - z).collect()
 }
 
-/// The median of `values` (the upper one of an even count), `None` when empty.
-pub fn median(values: &[f64]) -> Option<f64> {
-    let mut v = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied()
-}
-
 /// Ground truth as rectangles (normal up, ascent along the step's depth).
 pub fn from_step_tops(steps: &[StepTop]) -> Vec<PlaneSegment> {
     steps
@@ -155,7 +148,7 @@ mod tests {
     }
 
     #[test]
-    fn rises_and_their_median() {
+    fn rises_above_the_floor_and_each_other() {
         let text = "0.3,0,0.2\n0.6,0,0.2\n0.6,0.5,0.2\n0.3,0.5,0.2\n0,0,0\n0.3,0,0\n0.3,0.5,0\n0,0.5,0\n";
         let r = parse(text).unwrap();
         let sorted = by_height(&r);
@@ -163,7 +156,5 @@ mod tests {
         let with_floor = rises_m(&sorted, Some(-0.25));
         assert!((with_floor[0] - 0.25).abs() < 1e-12 && (with_floor[1] - 0.2).abs() < 1e-12);
         assert_eq!(rises_m(&sorted, None).len(), 1);
-        assert_eq!(median(&[0.3, 0.1, 0.2]), Some(0.2));
-        assert_eq!(median(&[]), None);
     }
 }

@@ -7,6 +7,8 @@
 //! (the offsets' change over the time between). A stamp is unwrapped against the last one seen
 //! and mapped to host seconds.
 
+use crate::stats::median;
+
 /// A 24-bit millisecond counter's period, ms.
 pub const WRAP_MS: u64 = 1 << 24;
 
@@ -182,14 +184,10 @@ fn batch(exchanges: &[Exchange], unwrap: &mut Unwrap) -> Result<(f64, f64, f64),
     let offset = if lo <= hi {
         (lo + hi) / 2.0
     } else {
-        let mut mids: Vec<f64> =
-            pts.iter().map(|(s, e)| (e.sent_s + e.received_s) / 2.0 - s - TICK_S / 2.0).collect();
-        mids.sort_by(f64::total_cmp);
-        mids[mids.len() / 2]
+        median(pts.iter().map(|(s, e)| (e.sent_s + e.received_s) / 2.0 - s - TICK_S / 2.0))
+            .ok_or(ClockError::Empty)?
     };
-    let mut ticks: Vec<f64> = pts.iter().map(|p| p.0).collect();
-    ticks.sort_by(f64::total_cmp);
-    let s = ticks[ticks.len() / 2];
+    let s = median(pts.iter().map(|p| p.0)).ok_or(ClockError::Empty)?;
     Ok((s, s + offset, shortest))
 }
 

@@ -81,11 +81,8 @@ pub fn run(repeat: usize) -> Result<String> {
         bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
     }
     let _ = std::fs::remove_file(&path);
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
-    let (a, b) = (median(&mut plain), median(&mut recorded));
+    let median = |v: Vec<f64>| stairbench::stats::median(v).unwrap_or(f64::NAN);
+    let (a, b) = (median(plain), median(recorded));
     t += &format!(
         "\nRecording (`run --record`, every stage to MCAP, LZ4 chunks from a writer thread), exp1, same process, median of {repeat} alternated runs: {a:.2} s without, {b:.2} s with (file closed), ratio {:.3} ({:+.1} %); the file is {:.0} MB.\n",
         b / a,

@@ -109,10 +109,9 @@ fn sweeps(cfg: &HardwareConfig, repeat: usize) -> Result<Vec<(SweepStats, f64)>>
     Ok(out)
 }
 
-/// The median of `v`.
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+/// The median of `v`, NaN for none (a figure not measured).
+fn median(v: impl IntoIterator<Item = f64>) -> f64 {
+    stairbench::stats::median(v).unwrap_or(f64::NAN)
 }
 
 /// Runs the benchmark: `repeat` sweeps per servo protocol.
@@ -137,12 +136,12 @@ pub fn run(repeat: usize) -> Result<String> {
         eprintln!("Protocol {}:", u8::from(protocol));
         let (_emulator, cfg) = start_emulator(protocol, &dir)?;
         let runs = sweeps(&cfg, repeat)?;
-        let per = |f: &dyn Fn(&SweepStats) -> f64| median(runs.iter().map(|(s, _)| f(s)).collect());
+        let per = |f: &dyn Fn(&SweepStats) -> f64| median(runs.iter().map(|(s, _)| f(s)));
         let rows_s = per(&|s| s.scans as f64 / s.streaming_s);
         let readings_s = per(&|s| s.readings as f64 / s.streaming_s);
         let servo_cpu = per(&|s| s.servo_cpu_s / s.streaming_s);
         let lidar_cpu = per(&|s| s.lidar_cpu_s / s.streaming_s);
-        let process_cpu = median(runs.iter().map(|r| r.1).collect());
+        let process_cpu = median(runs.iter().map(|r| r.1));
         let sensor_rows_s =
             1.0 / HardwareSource::new(&cfg, Default::default(), |_| {}).model().row_period_s();
         let bus_s = bus_readings_per_s(protocol, cfg.servo.baud);

@@ -101,15 +101,12 @@ pub fn run(a: BenchArgs) -> Result<ExitCode> {
 
 /// Median wall time of `f` over `repeat` runs, seconds.
 pub fn median_s(repeat: usize, mut f: impl FnMut()) -> f64 {
-    let mut t: Vec<f64> = (0..repeat)
-        .map(|_| {
-            let t0 = Instant::now();
-            f();
-            t0.elapsed().as_secs_f64()
-        })
-        .collect();
-    t.sort_by(f64::total_cmp);
-    t[t.len() / 2]
+    let t = (0..repeat).map(|_| {
+        let t0 = Instant::now();
+        f();
+        t0.elapsed().as_secs_f64()
+    });
+    stairbench::stats::median(t).unwrap_or(f64::NAN)
 }
 
 /// The machine, for the record: cores and CPU model.
