@@ -56,6 +56,14 @@ pub struct StabilizerParams {
     /// A swinging foot's normal force from which it has met the ground, N (low, to stop the
     /// descent before the impact builds up; above the force sensor's noise).
     pub touchdown_force_n: f64,
+    /// A landed foot's normal force target until it carries `contact_force_n`, at least,
+    /// N: between `touchdown_force_n` and `contact_force_n`, so the foot stays on the ground
+    /// before the distribution gives it weight (see [`super::admittance::landing`]).
+    pub landing_preload_n: f64,
+    /// A landed foot's height rate per newton of normal force error until it carries
+    /// `contact_force_n`, m/(N s), at most `approach_speed_m_s`: 1e-3 closes a 15 N error
+    /// at 15 mm/s and slows as the force comes.
+    pub landing_admittance_m_per_n_s: f64,
     /// Consecutive ticks the force must stay above `touchdown_force_n`. One tick of force can
     /// be the foot's own inertia as the approach slows its descent (at x 2 speed that reads
     /// 16-18 N for one or two ticks), but waiting lets the real impacts grow: with 2, Exp. 1's
@@ -104,6 +112,8 @@ impl Default for StabilizerParams {
             leak_time_s: 1.5,
             contact_force_n: 30.0,
             touchdown_force_n: 10.0,
+            landing_preload_n: 15.0,
+            landing_admittance_m_per_n_s: 1e-3,
             touchdown_ticks: 1,
             touchdown_window: 0.0,
             approach_height_m: 0.01,

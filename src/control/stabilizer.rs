@@ -1,7 +1,8 @@
 //! The stabilizer's tick: read the sensors, estimate the CoM, distribute the wanted net
 //! wrench over the feet the plan has in contact, move each foot's reference by admittance,
-//! stop a landing foot where it meets the ground, and solve the QP IK online toward the
-//! corrected targets. The joint angles it returns are the servos' set points.
+//! stop a landing foot where it meets the ground and set it down by its normal force, and
+//! solve the QP IK online toward the corrected targets. The joint angles it returns are the
+//! servos' set points.
 
 use super::admittance::{self, FootOffset};
 use super::distribution::{distribute, DistributionError, Support};
@@ -55,6 +56,7 @@ pub struct Stabilizer<'m> {
     segment: usize,
     offsets: [FootOffset; 2],
     held: [Option<Isometry3<f64>>; 2],
+    landing: [bool; 2],
     lifted: [FootOffset; 2],
     approach_z: Option<f64>,
     seeking: [Option<f64>; 2],
@@ -101,6 +103,7 @@ impl<'m> Stabilizer<'m> {
             segment: 0,
             offsets: [FootOffset::default(); 2],
             held: [None; 2],
+            landing: [false; 2],
             lifted: [FootOffset::default(); 2],
             approach_z: None,
             seeking: [None; 2],
@@ -153,6 +156,7 @@ impl<'m> Stabilizer<'m> {
                 self.lifted[k] = lift;
                 self.offsets[k] = FootOffset::default();
                 self.held[k] = None;
+                self.landing[k] = false;
                 self.seeking[k] = None;
             }
         }
@@ -169,6 +173,7 @@ impl<'m> Stabilizer<'m> {
     /// orientation (flat on the tread).
     fn land(&mut self, k: usize, at: Vector3<f64>, planned: &Isometry3<f64>) {
         self.held[k] = Some(Isometry3::from_parts(at.into(), planned.rotation));
+        self.landing[k] = true;
         self.seeking[k] = None;
     }
 
@@ -369,6 +374,9 @@ impl<'m> Stabilizer<'m> {
     ) {
         let p = &self.p;
         let loaded = |k: usize| measured[k].force_n.z > p.contact_force_n;
+        for k in (0..2).filter(|&k| loaded(k)) {
+            self.landing[k] = false;
+        }
         if let [(a, pa), (b, pb)] = supports {
             let (i, j) = (a.index(), b.index());
             if let (true, true, Some(wi), Some(wj)) = (loaded(i), loaded(j), wanted[i], wanted[j]) {
@@ -411,12 +419,21 @@ impl<'m> Stabilizer<'m> {
         // One foot down (or none loaded): its CoP is where the CoM puts it; the offsets
         // return to the plan, but for the other foot of a double support: touching the
         // ground lightly, its tangential force still yields; wanted and not touching, it
-        // goes down to meet the ground.
+        // goes down to meet the ground; just landed, its height follows its normal force
+        // until it carries the contact force.
         let double = supports.len() == 2;
         for (f, pose) in supports {
             let k = f.index();
             let light = measured[k].force_n.z > p.touchdown_force_n && !loaded(k);
             match wanted[k] {
+                Some(w) if double && self.landing[k] => admittance::landing(
+                    &mut self.offsets[k],
+                    &(pose.rotation * measured[k].force_n),
+                    &(pose.rotation * w.force_n),
+                    [measured[k].force_n.z, w.force_n.z.max(p.landing_preload_n)],
+                    p,
+                    dt,
+                ),
                 Some(w)
                     if double
                         && measured[k].force_n.z <= p.touchdown_force_n
