@@ -506,6 +506,7 @@ fn floor_seen(xs: [f64; 2], z: f64) -> Vec<Point3<f64>> {
 #[test]
 fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
     use stairbench::climb::plan_next;
+    use stairbench::perception::step_map::NextInput;
     use stairbench::planning::clearance::SeenPoints;
     use stairbench::planning::footholds::{approach, GaitParams};
     use stairbench::planning::RefusalKind;
@@ -523,6 +524,7 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
         rects[narrow] = PlaneSegment::new(r.center(), r.along(), r.depth_m(), 0.2, Vector3::z(), 0).unwrap();
         (rects, whole, start_q(&model, &scene.robot_start()))
     };
+    let ahead = |rects: &[PlaneSegment]| NextInput { ahead: rects.to_vec(), deferred: None };
     let (rects, _, q0) = seen_from(1.6, 1);
     let p = PlanParams::default();
     let floor = floor_seen([0.0, 1.6], 0.0);
@@ -533,7 +535,7 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
     assert!(matches!(refused, PlanError::OffTheSide { step: 1, .. }), "{refused}");
 
     let Ok((walk, why)) =
-        plan_next(&model, &q0, &rects, None, Arc::new(SeenPoints::new(floor.clone())), 1, 0.0, &p)
+        plan_next(&model, &q0, &ahead(&rects), Arc::new(SeenPoints::new(floor.clone())), 1, 0.0, &p)
     else {
         panic!("no walk closer")
     };
@@ -549,14 +551,14 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
     // The same view with the feet 17 cm above the floor the climb started on (on a step,
     // ci case 83): that floor is not under the feet, nothing is walked, the refusal stands.
     let from_step =
-        plan_next(&model, &q0, &rects, None, Arc::new(SeenPoints::new(floor.clone())), 1, -0.17, &p);
+        plan_next(&model, &q0, &ahead(&rects), Arc::new(SeenPoints::new(floor.clone())), 1, -0.17, &p);
     assert_eq!(from_step.err().map(|r| r.kind), Some(RefusalKind::OffTheSide), "walked off a step");
 
     // A box in the way, 30 cm tall from 0.2 m ahead: nothing is walked, and the climb's
     // own floor walk is refused for it (before any step is judged).
     let mut boxed = floor.clone();
     boxed.extend(floor_seen([0.2, 0.6], 0.3));
-    let stopped = plan_next(&model, &q0, &rects, None, Arc::new(SeenPoints::new(boxed)), 1, 0.0, &p);
+    let stopped = plan_next(&model, &q0, &ahead(&rects), Arc::new(SeenPoints::new(boxed)), 1, 0.0, &p);
     assert_eq!(stopped.err().map(|r| r.kind), Some(RefusalKind::FloorObstructed), "walked into a box");
 
     // No floor seen at all: only the stances within the lidar's blind reach, of all the walk's.
@@ -583,7 +585,7 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
     // own plan's first stance.
     let (near_rects, flight, q_near) = seen_from(0.25, 1);
     let near = |rects: &[PlaneSegment]| {
-        plan_next(&model, &q_near, rects, None, Arc::new(SeenPoints::new(floor.clone())), 1, 0.0, &p)
+        plan_next(&model, &q_near, &ahead(rects), Arc::new(SeenPoints::new(floor.clone())), 1, 0.0, &p)
     };
     let Ok((up, why)) = near(&near_rects) else { panic!("step 1 not climbed to look again at step 2") };
     assert_eq!(why.map(|r| r.kind), Some(RefusalKind::OffTheSide));

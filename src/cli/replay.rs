@@ -185,8 +185,7 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
             match plan_next(
                 &model,
                 &then.q0,
-                &next.ahead,
-                next.deferred.as_ref(),
+                &next,
                 surfaces,
                 then.stances.len(),
                 start_floor_z_m,

@@ -18,7 +18,7 @@ pub use outcome::{Check, CheckKind, SimWarning, StopReason, Violation};
 pub use report::{ClimbReport, CycleReport, Footing, StageTimes};
 
 use crate::cancel::Cancel;
-use crate::perception::step_map::{StepMap, StepMapParams};
+use crate::perception::step_map::{NextInput, StepMap, StepMapParams};
 use crate::perception::surroundings::{Surroundings, SurroundingsParams};
 use crate::perception::PlaneSegment;
 use crate::perception::{perceive, PerceptionError, PerceptionParams};
@@ -199,22 +199,14 @@ pub fn run<E: Executor>(
         }
         let t = Instant::now();
         let surfaces = Arc::new(SeenPoints::new(around.points(p.surroundings)));
-        let (planned, closer_look) = match plan_next(
-            model,
-            &q,
-            ahead,
-            next.deferred.as_ref(),
-            surfaces,
-            p.run.stances_per_scan,
-            start_floor_z_m,
-            p.plan,
-        ) {
-            Ok(x) => x,
-            Err(refusal) => {
-                report.stop = Some(StopReason::Refused { cycle, refusal: *refusal });
-                break;
-            }
-        };
+        let (planned, closer_look) =
+            match plan_next(model, &q, &next, surfaces, p.run.stances_per_scan, start_floor_z_m, p.plan) {
+                Ok(x) => x,
+                Err(refusal) => {
+                    report.stop = Some(StopReason::Refused { cycle, refusal: *refusal });
+                    break;
+                }
+            };
         let plan_s = t.elapsed().as_secs_f64();
         let t = Instant::now();
         observer.event(&Event::Plan { stamp_s: robot.now_s(), steps: ahead, plan: &planned });
@@ -225,10 +217,10 @@ pub fn run<E: Executor>(
             v.cycle = cycle;
             observer.event(&Event::Violation { stamp_s: exec_start_s + v.t_s, violation: v });
         }
-        let to = match planned.stances.last() {
-            Some(s) if s.step.is_some() => Footing::Step(true_step(truth, s.right.translation.z)),
-            _ => Footing::Floor,
-        };
+        let to = planned
+            .stances
+            .last()
+            .map_or(Footing::Floor, |s| footing(truth, start_floor_z_m, s.right.translation.z));
         let c = CycleReport {
             cycle,
             to,
@@ -271,7 +263,7 @@ pub fn run<E: Executor>(
 }
 
 /// The loop's next plan from configuration `q`: the first `stances` stances of the climb
-/// of `ahead`, or, where that is refused for the steps as seen from here
+/// of the step map's `next.ahead`, or, where that is refused for the steps as seen from here
 /// ([`RefusalKind::about_the_view`](crate::planning::RefusalKind::about_the_view)), a plan
 /// that goes nearer to look again (with the refusal; the steps' upper part is
 /// reconstructed from nearer, as in the paper):
@@ -286,25 +278,24 @@ pub fn run<E: Executor>(
 ///   tread, toward a strip seen on the room's wall, the right foot went 0.19 m past the
 ///   tread's back edge and the robot fell).
 ///
-/// `beyond` is the step map's lowest step left for a closer look ([`NextInput::deferred`]):
+/// The step map's lowest step left for a closer look ([`NextInput::deferred`]):
 /// no foot goes on it, but its front bounds the tread below it (envelope 0.10 x 0.22: left
 /// out of the plan, step 2's tread was planned as the top, open behind, and the toe struck
 /// its riser).
 ///
 /// The refusal when neither is possible (nothing left to walk on the floor, a refused next
 /// step, feet on a step), or they are refused too.
-#[allow(clippy::too_many_arguments)]
 pub fn plan_next(
     model: &RobotModel,
     q: &[f64],
-    ahead: &[PlaneSegment],
-    beyond: Option<&PlaneSegment>,
+    next: &NextInput,
     surfaces: Arc<SeenPoints>,
     stances: usize,
     start_floor_z_m: f64,
     p: &PlanParams,
 ) -> Result<(Plan, Option<Refusal>), Box<Refusal>> {
-    let steps: Vec<PlaneSegment> = ahead.iter().chain(beyond).cloned().collect();
+    let ahead = &next.ahead;
+    let steps: Vec<PlaneSegment> = ahead.iter().chain(&next.deferred).cloned().collect();
     let refusal = match plan_below(model, q, &steps, ahead.len(), surfaces.clone(), Some(stances), p) {
         Ok(plan) => return Ok((plan, None)),
         Err(e) => e.refusal(),
@@ -352,14 +343,21 @@ pub fn feet_height_m(model: &RobotModel, q: &[f64]) -> f64 {
     stance_at(model, q).map(|s| s.right.translation.z.max(s.left.translation.z)).unwrap_or(f64::NEG_INFINITY)
 }
 
-/// The true step (1-based) at height `z`: the ground-truth step nearest it.
-fn true_step(scene: &Scene, z: f64) -> usize {
-    scene
+/// Where soles at height `z` stand in the ground truth: the floor (soles at `floor_z_m`) or
+/// the true step (1-based) nearest in height. By height, not by the plan's stance: a walk
+/// across a tread too deep for one stride is planned as the floor walk is (no step of its
+/// own), yet it stands on a step.
+fn footing(scene: &Scene, floor_z_m: f64, z: f64) -> Footing {
+    let nearest = scene
         .steps()
         .iter()
         .enumerate()
-        .min_by(|a, b| (a.1.height_m - z).abs().total_cmp(&(b.1.height_m - z).abs()))
-        .map_or(0, |(i, _)| i + 1)
+        .map(|(i, s)| (i + 1, (s.height_m - z).abs()))
+        .min_by(|a, b| a.1.total_cmp(&b.1));
+    match nearest {
+        Some((step, off_m)) if off_m < (z - floor_z_m).abs() => Footing::Step(step),
+        _ => Footing::Floor,
+    }
 }
 
 /// How many steps the robot has climbed: the highest true step both soles stand on.
@@ -373,4 +371,21 @@ pub fn climbed(scene: &Scene, model: &RobotModel, q: &[f64]) -> usize {
         })
     };
     (0..scene.steps().len()).rev().find(|&i| on(i)).map_or(0, |i| i + 1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_stance_stands_where_its_height_is_not_where_the_plan_filed_it() {
+        let scene = Scene::from_scenario(&crate::scenario::Scenario::default()).unwrap();
+        let floor_z = 0.0;
+        let first = scene.steps()[0].height_m;
+        assert_eq!(footing(&scene, floor_z, floor_z + 0.002), Footing::Floor);
+        // A walk across the first tread (a floor-walk stance there): on step 1.
+        assert_eq!(footing(&scene, floor_z, first - 0.001), Footing::Step(1));
+        let last = scene.steps().len();
+        assert_eq!(footing(&scene, floor_z, scene.steps()[last - 1].height_m), Footing::Step(last));
+    }
 }
