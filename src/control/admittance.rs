@@ -176,7 +176,8 @@ pub fn landing(
 /// stands on the ground with the other leg holding all the weight (ci case 175, step after
 /// step: 0-4 N while 25-31 N were wanted). It goes down at the approach's speed
 /// (`approach_speed_m_s`, no farther than `max_seek_m` below the plan) to meet the ground;
-/// its horizontal offset and tilt return to the plan.
+/// its horizontal offset and tilt return to the plan. A foot that has just landed follows
+/// [`landing`] instead until it is loaded.
 pub fn press(offset: &mut FootOffset, p: &StabilizerParams, dt_s: f64) {
     let z = offset.translation_m.z;
     leak(offset, p, dt_s);
