@@ -136,9 +136,10 @@ pub fn light_contact(
 /// landed foot hovered: the touch was often the foot's own inertia or a brief bounce, it
 /// then read 0-7 N for a second while the weight was still on the other foot, and once the
 /// distribution wanted its share, [`press`] drove it down at the approach's speed into a
-/// second impact (ci case 157: 41 N normal with 22 N tangential; the envelope's 0.10 x
-/// 0.36: 40.8 N with 32.7 N, beyond the friction cone). The target is at least
-/// `landing_preload_n`, so the foot stays down before the weight comes. Its horizontal
+/// second impact (ci case 157: 41 N normal with 22 N tangential). The target is at least
+/// `landing_preload_n`, so the foot stays down before the weight comes (on the lowest rises
+/// with the deepest treads the first impacts then grew: see BENCHMARKS.md, the fifteenth
+/// session; 0 there measured better). Its horizontal
 /// offset yields to its tangential force error once it touches (as in [`light_contact`]);
 /// its tilt returns to the plan.
 pub fn landing(
