@@ -318,7 +318,7 @@ fn a_step_higher_than_perceived_is_absorbed_by_the_compliant_touchdown() {
     );
 }
 
-/// Each landing of `ex`'s ticks: the seconds its foot read under `light_n` between its
+/// Each landing in `ticks` (stamp, tick): the seconds its foot read under `light_n` between its
 /// touchdown (held from then on) and the moment it first carried `loaded_n`.
 fn time_light_after_touchdown_s(ticks: &[(f64, TickRecord)], light_n: f64, loaded_n: f64) -> Vec<f64> {
     let mut out = Vec::new();
