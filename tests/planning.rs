@@ -9,8 +9,11 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use stairbench::geom2d::P2;
 use stairbench::perception::PlaneSegment;
 use stairbench::planning::gait::Phase;
+use stairbench::planning::plan::legs_at;
 use stairbench::planning::polygon::{by_bretl, margin};
-use stairbench::planning::{clearance, plan, plan_among, rectangles, Contact, Plan, PlanError, PlanParams};
+use stairbench::planning::{
+    clearance, plan, plan_among, rectangles, Contact, Foot, Plan, PlanError, PlanParams,
+};
 use stairbench::robot::model::Q_JOINTS;
 use stairbench::robot::{hrp4, Kinematics, RobotModel};
 use stairbench::scenario::Scenario;
@@ -67,6 +70,7 @@ fn check(plan: &Plan, scene: Option<&Scene>) {
     let limbs = clearance::limbs(&model, &hrp4::sole_frames(&model).unwrap());
     assert_eq!(limbs.len(), 4, "thigh and shank of each leg");
     let mut least_leg = f64::INFINITY;
+    let reach_m = legs_at(&model, &plan.trajectory.samples[0].q, &p.step).unwrap().reach_m;
     for (i, smp) in plan.trajectory.samples.iter().enumerate().skip(1) {
         let seg = &plan.segments[smp.segment];
         kin.update(&smp.q).unwrap();
@@ -119,6 +123,14 @@ fn check(plan: &Plan, scene: Option<&Scene>) {
             let d = (smp.feet[sw.foot.index()].translation.vector - target.translation.vector).norm();
             assert!(d < 5e-3, "{:?} foot lands {d} m from its target", sw.foot);
             worst.3 = worst.3.max(d);
+            if seg.phase == Phase::SwingRight {
+                let apart = leg_length_m(&model, &kin, sw.foot);
+                assert!(
+                    apart <= reach_m + 2e-3,
+                    "stance {}: the leading leg lands {apart:.3} m from hip to ankle, beyond its reach {reach_m:.3} m",
+                    seg.stance + 1
+                );
+            }
         }
     }
     // Five segments per stance, in the paper's order.
@@ -136,6 +148,45 @@ fn check(plan: &Plan, scene: Option<&Scene>) {
         plan.trajectory.samples.len(),
         plan.duration_s()
     );
+}
+
+/// A leg's hip pitch axis to its ankle pitch axis, in `kin`'s configuration.
+fn leg_length_m(model: &RobotModel, kin: &Kinematics, foot: Foot) -> f64 {
+    let side = if foot == Foot::Right { "R" } else { "L" };
+    let at = |joint: &str| {
+        kin.link_pose(model.joints()[model.joint_id(&format!("{side}_{joint}")).unwrap()].link)
+            .translation
+            .vector
+    };
+    (at("HIP_P") - at("ANKLE_P")).norm()
+}
+
+/// A low rise on a deep tread (the envelope's 0.10 x 0.36): the leading leg lands within its
+/// reach (`reach_fraction` of its length), its knee bent, not straight. The legs' model put
+/// the hip over the trailing ankle; the IK put it 6-7 cm behind the CoM and 12 cm to the
+/// side, and the leg landed 0.705 m from hip to ankle where it reaches 0.671 m, the knee at
+/// 2-5 deg: a strut whose touchdown impact slid the sole.
+#[test]
+fn the_leading_leg_lands_with_its_knee_bent_on_a_low_deep_step() {
+    let mut s = Scenario::default();
+    s.staircase.rise_m = 0.10;
+    s.staircase.tread_m = 0.36;
+    let (scene, r) = scenario_plan(&s);
+    let plan = r.expect("0.10 x 0.36 is climbable");
+    check(&plan, Some(&scene));
+    let model = hrp4::model().unwrap();
+    let knee = Q_JOINTS + model.joint_id("R_KNEE_P").unwrap();
+    let touchdowns: Vec<f64> = plan
+        .segments
+        .iter()
+        .enumerate()
+        .filter(|(_, sg)| sg.phase == Phase::SwingRight)
+        .map(|(i, _)| plan.trajectory.samples.iter().rev().find(|smp| smp.segment == i).unwrap().q[knee])
+        .collect();
+    assert!(touchdowns.len() >= 3);
+    for (k, bend) in touchdowns.iter().enumerate() {
+        assert!(bend.to_degrees() > 20.0, "touchdown {}: the knee at {:.1} deg", k + 1, bend.to_degrees());
+    }
 }
 
 #[test]
@@ -214,7 +265,7 @@ fn the_legs_stride_is_the_gaits_knee_check() {
             left: sole(&start.left),
             step: Some(0),
         };
-        segments(kin.com(), &start, &[to], &body, &p)
+        segments(kin.com(), &start, &[to], &[], &body, &p)
     };
     for rise in [0.22, 0.26] {
         let max = legs.max_stride_m(rise);

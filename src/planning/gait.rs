@@ -117,7 +117,9 @@ pub struct StepParams {
     pub min_margin_m: f64,
     /// Friction coefficient of the contacts' pyramids (§6.2; Caron et al. 2015).
     pub friction: f64,
-    /// The trailing leg is kept within this fraction of its full length (hip to ankle).
+    /// The trailing leg is kept within this fraction of its full length (hip to ankle), and
+    /// the leading leg lands within it (measured on the tracked trajectory, see
+    /// [`super::reach`]: a leg landing straight is a strut that slides its sole).
     pub reach_fraction: f64,
     /// Largest knee bend the leading leg may need, radians (the name carries the unit in
     /// parameter files too).
@@ -250,11 +252,15 @@ impl Body {
     }
 }
 
-/// The segments from `com` standing in `start` through every stance of `stances`.
+/// The segments from `com` standing in `start` through every stance of `stances`; the CoM
+/// waypoint of stance `k`'s first touchdown `drops_m[k]` lower than the legs' model puts it
+/// (measured on the tracked trajectory, see [`super::reach`]; a stance past the slice's end
+/// is not lowered).
 pub fn segments(
     com: Point3<f64>,
     start: &Stance,
     stances: &[Stance],
+    drops_m: &[f64],
     body: &Body,
     p: &StepParams,
 ) -> Result<Vec<Segment>, PlanError> {
@@ -263,7 +269,8 @@ pub fn segments(
     let mut c = com;
     let legs = Legs::of(body, p);
     for (k, to) in stances.iter().enumerate() {
-        let step = one_step(c, &from, to, k, body, &legs, p)?;
+        let drop_m = drops_m.get(k).copied().unwrap_or(0.0);
+        let step = one_step(c, &from, to, (k, drop_m), body, &legs, p)?;
         c = step.last().map(|s| s.com_end).unwrap_or(c);
         out.extend(step);
         from = to.clone();
@@ -279,7 +286,7 @@ fn one_step(
     com: Point3<f64>,
     from: &Stance,
     to: &Stance,
-    k: usize,
+    (k, drop_m): (usize, f64),
     body: &Body,
     legs: &Legs,
     p: &StepParams,
@@ -293,8 +300,10 @@ fn one_step(
     let forward = to.right.rotation * Vector3::x();
     let lead_ankle = body.ankle(Foot::Right, &to.right);
     let trail_ankle = body.ankle(Foot::Left, &from.left);
-    // (1): over the left ankle, low enough that the right leg reaches its target from there.
-    let z1 = com.z.min(hip_height_max(legs, &trail_ankle, &lead_ankle, &forward, k)? + body.com_above_hip_m);
+    // (1): over the left ankle, low enough that the right leg reaches its target from there
+    // (and `drop_m` lower, where the tracked leg reached farther than the model said).
+    let z1 = com.z.min(hip_height_max(legs, &trail_ankle, &lead_ankle, &forward, k)? + body.com_above_hip_m)
+        - drop_m;
     let w1 = over(trail_ankle, z1);
     // (3): over the right ankle, as high as the trailing leg reaches, no higher than standing.
     let hip3 = hip_height_max(legs, &lead_ankle, &trail_ankle, &forward, k)?

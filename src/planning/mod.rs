@@ -11,6 +11,7 @@ pub mod ik;
 pub mod motion;
 pub mod plan;
 pub mod polygon;
+pub mod reach;
 pub mod rectangles;
 
 pub use contact::{Contact, ContactSpec};

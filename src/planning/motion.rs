@@ -179,13 +179,13 @@ pub struct Tracking {
     /// `None` when none came within `clearance_range_m`.
     #[serde(default)]
     pub nearest_body_surface: Option<NearestSurface>,
-    /// QPs solved.
+    /// QPs solved (over every round of tracking the plan took, see [`super::reach`]).
     pub ik_ticks: usize,
     /// Of them, the QPs the active sets did not solve and clarabel did (all of them with
     /// `IkParams::active_set` off).
     #[serde(default)]
     pub ik_interior_point_qps: usize,
-    /// Wall time in the IK (kinematics, QP build, solve), seconds.
+    /// Wall time in the IK (kinematics, QP build, solve), seconds, over every round.
     pub ik_time_s: f64,
 }
 

@@ -5,7 +5,7 @@ use super::clearance::{step_blocks, SeenPoints};
 use super::footholds::{approach, footholds_below, GaitParams, Stance};
 use super::gait::{segments, Body, Legs, Segment, StepParams};
 use super::motion::{track, IkParams, JointTrajectory, Tracking};
-use super::PlanError;
+use super::{reach, PlanError};
 use crate::perception::PlaneSegment;
 use crate::robot::hrp4;
 use crate::robot::model::RobotModel;
@@ -17,6 +17,14 @@ use std::time::Instant;
 /// How far below the feet the step solids of the clearance check reach, metres (the legs
 /// never go below the soles, so any depth that covers the risers will do).
 const BLOCK_DEPTH_M: f64 = 0.1;
+
+/// Rounds of tracking at most to bring the leading leg's touchdowns within its reach (see
+/// [`reach`]); the third is the last.
+const REACH_ROUNDS: usize = 3;
+
+/// A touchdown's leg beyond its reach by a waypoint lowering of at most this much is within
+/// it, metres.
+const REACH_TOLERANCE_M: f64 = 1e-3;
 
 /// Every parameter of the planner.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -181,11 +189,41 @@ fn plan_stances(
     if stances.is_empty() {
         return Ok(None);
     }
-    let segs = segments(kin.com(), &start, &stances, &body, &p.step)?;
-    let gait_time_s = started.elapsed().as_secs_f64();
     // The steps as solids down to below the feet: what the legs must keep clear of.
     let feet_z = start.right.translation.z.min(start.left.translation.z);
     let blocks = step_blocks(rects, feet_z - BLOCK_DEPTH_M);
-    let (trajectory, tracking) = track(model, q0, &segs, &blocks, seen.clone(), &p.ik)?;
-    Ok(Some(Plan { start, stances, segments: segs, trajectory, tracking, gait_time_s, blocks, seen }))
+    // The gait from the legs' model, tracked; where the tracked leading leg lands farther
+    // from its hip than it reaches, its touchdown waypoint comes down by as much and the
+    // gait is tracked again (the hip's place moves a little with the CoM's height, hence
+    // more than one round).
+    let reach_m = Legs::of(&body, &p.step).reach_m;
+    let mut drops_m = vec![0.0; stances.len()];
+    let (mut gait_started, mut gait_time_s, mut round) = (started, 0.0, 1);
+    let mut ik_spent = Tracking::default();
+    loop {
+        let segs = segments(kin.com(), &start, &stances, &drops_m, &body, &p.step)?;
+        gait_time_s += gait_started.elapsed().as_secs_f64();
+        let (trajectory, mut tracking) = track(model, q0, &segs, &blocks, seen.clone(), &p.ik)?;
+        let more_m = reach::touchdown_drops_m(model, &segs, &trajectory, reach_m)?;
+        tracking.ik_ticks += ik_spent.ik_ticks;
+        tracking.ik_interior_point_qps += ik_spent.ik_interior_point_qps;
+        tracking.ik_time_s += ik_spent.ik_time_s;
+        if round == REACH_ROUNDS || more_m.iter().all(|&d| d <= REACH_TOLERANCE_M) {
+            return Ok(Some(Plan {
+                start,
+                stances,
+                segments: segs,
+                trajectory,
+                tracking,
+                gait_time_s,
+                blocks,
+                seen,
+            }));
+        }
+        ik_spent = tracking;
+        for (d, more) in drops_m.iter_mut().zip(more_m) {
+            *d += more;
+        }
+        (gait_started, round) = (Instant::now(), round + 1);
+    }
 }

@@ -1,0 +1,45 @@
+//! The leading leg's reach at its touchdown, measured on the tracked trajectory. The gait
+//! places the CoM waypoint of each step's first touchdown from a model of the legs (the hip
+//! over the trailing ankle, the distance to the leading ankle taken along the ascent); the
+//! IK, holding the CoM over the trailing ankle while the leading leg reaches forward, puts
+//! the hip 6-7 cm behind it and 11-13 cm to the side of the leading ankle, so the leading
+//! leg landed all but straight (the envelope's 0.10 x 0.36: the knee at 2-5 deg, the hip
+//! 0.705 m from the ankle where the model allowed 0.671 m). A straight leg is a strut: the
+//! touchdown's impact runs along it and the sole slid at the first tick (41 N normal with
+//! 33 N tangential). [`touchdown_drops_m`] measures how far each touchdown's waypoint must
+//! come down for the leg to land within its reach; the planner lowers it and tracks again.
+
+use super::gait::{Phase, Segment};
+use super::motion::JointTrajectory;
+use super::PlanError;
+use crate::robot::{Kinematics, RobotModel};
+
+/// How far each stance's touchdown waypoint must come down for the leading (right) leg to
+/// land no farther from its hip than `reach_m`, metres (0 where it already does), in the
+/// configuration `trajectory` reaches at the end of each stance's [`Phase::SwingRight`]
+/// (hip pitch axis to ankle pitch axis, in three dimensions). Stances without that segment
+/// get 0. Refuses a stance whose hip is farther from the ankle than `reach_m` horizontally
+/// alone (no height reaches it).
+pub fn touchdown_drops_m(
+    model: &RobotModel,
+    segments: &[Segment],
+    trajectory: &JointTrajectory,
+    reach_m: f64,
+) -> Result<Vec<f64>, PlanError> {
+    let link = |name: &str| model.joint_id(name).map(|j| model.joints()[j].link);
+    let (hip, ankle) = (link("R_HIP_P")?, link("R_ANKLE_P")?);
+    let stances = segments.iter().map(|s| s.stance + 1).max().unwrap_or(0);
+    let mut drops = vec![0.0; stances];
+    let mut kin = Kinematics::new(model);
+    for (i, seg) in segments.iter().enumerate().filter(|(_, s)| s.phase == Phase::SwingRight) {
+        let Some(landed) = trajectory.samples.iter().rev().find(|s| s.segment == i) else { continue };
+        kin.update(&landed.q)?;
+        let d = kin.link_pose(hip).translation.vector - kin.link_pose(ankle).translation.vector;
+        let across_m = d.xy().norm();
+        if across_m >= reach_m {
+            return Err(PlanError::LegReach { stance: seg.stance, apart_m: across_m, reach_m });
+        }
+        drops[seg.stance] = (d.z - (reach_m * reach_m - across_m * across_m).sqrt()).max(0.0);
+    }
+    Ok(drops)
+}
