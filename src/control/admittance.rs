@@ -137,11 +137,11 @@ pub fn light_contact(
 /// then read 0-7 N for a second while the weight was still on the other foot, and once the
 /// distribution wanted its share, [`press`] drove it down at the approach's speed into a
 /// second impact (ci case 157: 41 N normal with 22 N tangential). The target is at least
-/// `landing_preload_n`, so the foot stays down before the weight comes (on the lowest rises
-/// with the deepest treads the first impacts then grew: see BENCHMARKS.md, the fifteenth
-/// session; 0 there measured better). Its horizontal
-/// offset yields to its tangential force error once it touches (as in [`light_contact`]);
-/// its tilt returns to the plan.
+/// `landing_preload_n`, so the foot stays down before the weight comes. (On the lowest rises
+/// with the deepest treads the first impacts grew with it, and 0 measured better; their
+/// cause was the leading leg landing straight, fixed in the plan, see
+/// [`crate::planning::reach`].) Its horizontal offset yields to its tangential force error
+/// once it touches (as in [`light_contact`]); its tilt returns to the plan.
 pub fn landing(
     offset: &mut FootOffset,
     measured: &Vector3<f64>,
