@@ -121,6 +121,17 @@ pub enum PlanError {
         /// A leg's reach, metres.
         reach_m: f64,
     },
+    /// The leading leg's hip, where the tracked trajectory puts it at the touchdown, is
+    /// farther from the landing ankle horizontally than the leg reaches (see [`reach`]).
+    #[error("stance {}: at the touchdown the leading hip is {across_m:.3} m from the ankle across, the leg reaches {reach_m:.3} m", .stance + 1)]
+    TouchdownReach {
+        /// 0-based stance.
+        stance: usize,
+        /// The hip's horizontal distance from the landing ankle, metres.
+        across_m: f64,
+        /// The leg's reach, metres.
+        reach_m: f64,
+    },
     /// The leading knee would fold beyond its limit to take a stance.
     #[error("stance {}: the leading knee would fold beyond {:.0} deg: hip {hip_above_ankle_m:.3} m above the ankle, needs {needs_m:.3} m", .stance + 1, .knee_max_rad.to_degrees())]
     KneeFold {
@@ -235,6 +246,8 @@ pub enum RefusalKind {
     Stride,
     /// [`PlanError::LegReach`].
     LegReach,
+    /// [`PlanError::TouchdownReach`].
+    TouchdownReach,
     /// [`PlanError::KneeFold`].
     KneeFold,
     /// [`PlanError::Unstable`].
@@ -322,6 +335,9 @@ impl PlanError {
             }
             PlanError::LegReach { stance, apart_m, reach_m } => {
                 (K::LegReach, None, Some(*stance), None, m(*apart_m, *reach_m))
+            }
+            PlanError::TouchdownReach { stance, across_m, reach_m } => {
+                (K::TouchdownReach, None, Some(*stance), None, m(*across_m, *reach_m))
             }
             PlanError::KneeFold { stance, hip_above_ankle_m, needs_m, .. } => {
                 (K::KneeFold, None, Some(*stance), None, m(*hip_above_ankle_m, *needs_m))

@@ -37,7 +37,7 @@ pub fn touchdown_drops_m(
         let d = kin.link_pose(hip).translation.vector - kin.link_pose(ankle).translation.vector;
         let across_m = d.xy().norm();
         if across_m >= reach_m {
-            return Err(PlanError::LegReach { stance: seg.stance, apart_m: across_m, reach_m });
+            return Err(PlanError::TouchdownReach { stance: seg.stance, across_m, reach_m });
         }
         drops[seg.stance] = (d.z - (reach_m * reach_m - across_m * across_m).sqrt()).max(0.0);
     }
