@@ -153,11 +153,8 @@ fn check(plan: &Plan, scene: Option<&Scene>) {
 /// A leg's hip pitch axis to its ankle pitch axis, in `kin`'s configuration.
 fn leg_length_m(model: &RobotModel, kin: &Kinematics, foot: Foot) -> f64 {
     let side = if foot == Foot::Right { "R" } else { "L" };
-    let at = |joint: &str| {
-        kin.link_pose(model.joints()[model.joint_id(&format!("{side}_{joint}")).unwrap()].link)
-            .translation
-            .vector
-    };
+    let at =
+        |joint: &str| kin.link_pose(model.joint_link(&format!("{side}_{joint}")).unwrap()).translation.vector;
     (at("HIP_P") - at("ANKLE_P")).norm()
 }
 

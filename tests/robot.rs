@@ -66,7 +66,7 @@ fn published_figures() {
     let gap = (k.frame_pose(r).translation.vector - k.frame_pose(l).translation.vector).norm();
     assert!((gap - 0.18).abs() <= 0.01, "feet {gap} m apart");
     // Stretched leg: hip joint to sole.
-    let hip = k.link_pose(m.joints()[m.joint_id("R_HIP_P").unwrap()].link).translation.z;
+    let hip = k.link_pose(m.joint_link("R_HIP_P").unwrap()).translation.z;
     assert!((hip - 0.8).abs() <= 0.02, "stretched leg {hip}");
 
     let q = half_sitting_q(&m);

@@ -221,7 +221,7 @@ impl Body {
     /// soles); `soles` are the sole frames, right then left.
     pub fn measure(kin: &Kinematics, soles: [usize; 2]) -> Result<Self, PlanError> {
         let model = kin.model();
-        let link = |n: &str| model.joint_id(n).map(|j| model.joints()[j].link);
+        let link = |n: &str| model.joint_link(n);
         let at = |l: usize| kin.link_pose(l).translation.vector;
         let (hip, knee, ankle) = (link("R_HIP_P")?, link("R_KNEE_P")?, link("R_ANKLE_P")?);
         let left_ankle = link("L_ANKLE_P")?;

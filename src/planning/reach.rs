@@ -26,8 +26,7 @@ pub fn touchdown_drops_m(
     trajectory: &JointTrajectory,
     reach_m: f64,
 ) -> Result<Vec<f64>, PlanError> {
-    let link = |name: &str| model.joint_id(name).map(|j| model.joints()[j].link);
-    let (hip, ankle) = (link("R_HIP_P")?, link("R_ANKLE_P")?);
+    let (hip, ankle) = (model.joint_link("R_HIP_P")?, model.joint_link("R_ANKLE_P")?);
     let stances = segments.iter().map(|s| s.stance + 1).max().unwrap_or(0);
     let mut drops = vec![0.0; stances];
     let mut kin = Kinematics::new(model);

@@ -343,6 +343,11 @@ impl RobotModel {
             .ok_or_else(|| RobotError::Unknown { kind: "joint", name: name.into() })
     }
 
+    /// Index of the link joint `name` moves (its child link).
+    pub fn joint_link(&self, name: &str) -> Result<usize, RobotError> {
+        self.joint_id(name).map(|j| self.joints[j].link)
+    }
+
     /// Index of a frame by name.
     pub fn frame_id(&self, name: &str) -> Result<usize, RobotError> {
         self.frame_index
