@@ -11,6 +11,7 @@ use stairbench::perception::PlaneSegment;
 use stairbench::planning::gait::Phase;
 use stairbench::planning::plan::legs_at;
 use stairbench::planning::polygon::{by_bretl, margin};
+use stairbench::planning::reach;
 use stairbench::planning::{
     clearance, plan, plan_among, rectangles, Contact, Foot, Plan, PlanError, PlanParams,
 };
@@ -183,6 +184,32 @@ fn the_leading_leg_lands_with_its_knee_bent_on_a_low_deep_step() {
     assert!(touchdowns.len() >= 3);
     for (k, bend) in touchdowns.iter().enumerate() {
         assert!(bend.to_degrees() > 20.0, "touchdown {}: the knee at {:.1} deg", k + 1, bend.to_degrees());
+    }
+}
+
+/// The touchdown's measurement (`reach::touchdown_drops_m`) on Exp. 1's plan: a reach
+/// beyond every landing asks for no drop; a reach 1 cm short of the first landing's hip to
+/// ankle asks for the drop that brings that distance, in three dimensions, to the reach; a
+/// reach shorter than the hip is across from the ankle is refused as `TouchdownReach`.
+#[test]
+fn the_touchdown_reach_is_measured_and_refused_across() {
+    let plan = scenario_plan(&Scenario::default()).1.expect("Exp. 1 is climbable");
+    let model = hrp4::model().unwrap();
+    let (segs, traj) = (&plan.segments, &plan.trajectory);
+    assert!(reach::touchdown_drops_m(&model, segs, traj, 1.0).unwrap().iter().all(|&d| d == 0.0));
+    let i = segs.iter().position(|sg| sg.phase == Phase::SwingRight).unwrap();
+    let landed = traj.samples.iter().rev().find(|smp| smp.segment == i).unwrap();
+    let mut kin = Kinematics::new(&model);
+    kin.update(&landed.q).unwrap();
+    let at = |joint: &str| kin.link_pose(model.joint_link(joint).unwrap()).translation.vector;
+    let d = at("R_HIP_P") - at("R_ANKLE_P");
+    let reach_m = d.norm() - 0.01;
+    let drops = reach::touchdown_drops_m(&model, segs, traj, reach_m).unwrap();
+    let lowered = Vector3::new(d.x, d.y, d.z - drops[segs[i].stance]);
+    assert!((lowered.norm() - reach_m).abs() < 1e-9, "{} against {reach_m}", lowered.norm());
+    match reach::touchdown_drops_m(&model, segs, traj, d.xy().norm() - 1e-3) {
+        Err(PlanError::TouchdownReach { stance, .. }) => assert_eq!(stance, segs[i].stance),
+        other => panic!("expected a TouchdownReach refusal, got {other:?}"),
     }
 }
 
