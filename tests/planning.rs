@@ -686,6 +686,44 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
 /// perception puts that edge up to 31 mm onto the tread (seed 5), and with the toes 3 cm
 /// behind the edge as perceived they ended past the true riser (wide suite case 14: the
 /// swinging foot struck it and the robot fell).
+/// A tread's fitted normal under range noise leans away from the sensor (the wide suite's
+/// case 45, 25 mm: a level flight's treads 2-6 degrees off level; the foot planned on step
+/// 1's 5.7 degrees met the tread on its edge and the robot fell): the footholds are level
+/// at each rectangle's height whatever its normal (§6.3: every contact frame's orientation
+/// is the identity), the paper's Exp. 1 rectangles tilted 5.7 degrees either way.
+#[test]
+fn the_footholds_are_level_on_a_tread_perceived_tilted() {
+    use stairbench::planning::footholds::{footholds, GaitParams};
+    use stairbench::planning::gait::StepParams;
+    use stairbench::planning::plan::stance_at;
+    let model = hrp4::model().unwrap();
+    let scene = common::scene_of(&Scenario::default());
+    let q = start_q(&model, &scene.robot_start());
+    let start = stance_at(&model, &q).unwrap();
+    let legs = legs_at(&model, &q, &StepParams::default()).unwrap();
+    for tilt_deg in [5.7f64, -5.7] {
+        let n = Vector3::new(tilt_deg.to_radians().sin(), 0.01, tilt_deg.to_radians().cos());
+        let rects: Vec<PlaneSegment> = rectangles::from_step_tops(scene.steps())
+            .iter()
+            .map(|r| PlaneSegment::new(r.center(), r.along(), r.depth_m(), r.width_m(), n, 100).unwrap())
+            .collect();
+        let stances = footholds(&start, &rects, &[], &legs, &GaitParams::default()).unwrap();
+        assert!(stances.iter().filter(|st| st.step.is_some()).count() >= rects.len());
+        for st in &stances {
+            let height_m = st.step.map_or(0.0, |i| rects[i].height_m());
+            for sole in [&st.right, &st.left] {
+                let up = sole.rotation * Vector3::z();
+                assert!(up.z > 1.0 - 1e-12, "{tilt_deg} deg: a sole of stance {st:?} is tilted ({up})");
+                assert!(
+                    (sole.translation.z - height_m).abs() < 1e-9,
+                    "{tilt_deg} deg: sole at {}",
+                    sole.translation.z
+                );
+            }
+        }
+    }
+}
+
 #[test]
 fn the_floor_stances_keep_the_toes_off_the_true_riser_under_range_noise() {
     use stairbench::perception::{perceive, PerceptionParams};

@@ -3,8 +3,9 @@
 //! the middle of its rectangle along the direction of ascent; across, each foot keeps the
 //! lane it starts in, unless a surface the lidar saw beside the flight (a stairwell's wall,
 //! a crate) would then be nearer the body than its half width: both lanes then move away
-//! from it, on the floor before the flight or at the first step; its height and tilt come
-//! from the rectangle's plane and its yaw from the staircase. Steps the feet cannot use are
+//! from it, on the floor before the flight or at the first step; its height comes from the
+//! rectangle and its yaw from the staircase, and it is level (§6.3's contact frames, R_i =
+//! I; see [`Layout::stance_on`]). Steps the feet cannot use are
 //! refused here, with the reason, before any motion is computed.
 
 use super::gait::Legs;
@@ -191,9 +192,9 @@ impl Default for GaitParams {
 
 /// How far inside the legs' longest stride ([`Legs::max_stride_m`]) the footholds keep a
 /// step up, metres: the gait's knee check measures between the ankles, about 9 cm above the
-/// soles, along the leading sole's tilted axis, and a rise at the tread's centre, not under
-/// the foot; a perceived tilt of a degree moves those by up to 4.5 mm. At the limit itself, rounding alone refused the
-/// envelope's 0.26 x 0.40. Beyond the limit itself the footholds refuse.
+/// soles, and a stance tilted a degree (the gait takes tilted soles; the footholds are level,
+/// [`Layout::stance_on`]) moves that by up to 4.5 mm. At the limit itself, rounding alone
+/// refused the envelope's 0.26 x 0.40. Beyond the limit itself the footholds refuse.
 const KNEE_STRIDE_SLACK_M: f64 = 0.005;
 
 /// The stances after `start`, ending with both feet on the highest rectangle, or the reason
@@ -311,9 +312,8 @@ pub fn footholds_below(
             let below = steps[i - 1];
             let (below_front, _, below_usable_m) = lay.foothold_along(&all, i - 1, p);
             let across = Layout::toes_behind(below_front + below_usable_m, p);
-            let up = below.normal().into_inner();
             let walk: Vec<Stance> = strides(prev_along, across, p.approach_stride_m)
-                .map(|a| lay.stance_in(lanes, a + p.test_foothold_shift_m, below.center(), up, Some(i - 1)))
+                .map(|a| lay.stance_on(lanes, a + p.test_foothold_shift_m, below.height_m(), Some(i - 1)))
                 .collect();
             unobstructed(&walk, out.len(), seen, below.height_m(), p)?;
             out.extend(walk);
@@ -338,7 +338,7 @@ pub fn footholds_below(
         if stride > p.max_stride_m || stride < 0.0 {
             return Err(PlanError::Stride { step: i, stride_m: stride, max_m: p.max_stride_m });
         }
-        out.push(lay.stance_in(lanes, along + p.test_foothold_shift_m, c, s.normal().into_inner(), Some(i)));
+        out.push(lay.stance_on(lanes, along + p.test_foothold_shift_m, s.height_m(), Some(i)));
         prev_along = along;
     }
     Ok(out)
@@ -557,23 +557,20 @@ impl Layout {
         (front(s), toes_kept.map_or(middle, |a| middle.min(a)), usable_m)
     }
 
-    /// Both feet `along` the ascent in `lanes`, on the plane through `point` with normal `n`
-    /// (the foot tilted with it, yawed with the staircase).
-    fn stance_in(
-        &self,
-        lanes: [f64; 2],
-        along: f64,
-        point: Point3<f64>,
-        n: Vector3<f64>,
-        step: Option<usize>,
-    ) -> Stance {
+    /// Both feet `along` the ascent in `lanes`, level at `height_m`, yawed with the
+    /// staircase. Level, whatever the rectangle's fitted normal: §6.3 takes every contact
+    /// frame's orientation as the identity, and a building code's treads are level (within
+    /// 1:48); the fitted normal is not a measure of the tread's tilt under range noise: the
+    /// voxels' plane leans away from the sensor as a range error moves a point down and away
+    /// together (the wide suite's case 45, 25 mm of noise, a level flight: every tread 2-6
+    /// degrees off level, step 1's 5.7 degrees put the foot on its edge, the robot fell),
+    /// and a fit along the rays, tried, leaned the other way by up to 4 degrees on a near
+    /// tread. The rectangle's height is its voxels' mean, which that noise leaves alone.
+    fn stance_on(&self, lanes: [f64; 2], along: f64, height_m: f64, step: Option<usize>) -> Stance {
         let Frame { o, u, w } = self.frame;
-        let tilt =
-            UnitQuaternion::rotation_between(&Vector3::z(), &n).unwrap_or_else(UnitQuaternion::identity);
         let foot = |lane: f64| {
             let xy = o + u * along + w * lane;
-            let z = point.z - (n.x * (xy.x - point.x) + n.y * (xy.y - point.y)) / n.z;
-            Isometry3::from_parts(Translation3::new(xy.x, xy.y, z), tilt * self.yaw)
+            Isometry3::from_parts(Translation3::new(xy.x, xy.y, height_m), self.yaw)
         };
         Stance { right: foot(lanes[0]), left: foot(lanes[1]), step }
     }
@@ -583,12 +580,11 @@ impl Layout {
     /// moving aside a share each stance (none when the start is there already).
     fn floor_walk(&self, front: f64, p: &GaitParams) -> Vec<Stance> {
         let last = Self::toes_behind(front, p);
-        let floor = Point3::new(self.frame.o.x, self.frame.o.y, self.floor_z);
         let span = last - self.start_along;
         strides(self.start_along, last, p.approach_stride_m)
             .map(|a| {
                 let f = (a - self.start_along) / span;
-                self.stance_in(self.start_lanes.map(|l| l + self.shift * f), a, floor, Vector3::z(), None)
+                self.stance_on(self.start_lanes.map(|l| l + self.shift * f), a, self.floor_z, None)
             })
             .collect()
     }
