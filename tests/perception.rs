@@ -200,9 +200,9 @@ fn a_wide_low_tread_is_one_segment() {
 }
 
 /// A low flight under 15 mm of range noise (the ci suite's case 60, boxes behind the robot
-/// left out): RANSAC's plane through step 1's supervoxel centres came out tilted 5.5 degrees,
-/// the foot was planned on that tilt and met the tread heel first, 2 cm up. Treads are level;
-/// every segment's normal is within a degree of vertical.
+/// left out): RANSAC's plane through step 1's supervoxel centres came out tilted 5.5 degrees
+/// (the foot, then planned on that tilt, met the tread heel first, 2 cm up). Treads are
+/// level; every segment's normal is within a degree of vertical.
 #[test]
 fn a_tread_under_range_noise_comes_out_level() {
     let toml = "seed = 8443359241396318136\n\

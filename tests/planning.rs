@@ -264,8 +264,8 @@ fn high_rises_on_deep_treads_are_planned_within_the_knee() {
 
 /// The footholds' reach ([`Legs::max_stride_m`]) and the gait's own knee check agree: a
 /// step up with the feet just inside the legs' stride for its rise is planned, just beyond
-/// it refused for the knee; on treads tilted a degree (a perceived tilt), within the
-/// footholds' 5 mm slack.
+/// it refused for the knee; on soles tilted a degree (a measured start stance can be),
+/// within the footholds' 5 mm slack.
 #[test]
 fn the_legs_stride_is_the_gaits_knee_check() {
     use stairbench::planning::gait::{segments, Body, Legs, StepParams};
@@ -681,16 +681,12 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
     );
 }
 
-/// The toes of the floor stances before the first step stay off its true riser when the
-/// front edge comes from a scan under 20 mm of range noise (the paper's Exp. 1, seeds 0-9):
-/// perception puts that edge up to 31 mm onto the tread (seed 5), and with the toes 3 cm
-/// behind the edge as perceived they ended past the true riser (wide suite case 14: the
-/// swinging foot struck it and the robot fell).
 /// A tread's fitted normal under range noise leans away from the sensor (the wide suite's
 /// case 45, 25 mm: a level flight's treads 2-6 degrees off level; the foot planned on step
 /// 1's 5.7 degrees met the tread on its edge and the robot fell): the footholds are level
-/// at each rectangle's height whatever its normal (§6.3: every contact frame's orientation
-/// is the identity), the paper's Exp. 1 rectangles tilted 5.7 degrees either way.
+/// at each rectangle's height, yawed with the flight, whatever its normal (§6.2: every
+/// contact frame level), on the default scenario's ground-truth rectangles tilted 5.7
+/// degrees either way.
 #[test]
 fn the_footholds_are_level_on_a_tread_perceived_tilted() {
     use stairbench::planning::footholds::{footholds, GaitParams};
@@ -700,17 +696,22 @@ fn the_footholds_are_level_on_a_tread_perceived_tilted() {
     let scene = common::scene_of(&Scenario::default());
     let q = start_q(&model, &scene.robot_start());
     let start = stance_at(&model, &q).unwrap();
+    let floor_m = start.right.translation.z.min(start.left.translation.z);
     let legs = legs_at(&model, &q, &StepParams::default()).unwrap();
+    let tops = rectangles::from_step_tops(scene.steps());
+    let truth = rectangles::by_height(&tops);
+    let yaw = truth[0].along().y.atan2(truth[0].along().x);
     for tilt_deg in [5.7f64, -5.7] {
         let n = Vector3::new(tilt_deg.to_radians().sin(), 0.01, tilt_deg.to_radians().cos());
-        let rects: Vec<PlaneSegment> = rectangles::from_step_tops(scene.steps())
+        let rects: Vec<PlaneSegment> = truth
             .iter()
             .map(|r| PlaneSegment::new(r.center(), r.along(), r.depth_m(), r.width_m(), n, 100).unwrap())
             .collect();
         let stances = footholds(&start, &rects, &[], &legs, &GaitParams::default()).unwrap();
-        assert!(stances.iter().filter(|st| st.step.is_some()).count() >= rects.len());
+        let on_steps = stances.iter().filter(|st| st.step.is_some()).count();
+        assert!(on_steps >= rects.len(), "{on_steps} stances on {} steps", rects.len());
         for st in &stances {
-            let height_m = st.step.map_or(0.0, |i| rects[i].height_m());
+            let height_m = st.step.map_or(floor_m, |i| rects[i].height_m());
             for sole in [&st.right, &st.left] {
                 let up = sole.rotation * Vector3::z();
                 assert!(up.z > 1.0 - 1e-12, "{tilt_deg} deg: a sole of stance {st:?} is tilted ({up})");
@@ -719,11 +720,18 @@ fn the_footholds_are_level_on_a_tread_perceived_tilted() {
                     "{tilt_deg} deg: sole at {}",
                     sole.translation.z
                 );
+                let (_, _, sole_yaw) = sole.rotation.euler_angles();
+                assert!((sole_yaw - yaw).abs() < 1e-9, "{tilt_deg} deg: yaw {sole_yaw} against {yaw}");
             }
         }
     }
 }
 
+/// The toes of the floor stances before the first step stay off its true riser when the
+/// front edge comes from a scan under 20 mm of range noise (the paper's Exp. 1, seeds 0-9):
+/// perception puts that edge up to 31 mm onto the tread (seed 5), and with the toes 3 cm
+/// behind the edge as perceived they ended past the true riser (wide suite case 14: the
+/// swinging foot struck it and the robot fell).
 #[test]
 fn the_floor_stances_keep_the_toes_off_the_true_riser_under_range_noise() {
     use stairbench::perception::{perceive, PerceptionParams};

@@ -301,8 +301,8 @@ fn join_touching(vc: &VoxelCloud, parts: Vec<Candidate>, p: &PerceptionParams) -
 /// A segment of `voxels`, its normal fitted to them by least squares (`normal`, the plane's,
 /// when they do not span a plane). RANSAC's plane is fitted to supervoxel centres, a few
 /// dozen for a tread, and under 15 mm of range noise one came out tilted 5.5 degrees (ci
-/// suite case 60, step 1; its 498 voxels: under half a degree), and the foot planned on that
-/// tilt met the tread heel first, 2 cm up.
+/// suite case 60, step 1; its 498 voxels: under half a degree; the foot, then planned on
+/// that tilt, met the tread heel first, 2 cm up; the footholds are level now).
 fn candidate(vc: &VoxelCloud, voxels: Vec<u32>, normal: Vector3<f64>) -> Option<Candidate> {
     let up = normal.cast::<f32>();
     let normal = super::ransac::refit(&vc.positions, &voxels, &up).map_or(normal, |(n, _)| n.cast());

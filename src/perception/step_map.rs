@@ -192,8 +192,8 @@ fn side_by_side(a: &PlaneSegment, b: &PlaneSegment, p: &StepMapParams) -> bool {
 ///   known 308) had narrowed the step under the feet' lanes and the plan was refused.
 /// - The plane: a partial view (the near part of the tread hidden under the lidar) fits its
 ///   plane to a strip 10-15 cm deep: on Exp. 1 such a view of step 2 came out tilted 2-4
-///   degrees (full views: under 1 degree), and a foot planned on that tilt came down on its
-///   toe or heel.
+///   degrees (full views: under 1 degree); a foot planned on that tilt came down on its toe
+///   or heel (the footholds are level now, and the normal is reported, not planned on).
 ///
 /// An edge's place is as far as the view surely saw tread ([`surely_seen`]), not its corner:
 /// a rectangle yawed by a degree or two (as perception returns them) has a front corner up

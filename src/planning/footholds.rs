@@ -4,9 +4,10 @@
 //! lane it starts in, unless a surface the lidar saw beside the flight (a stairwell's wall,
 //! a crate) would then be nearer the body than its half width: both lanes then move away
 //! from it, on the floor before the flight or at the first step; its height comes from the
-//! rectangle and its yaw from the staircase, and it is level (§6.3's contact frames, R_i =
-//! I; see [`Layout::stance_on`]). Steps the feet cannot use are
-//! refused here, with the reason, before any motion is computed.
+//! rectangle and its yaw from the staircase, and it is level (no roll or pitch: §6.2 takes
+//! every contact frame level; the rectangle's fitted normal is not a measure of a tread's
+//! tilt under range noise, and a tread's tilt is assumed level, not measured). Steps the
+//! feet cannot use are refused here, with the reason, before any motion is computed.
 
 use super::gait::Legs;
 use super::PlanError;
@@ -192,8 +193,8 @@ impl Default for GaitParams {
 
 /// How far inside the legs' longest stride ([`Legs::max_stride_m`]) the footholds keep a
 /// step up, metres: the gait's knee check measures between the ankles, about 9 cm above the
-/// soles, and a stance tilted a degree (the gait takes tilted soles; the footholds are level,
-/// [`Layout::stance_on`]) moves that by up to 4.5 mm. At the limit itself, rounding alone
+/// soles; a measured start stance tilted a degree (the footholds' own are level,
+/// [`Layout::stance_on`]) moves that by up to 4.5 mm, and at the limit itself rounding alone
 /// refused the envelope's 0.26 x 0.40. Beyond the limit itself the footholds refuse.
 const KNEE_STRIDE_SLACK_M: f64 = 0.005;
 
@@ -558,9 +559,9 @@ impl Layout {
     }
 
     /// Both feet `along` the ascent in `lanes`, level at `height_m`, yawed with the
-    /// staircase. Level, whatever the rectangle's fitted normal: §6.3 takes every contact
-    /// frame's orientation as the identity, and a building code's treads are level (within
-    /// 1:48); the fitted normal is not a measure of the tread's tilt under range noise: the
+    /// staircase. Level, whatever the rectangle's fitted normal: §6.2 takes every contact
+    /// frame level (its rotation the identity), and a building code's treads are level
+    /// (within 1:48); the fitted normal is not a measure of the tread's tilt under range noise: the
     /// voxels' plane leans away from the sensor as a range error moves a point down and away
     /// together (the wide suite's case 45, 25 mm of noise, a level flight: every tread 2-6
     /// degrees off level, step 1's 5.7 degrees put the foot on its edge, the robot fell),

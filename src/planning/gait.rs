@@ -292,12 +292,10 @@ fn one_step(
     p: &StepParams,
 ) -> Result<Vec<Segment>, PlanError> {
     let (lo_z, lead_z) = (from.left.translation.z, to.right.translation.z);
-    // Along the leading sole's own axis, which tilts with its tread and so counts a little
-    // of the rise as distance (a degree: 4.5 mm on a 0.26 m rise, within the footholds'
-    // slack). Measured horizontally, every plan's first waypoint moved on the perceived
-    // tilts, and the envelope's 0.10 x 0.36 cell came down into a touchdown friction
-    // violation (0.22 -> 0.80): its leading leg landed straight, which the touchdown's
-    // reach now prevents (see `super::reach`); horizontally is still to try.
+    // Along the leading sole's own axis: level, as the footholds plan every sole
+    // (`footholds::Layout::stance_on`), so horizontal; a stance given tilted (a degree)
+    // counts a little of the rise as distance (4.5 mm on a 0.26 m rise, within the
+    // footholds' slack).
     let forward = to.right.rotation * Vector3::x();
     let lead_ankle = body.ankle(Foot::Right, &to.right);
     let trail_ankle = body.ankle(Foot::Left, &from.left);
