@@ -561,12 +561,13 @@ impl Layout {
     /// Both feet `along` the ascent in `lanes`, level at `height_m`, yawed with the
     /// staircase. Level, whatever the rectangle's fitted normal: §6.2 takes every contact
     /// frame level (its rotation the identity), and a building code's treads are level
-    /// (within 1:48); the fitted normal is not a measure of the tread's tilt under range noise: the
-    /// voxels' plane leans away from the sensor as a range error moves a point down and away
-    /// together (the wide suite's case 45, 25 mm of noise, a level flight: every tread 2-6
-    /// degrees off level, step 1's 5.7 degrees put the foot on its edge, the robot fell),
-    /// and a fit along the rays, tried, leaned the other way by up to 4 degrees on a near
-    /// tread. The rectangle's height is its voxels' mean, which that noise leaves alone.
+    /// (within 1:48); the fitted normal is not a measure of a tread's tilt under range
+    /// noise: the voxels' plane leans away from the sensor as a range error moves a point
+    /// down and away together (the wide suite's case 45, 25 mm of noise, a level flight:
+    /// every tread 2-6 degrees off level, step 1's 5.7 degrees put the foot on its edge, the
+    /// robot fell), and a maximum-likelihood fit along the rays, tried, over-corrected the
+    /// far treads by up to 2 degrees and left a near one anywhere in -4..+3 degrees. The
+    /// rectangle's height is its voxels' mean, which that noise leaves alone.
     fn stance_on(&self, lanes: [f64; 2], along: f64, height_m: f64, step: Option<usize>) -> Stance {
         let Frame { o, u, w } = self.frame;
         let foot = |lane: f64| {
