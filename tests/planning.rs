@@ -682,7 +682,7 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
 }
 
 /// A tread's fitted normal under range noise leans away from the sensor (the wide suite's
-/// case 45, 25 mm: a level flight's treads 2-6 degrees off level; the foot planned on step
+/// case 45, 25 mm: a level flight's treads 1-6 degrees off level; the foot planned on step
 /// 1's 5.7 degrees met the tread on its edge and the robot fell): the footholds are level
 /// at each rectangle's height, yawed with the flight, whatever its normal (§6.2: every
 /// contact frame level), on the default scenario's ground-truth rectangles tilted 5.7

@@ -564,7 +564,7 @@ impl Layout {
     /// (within 1:48); the fitted normal is not a measure of a tread's tilt under range
     /// noise: the voxels' plane leans away from the sensor as a range error moves a point
     /// down and away together (the wide suite's case 45, 25 mm of noise, a level flight:
-    /// every tread 2-6 degrees off level, step 1's 5.7 degrees put the foot on its edge, the
+    /// its treads 1-6 degrees off level, step 1's 5.7 degrees put the foot on its edge, the
     /// robot fell), and a maximum-likelihood fit along the rays, tried, over-corrected the
     /// far treads by up to 2 degrees and left a near one anywhere in -4..+3 degrees. The
     /// rectangle's height is its voxels' mean, which that noise leaves alone.
