@@ -221,10 +221,9 @@ impl Body {
     /// soles); `soles` are the sole frames, right then left.
     pub fn measure(kin: &Kinematics, soles: [usize; 2]) -> Result<Self, PlanError> {
         let model = kin.model();
-        let link = |n: &str| model.joint_link(n);
         let at = |l: usize| kin.link_pose(l).translation.vector;
-        let (hip, knee, ankle) = (link("R_HIP_P")?, link("R_KNEE_P")?, link("R_ANKLE_P")?);
-        let left_ankle = link("L_ANKLE_P")?;
+        let (hip, knee) = (model.joint_link("R_HIP_P")?, model.joint_link("R_KNEE_P")?);
+        let (ankle, left_ankle) = (model.joint_link("R_ANKLE_P")?, model.joint_link("L_ANKLE_P")?);
         let (rs, ls) = (kin.frame_pose(soles[0]), kin.frame_pose(soles[1]));
         let com = kin.com();
         let sole_z = (rs.translation.z + ls.translation.z) / 2.0;
