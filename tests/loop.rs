@@ -6,6 +6,9 @@
 
 mod common;
 
+use std::cell::RefCell;
+use std::rc::Rc;
+
 use stairbench::cancel::Cancel;
 use stairbench::climb::{self, Bench, Event, Execution, Executor, Footing, Observer, StopReason};
 use stairbench::params::ClimbParams;
@@ -157,4 +160,96 @@ fn an_empty_sweep_is_no_staircase_not_a_crash() {
     };
     assert_eq!(*why, stairbench::perception::NoStaircase::EmptyCloud);
     assert!(r.cycles.is_empty() && sweeps == 1, "one look, nothing moved");
+}
+
+/// A source sweeping, at every call, from where the robot stands now (the analytic caster).
+struct Live<'a> {
+    scene: &'a Scene,
+    scenario: &'a Scenario,
+    model: &'a RobotModel,
+    q: Rc<RefCell<Vec<f64>>>,
+}
+
+impl Source for Live<'_> {
+    fn sweep(
+        &mut self,
+        cancel: &Cancel,
+        _on_rows: &mut dyn FnMut(usize, usize),
+    ) -> Result<Sweep, SensorError> {
+        if cancel.is_cancelled() {
+            return Err(SensorError::Cancelled { rows: 0 });
+        }
+        Ok(fixture(self.scene, self.scenario, self.model, &self.q.borrow()))
+    }
+}
+
+/// [`Teleport`], its configuration shared with a [`Live`] source.
+struct Follow {
+    q: Rc<RefCell<Vec<f64>>>,
+    t_s: f64,
+}
+
+impl Executor for Follow {
+    type Error = std::convert::Infallible;
+
+    fn now_s(&self) -> f64 {
+        self.t_s
+    }
+
+    fn configuration(&self) -> Vec<f64> {
+        self.q.borrow().clone()
+    }
+
+    fn settle(&mut self, seconds: f64) -> Result<(), Self::Error> {
+        self.t_s += seconds;
+        Ok(())
+    }
+
+    fn execute(&mut self, plan: &Plan, _o: &mut dyn Observer, _c: &Cancel) -> Result<Execution, Self::Error> {
+        self.t_s += plan.duration_s();
+        if let Some(last) = plan.trajectory.samples.last() {
+            self.q.borrow_mut().clone_from(&last.q);
+        }
+        let mut ex = Execution::empty();
+        ex.sim_s = plan.duration_s();
+        ex.min_margin_m = plan.min_margin_m();
+        Ok(ex)
+    }
+}
+
+/// Set down 0.28 m from the first riser of the paper's Exp. 1 (the feet's middle to the
+/// riser), the robot sees step 1 from where its lidar's sight begins, part of its tread, and
+/// no floor before it. The loop walked nearer to look again, its toes 5 cm behind the front
+/// as seen: the right foot went into the riser (friction 2.55, a fall in the first cycle).
+/// No floor stance of any plan goes toward a riser out of sight: the robot steps back to see
+/// it, then climbs to the top.
+#[test]
+fn a_robot_set_down_near_the_first_riser_never_walks_a_foot_into_it() {
+    let mut scenario = Scenario::default();
+    scenario.lidar.noise_sigma_m = 0.0;
+    scenario.staircase.start_m = [0.28, 0.0];
+    let scene = common::scene_of(&scenario);
+    let model = hrp4::model().unwrap();
+    let q = Rc::new(RefCell::new(hrp4::half_sitting_at(&model, &scene.robot_start()).unwrap()));
+    let mut source = Live { scene: &scene, scenario: &scenario, model: &model, q: q.clone() };
+    let mut robot = Follow { q, t_s: 0.0 };
+    let sole_m = stairbench::planning::footholds::GaitParams::default().sole_length_m;
+    let mut toes: Vec<f64> = Vec::new();
+    let mut watch = climb::Watch(|e: &Event| {
+        if let Event::Plan { plan, .. } = e {
+            for st in plan.stances.iter().filter(|s| s.right.translation.z.abs() < 0.05) {
+                for f in [&st.right, &st.left] {
+                    toes.push((f * nalgebra::Point3::new(sole_m / 2.0, 0.0, 0.0)).x);
+                }
+            }
+        }
+    });
+    let bench = Bench { source: &mut source, robot: &mut robot, model: &model, truth: &scene };
+    let r = climb::run(bench, ClimbParams::default().loop_params(), &mut watch, &Cancel::never()).unwrap();
+    let riser_x = scenario.staircase.start_m[0];
+    println!("{:?}: {} cycles, floor toes at {toes:.3?}", r.stop, r.cycles.len());
+    assert!(toes.iter().all(|&x| x <= riser_x - 0.01), "a toe past {:.3} m: {toes:.3?}", riser_x - 0.01);
+    assert!(r.cycles.first().is_some_and(|c| c.closer_look.is_some()), "the first view was refused");
+    assert!(r.success, "{:?}", r.why_failed());
+    assert_eq!((r.steps_climbed, r.steps_total), (3, 3));
 }

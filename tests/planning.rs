@@ -484,10 +484,15 @@ fn the_ik_keeps_the_body_off_a_wall_the_lidar_saw() {
         &p,
     )
     .expect_err("a wall through the body");
+    // Its foot of wall stands in the left foot's lane: the footholds may refuse it first.
     assert!(
         matches!(
             e,
-            PlanError::BodyTouchesSurface { .. } | PlanError::Ik { .. } | PlanError::ComStrays { .. }
+            PlanError::BodyTouchesSurface { .. }
+                | PlanError::Ik { .. }
+                | PlanError::ComStrays { .. }
+                | PlanError::FloorObstructed { .. }
+                | PlanError::TreadObstructed { .. }
         ),
         "{e}"
     );
@@ -771,4 +776,114 @@ fn the_floor_stances_keep_the_toes_off_the_true_riser_under_range_noise() {
         }
     }
     assert!(planned >= 3, "only {planned} of 10 scans gave a plan");
+}
+
+/// The issue's view: set down 0.28 m from the first riser of the paper's Exp. 1 (the feet's
+/// middle to the riser), the robot sees step 1 from where its lidar's sight begins, 0.341 m
+/// ahead: 0.209 m of its 0.27 m tread, its front not on the riser, and no floor before it
+/// (the floor and the tread's near part are under the lidar). The climb is refused for that
+/// depth, a matter of the view; the loop walked nearer, one stride, its toes 5 cm behind the
+/// front as seen, 11 mm past the riser, and the right foot struck it (friction 2.55, a fall
+/// in the first cycle). It steps back to see instead: no floor stance goes toward the
+/// riser. A step seen deep enough within a stride is climbed from where the robot stands.
+#[test]
+fn a_robot_set_down_near_the_first_riser_plans_from_there_or_steps_back_to_see() {
+    use stairbench::climb::plan_next;
+    use stairbench::perception::step_map::NextInput;
+    use stairbench::planning::clearance::SeenPoints;
+    use stairbench::planning::RefusalKind;
+    use std::sync::Arc;
+    let model = hrp4::model().unwrap();
+    let q0 = start_q(&model, &Isometry3::identity());
+    let p = PlanParams::default();
+    let riser_x = 0.28;
+    // Treads 0.5 m wide along x from `front`, the voxels' fronts (not on their risers).
+    let tread = |front: f64, z: f64, depth: f64| {
+        PlaneSegment::new(
+            Point3::new(front + depth / 2.0, 0.0, z),
+            Vector3::x(),
+            depth,
+            0.5,
+            Vector3::z(),
+            300,
+        )
+        .unwrap()
+    };
+    let view = vec![tread(0.341, 0.2, 0.209), tread(0.55, 0.4, 0.27), tread(0.82, 0.6, 0.27)];
+    // The floor the lidar saw: beside the flight, from 0.4 m on; none in the feet's lanes.
+    let floor: Vec<Point3<f64>> =
+        floor_seen([0.4, 1.6], 0.0).into_iter().filter(|q| q.y.abs() > 0.3).collect();
+    let next = |ahead: Vec<PlaneSegment>| NextInput { ahead, deferred: None };
+    let seen = Arc::new(SeenPoints::new(floor));
+    let Ok((walk, why)) = plan_next(&model, &q0, &next(view), seen.clone(), 4, 0.0, &p) else {
+        panic!("nothing planned")
+    };
+    assert_eq!(why.map(|r| r.kind), Some(RefusalKind::ShortTread));
+    let start_x = (walk.start.right.translation.x + walk.start.left.translation.x) / 2.0;
+    assert!(!walk.stances.is_empty());
+    for st in &walk.stances {
+        assert!(st.step.is_none(), "on the floor");
+        for f in [&st.right, &st.left] {
+            let toe_x = (f * Point3::new(p.gait.sole_length_m / 2.0, 0.0, 0.0)).x;
+            assert!(toe_x <= riser_x - 0.01, "a toe at {toe_x:.3} m, the riser at {riser_x} m");
+            assert!(
+                f.translation.x < start_x - 0.05,
+                "a sole {:.3} m from the start",
+                f.translation.x - start_x
+            );
+        }
+    }
+    // Step 1 seen 0.3 m deep from 0.2 m, within a stride: climbed from where the robot stands.
+    let near = vec![tread(0.2, 0.2, 0.3), tread(0.5, 0.4, 0.35)];
+    let Ok((up, why)) = plan_next(&model, &q0, &next(near), seen, 1, 0.0, &p) else {
+        panic!("step 1 within a stride not climbed")
+    };
+    assert!(why.is_none(), "{why:?}");
+    assert_eq!(up.stances[0].step, Some(0), "onto step 1, no floor stance");
+}
+
+/// The paper's Exp. 2 rectangles, as its code released them
+/// (stephane-caron/quasistatic-stair-climbing, data/exp2/rectangles.txt): four steps, the
+/// top one seen in part, 0.187 m deep.
+const EXP2_RECTANGLES: &str = "\
+0.981889,-0.491986,-1.48544
+0.981889,0.716378,-1.47865
+1.26083,0.716378,-1.48301
+1.26083,-0.491986,-1.4898
+1.23977,-0.478977,-1.26971
+1.23977,0.725987,-1.26971
+1.53269,0.725987,-1.26971
+1.53269,-0.478977,-1.26971
+1.51911,-0.462724,-1.09523
+1.51911,0.717216,-1.0924
+1.75773,0.717216,-1.10393
+1.75773,-0.462724,-1.10676
+1.78075,-0.415284,-0.94987
+1.78075,0.722436,-0.946674
+1.96793,0.722436,-0.947123
+1.96793,-0.415284,-0.950319
+";
+
+/// `stairbench plan` on a rectangles file whose top step is seen in part plans the steps it
+/// can and names the one it left for a closer look, as the loop does (it refused the file:
+/// "step 4: tread 0.187 m deep").
+#[test]
+fn the_plan_command_leaves_a_partly_seen_top_step_for_a_closer_look() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("plan-exp2");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("rectangles.txt");
+    std::fs::write(&file, EXP2_RECTANGLES).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stairbench"))
+        .args(["plan", file.to_str().unwrap(), "--json"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    let report: serde_json::Value = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}"));
+    assert!(out.status.success() && report["ok"] == true, "{}", report["reason"]);
+    let c = &report["closer_look"];
+    assert_eq!((c["kind"].as_str(), c["step"].as_u64()), (Some("short_tread"), Some(4)), "{c}");
+    assert!((c["value"].as_f64().unwrap_or(0.0) - 0.187).abs() < 1e-3, "{c}");
+    let on: Vec<u64> =
+        report["stances"].as_array().expect("stances").iter().filter_map(|s| s["step"].as_u64()).collect();
+    assert_eq!(on.last(), Some(&3), "the steps below it climbed: {on:?}");
 }

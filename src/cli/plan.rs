@@ -6,11 +6,12 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use stairbench::climb::add_view;
+use stairbench::perception::step_map::{without_partial_top, NextInput};
 use stairbench::perception::surroundings::{Surroundings, SurroundingsParams};
 use stairbench::perception::{perceive, PerceptionParams, PlaneSegment};
 use stairbench::planning::clearance::SeenPoints;
 use stairbench::planning::motion::JointTrajectory;
-use stairbench::planning::{plan_among, rectangles, Plan, PlanParams};
+use stairbench::planning::{plan_below, rectangles, Plan, PlanError, PlanParams};
 use stairbench::record::messages::{PlanMsg, PlanReport};
 use stairbench::robot::{hrp4, RobotModel};
 use stairbench::scene::Scene;
@@ -26,7 +27,10 @@ use std::time::Instant;
 #[derive(Debug, Args)]
 pub struct PlanArgs {
     /// A scenario (file or name; default: the paper's Exp. 1) or a rectangles file (.txt, the
-    /// paper's format: x,y,z rows, four corners per step).
+    /// paper's format: x,y,z rows, four corners per step). Perceived steps (a rectangles
+    /// file, `--perceived`) are planned as the closed loop plans a view: a step seen
+    /// shallower than a foot needs above lower ones is left for a closer look, with every
+    /// step above it, and the steps below it are planned.
     input: Option<PathBuf>,
     /// Plan on the perceived steps (scan the scenario's world, run §4's perception) instead
     /// of its ground truth, keeping the body off every surface the scan saw (walls, clutter)
@@ -69,10 +73,29 @@ pub fn run(a: PlanArgs) -> Result<ExitCode> {
         None => PlanParams::default(),
     };
     let model = hrp4::model()?;
-    let (rects, q0, seen) = inputs(&a, &model)?;
+    let (rects, q0, seen, perceived) = inputs(&a, &model)?;
+    // As the closed loop plans a view (`climb::plan_next`): a step seen in part above lower
+    // ones waits for a closer look with the steps above it, and bounds the tread below it.
+    // Ground truth is whole: a short tread there is refused.
+    let next = if perceived {
+        without_partial_top(rects.clone(), params.gait.min_tread_m)
+    } else {
+        NextInput { ahead: rects.clone(), deferred: None }
+    };
+    let below = next.ahead.len();
+    let closer_look = next.deferred.as_ref().map(|d| {
+        PlanError::ShortTread { step: below, depth_m: d.depth_m(), min_m: params.gait.min_tread_m }.refusal()
+    });
+    let steps: Vec<PlaneSegment> = next.ahead.into_iter().chain(next.deferred).collect();
     let started = Instant::now();
-    let result = plan_among(&model, &q0, &rects, seen, a.stances, &params);
+    let result = plan_below(&model, &q0, &steps, below, seen, a.stances, &params);
     let wall_s = started.elapsed().as_secs_f64();
+    if let (Some(c), false) = (&closer_look, a.json) {
+        println!(
+            "{}: left for a closer look with any step above it; the {below} below it are planned",
+            c.message
+        );
+    }
     let planned = match result {
         Ok(p) => p,
         Err(e) => {
@@ -82,6 +105,7 @@ pub fn run(a: PlanArgs) -> Result<ExitCode> {
                     reason: Some(e.to_string()),
                     refusal: Some(e.refusal()),
                     wall_s,
+                    closer_look,
                     plan: None,
                 };
                 println!("{}", serde_json::to_string_pretty(&report)?);
@@ -96,7 +120,8 @@ pub fn run(a: PlanArgs) -> Result<ExitCode> {
     }
     if a.json {
         let plan = PlanMsg::of(0.0, &rects, &planned);
-        let report = PlanReport { ok: true, reason: None, refusal: None, wall_s, plan: Some(plan) };
+        let report =
+            PlanReport { ok: true, reason: None, refusal: None, wall_s, closer_look, plan: Some(plan) };
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         print_tables(&planned, wall_s);
@@ -104,10 +129,11 @@ pub fn run(a: PlanArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The rectangles, the start configuration, and the surfaces seen around the steps (a
+/// The rectangles, the start configuration, the surfaces seen around the steps (a
 /// perceived scenario's whole scan, the body kept off it as the loop does; nothing
-/// otherwise).
-fn inputs(a: &PlanArgs, model: &RobotModel) -> Result<(Vec<PlaneSegment>, Vec<f64>, Arc<SeenPoints>)> {
+/// otherwise), and whether the rectangles are perceived (a rectangles file, a scan), not
+/// ground truth.
+fn inputs(a: &PlanArgs, model: &RobotModel) -> Result<(Vec<PlaneSegment>, Vec<f64>, Arc<SeenPoints>, bool)> {
     let is_txt = a.input.as_deref().and_then(Path::extension).is_some_and(|e| e.eq_ignore_ascii_case("txt"));
     if is_txt {
         let path = a.input.as_deref().unwrap_or(Path::new(""));
@@ -115,7 +141,7 @@ fn inputs(a: &PlanArgs, model: &RobotModel) -> Result<(Vec<PlaneSegment>, Vec<f6
             std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
         let rects = rectangles::parse(&text).with_context(|| path.display().to_string())?;
         let start = start_before(&rects, a.floor_z, a.standoff_m)?;
-        return Ok((rects, hrp4::half_sitting_at(model, &start)?, Arc::default()));
+        return Ok((rects, hrp4::half_sitting_at(model, &start)?, Arc::default(), true));
     }
     if a.floor_z.is_some() {
         bail!("--floor-z is for rectangles files; a scenario's floor is at z = 0");
@@ -130,9 +156,9 @@ fn inputs(a: &PlanArgs, model: &RobotModel) -> Result<(Vec<PlaneSegment>, Vec<f6
         let p = SurroundingsParams::default();
         let mut around = Surroundings::default();
         add_view(&mut around, &cloud, model, &q0, &p);
-        return Ok((rects, q0, Arc::new(SeenPoints::new(around.points(&p)))));
+        return Ok((rects, q0, Arc::new(SeenPoints::new(around.points(&p))), true));
     }
-    Ok((rectangles::from_step_tops(scene.steps()), q0, Arc::default()))
+    Ok((rectangles::from_step_tops(scene.steps()), q0, Arc::default(), false))
 }
 
 /// The floor point between the feet, `standoff_m` in front of the lowest rectangle's front

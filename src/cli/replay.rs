@@ -197,7 +197,7 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
                 }
                 Ok((p, closer_look)) => {
                     if let Some(r) = closer_look {
-                        println!("  plan: nearer to look again (from here, {})", r.message);
+                        println!("  plan: a walk to look again (from here, {})", r.message);
                     }
                     let now = PlanMsg::of(then.start_s, &next.ahead, &p);
                     let same_q = trajectory.as_ref().is_none_or(|t| {

@@ -250,7 +250,10 @@ fn print_cycle(c: &CycleReport) {
         c.execution.sim_s
     );
     if let Some(r) = &c.closer_look {
-        println!("         went nearer to look again: from the last view, {}", r.message);
+        println!(
+            "         walked to look again (nearer, or back to see the first riser): from the last view, {}",
+            r.message
+        );
     }
     for v in &c.execution.violations {
         println!("         t = {:.3} s  {}: {}", v.t_s, v.check.kind(), v.check);

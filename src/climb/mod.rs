@@ -23,8 +23,9 @@ use crate::perception::surroundings::{Surroundings, SurroundingsParams};
 use crate::perception::PlaneSegment;
 use crate::perception::{perceive, PerceptionError, PerceptionParams};
 use crate::planning::clearance::{body_capsules, SeenPoints};
+use crate::planning::footholds::riser_in_sight;
 use crate::planning::plan::stance_at;
-use crate::planning::{plan_approach, plan_below, Plan, PlanParams, Refusal};
+use crate::planning::{plan_approach, plan_below, plan_in_sight, plan_retreat, Plan, PlanParams, Refusal};
 use crate::robot::model::RobotModel;
 use crate::robot::Kinematics;
 use crate::scene::Scene;
@@ -265,8 +266,8 @@ pub fn run<E: Executor>(
 /// The loop's next plan from configuration `q`: the first `stances` stances of the climb
 /// of the step map's `next.ahead`, or, where that is refused for the steps as seen from here
 /// ([`RefusalKind::about_the_view`](crate::planning::RefusalKind::about_the_view)), a plan
-/// that goes nearer to look again (with the refusal; the steps' upper part is
-/// reconstructed from nearer, as in the paper):
+/// that goes to look again (with the refusal; the steps' upper part is reconstructed from
+/// nearer, as in the paper):
 /// - a refused step above the next one: the climb of the steps below it, when its first
 ///   stance is on the flight (ci suite case 175: from step 4 of 12, step 10, seen 0.91 m of
 ///   its 1.33 m width at the edge of the lidar's view, refused the climb "would overhang
@@ -277,6 +278,14 @@ pub fn run<E: Executor>(
 ///   the lidar's blind reach need no returns under them (ci suite case 83: from the top
 ///   tread, toward a strip seen on the room's wall, the right foot went 0.19 m past the
 ///   tread's back edge and the robot fell).
+///
+/// On that floor, no stance walks toward a first riser out of the lidar's sight
+/// ([`riser_in_sight`]: its front not placed on the riser, no floor seen before it): set
+/// down within 0.3 m of the first riser, the robot saw step 1 in part (0.209 m of its
+/// tread) from where its sight begins; the walk nearer put its toes 5 cm behind that front
+/// and the right foot into the riser (friction 2.55, a fall in the first cycle). Such a
+/// robot plans from where it stands (the climb's first stance onto the step), or walks back
+/// until the riser is in sight ([`plan_retreat`]), and looks again.
 ///
 /// The step map's lowest step left for a closer look ([`NextInput::deferred`]):
 /// no foot goes on it, but its front bounds the tread below it (envelope 0.10 x 0.22: left
@@ -296,7 +305,13 @@ pub fn plan_next(
 ) -> Result<(Plan, Option<Refusal>), Box<Refusal>> {
     let ahead = &next.ahead;
     let steps: Vec<PlaneSegment> = ahead.iter().chain(&next.deferred).cloned().collect();
-    let refusal = match plan_below(model, q, &steps, ahead.len(), surfaces.clone(), Some(stances), p) {
+    let on_start_floor = (feet_height_m(model, q) - start_floor_z_m).abs() <= p.gait.floor_band_m;
+    let climb = if on_start_floor {
+        plan_in_sight(model, q, &steps, ahead.len(), surfaces.clone(), Some(stances), p)
+    } else {
+        plan_below(model, q, &steps, ahead.len(), surfaces.clone(), Some(stances), p)
+    };
+    let refusal = match climb {
         Ok(plan) => return Ok((plan, None)),
         Err(e) => e.refusal(),
     };
@@ -310,11 +325,17 @@ pub fn plan_next(
             }
         }
     }
-    let on_start_floor = (feet_height_m(model, q) - start_floor_z_m).abs() <= p.gait.floor_band_m;
     if !on_start_floor {
         return Err(Box::new(refusal));
     }
-    match plan_approach(model, q, ahead, surfaces, Some(stances), p) {
+    let in_sight =
+        stance_at(model, q).is_ok_and(|s| riser_in_sight(&s, ahead, surfaces.points(), &p.gait).is_ok());
+    let walk = if in_sight {
+        plan_approach(model, q, ahead, surfaces, Some(stances), p)
+    } else {
+        plan_retreat(model, q, ahead, surfaces, Some(stances), p)
+    };
+    match walk {
         Ok(Some(walk)) => Ok((walk, Some(refusal))),
         _ => Err(Box::new(refusal)),
     }

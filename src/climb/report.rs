@@ -47,10 +47,10 @@ pub struct CycleReport {
     pub pass: bool,
     /// Steps the plan was made on (the known steps ahead).
     pub steps_seen: usize,
-    /// The refusal this cycle went nearer to look at again (the plan of the flight was
-    /// refused from here for what a closer view may show otherwise: the cycle walked on the
-    /// floor toward the flight, or climbed the steps below the refused one); `None` for a
-    /// cycle of the climb's own plan.
+    /// The refusal this cycle walked to look at again (the plan of the flight was refused
+    /// from here for what another view may show otherwise: the cycle walked on the floor
+    /// toward the flight, or back from a first riser out of the lidar's sight, or climbed the
+    /// steps below the refused one); `None` for a cycle of the climb's own plan.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub closer_look: Option<Refusal>,
     /// Wall time of the sweep, seconds.

@@ -11,7 +11,9 @@
 //! normals are level), so they are taken from the whole cloud, in a band below the tread's
 //! top and a window about its front edge as the segment has it; a riser seen in part (its
 //! returns all in the upper or the lower half of the band: a view over the nose, or a
-//! partial view of the floor below it) leaves the edge as it was.
+//! partial view of the floor below it) leaves the edge as it was. A tread whose own returns
+//! run on past its riser has a nosing: its front is then the nose, not the riser (a foot on
+//! the tread below keeps its toes behind the nose, not under it).
 
 use super::PlaneSegment;
 use crate::stats::median;
@@ -111,7 +113,8 @@ pub fn place_fronts(
             .filter(|&h| h < top - 2.0 * p.band_m[0])
             .fold(f64::NEG_INFINITY, f64::max);
         let band = [(top - p.band_m[1]).max(below + p.band_m[0]), top - p.band_m[0]];
-        if let Some(front) = riser_along(s, points, band, p) {
+        if let Some(riser) = riser_along(s, points, band, p) {
+            let front = nosing_ahead(s, points, riser, p).unwrap_or(riser);
             if let Some(placed) = with_front(s, front) {
                 *s = placed;
                 moved += 1;
@@ -160,6 +163,40 @@ fn riser_along(s: &PlaneSegment, points: &[Point3<f32>], band: [f64; 2], p: &Ris
     whole.then_some(at)
 }
 
+/// The nose of a tread that projects past its riser (a nosing: IRC R311.7.5.3 asks for 19
+/// to 32 mm on short treads), as a distance toward the front from `s`'s centre, the riser
+/// being at `riser_m`: where the tread's own returns (within `band_m[0]` of its top) run on
+/// past the riser, at least `min_returns` of them in the window's half beyond it, the nose
+/// is their 80th percentile (a range error moves a return on the nose's top down and away
+/// from the sensor, back onto the tread, more often than past the edge). `None` for a
+/// riser under a plain nose: past it, at the top's height, is air.
+fn nosing_ahead(s: &PlaneSegment, points: &[Point3<f32>], riser_m: f64, p: &RiserParams) -> Option<f64> {
+    let out = -s.along();
+    let side = Vector3::new(-out.y, out.x, 0.0);
+    let c = s.center();
+    let top = s.height_m();
+    let half_width = s.width_m() / 2.0 - p.side_margin_m;
+    let mut ahead: Vec<f64> = points
+        .iter()
+        .map(|q| q.cast::<f64>())
+        .filter(|q| (q.z - top).abs() < p.band_m[0])
+        .map(|q| q - c)
+        .filter(|d| d.dot(&side).abs() < half_width)
+        .map(|d| d.dot(&out) - riser_m)
+        .filter(|t| *t > NOSING_MIN_M && *t < p.half_window_m)
+        .collect();
+    if ahead.len() < p.min_returns {
+        return None;
+    }
+    ahead.sort_by(f64::total_cmp);
+    let k = ((ahead.len() - 1) as f64 * 0.8).round() as usize;
+    Some(riser_m + ahead[k])
+}
+
+/// Least projection past the riser a tread's return must have to be a nosing's, metres (a
+/// voxel's centroid on the nose itself strays about this far under range noise).
+const NOSING_MIN_M: f64 = 0.005;
+
 /// `s` with its front `front_m` from its old centre against its ascent, its back kept;
 /// `None` when that leaves no depth.
 fn with_front(s: &PlaneSegment, front_m: f64) -> Option<PlaneSegment> {
@@ -194,6 +231,41 @@ mod tests {
             z += 0.005;
         }
         v
+    }
+
+    /// Returns on a level patch at height z from x0 to x1 (every 2.5 mm), across |y| < 0.4.
+    fn patch(x0: f64, x1: f64, z: f64) -> Vec<Point3<f32>> {
+        let n = ((x1 - x0) / 0.0025).round() as usize;
+        (0..=n)
+            .flat_map(|i| {
+                (0..40).map(move |k| {
+                    Point3::new((x0 + 0.0025 * i as f64) as f32, (-0.4 + 0.02 * k as f64) as f32, z as f32)
+                })
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_nosing_past_its_riser_is_the_front_not_the_riser() {
+        let eye = Point3::new(0.0, 0.0, 1.4);
+        let p = RiserParams::default();
+        // A tread 0.3 m up whose nose stands 25 mm before its riser (at 1.025 m); the
+        // segment's front from voxels at 1.01.
+        let seg = tread(1.01, 0.3, 0.29);
+        let mut cloud = wall(1.025, 0.15, 0.27);
+        cloud.extend(patch(1.0, 1.3, 0.3));
+        let mut one = [seg.clone()];
+        assert_eq!(place_fronts(&mut one, &cloud, &eye, None, &p), 1);
+        let front = one[0].center().x - one[0].depth_m() / 2.0;
+        assert!((front - 1.0).abs() < 0.006, "the front on the nose at 1.0, not the riser: {front:.4}");
+        assert!(one[0].front_on_riser());
+        // The same riser under a plain nose: the front on the riser.
+        let mut plain = wall(1.025, 0.15, 0.3);
+        plain.extend(patch(1.025, 1.3, 0.3));
+        let mut one = [seg.clone()];
+        assert_eq!(place_fronts(&mut one, &plain, &eye, None, &p), 1);
+        let front = one[0].center().x - one[0].depth_m() / 2.0;
+        assert!((front - 1.025).abs() < 1e-3, "{front:.4}");
     }
 
     #[test]

@@ -24,11 +24,27 @@ pub struct StepMapParams {
     /// case 7) and their edges still hold; a view whose flight axis came from two near-square
     /// pieces under 20 mm of noise came back turned 40 degrees (smoke suite, `noisy-20mm`).
     pub max_view_turn_rad: f64,
+    /// A view's rectangle narrower than this across the flight's ascent (the known steps',
+    /// else its own) holds no sole and is no step: a handrail's top, a shoe lying along the
+    /// flight. A tread seen in part is cut along the ascent (shallow), not across it, and
+    /// stays. HRP-4's sole is 0.13 m wide. Metres.
+    pub min_width_m: f64,
+    /// A view's rectangle lying over a lower tread (known, or in the same view) by more than
+    /// this along the ascent stands on that tread (a parcel, a box left on it) and is no
+    /// step: a flight's treads overlap by their nosings only (IRC R311.7.5.3: at most
+    /// 32 mm), and perception's edges err by about 2 cm each. Metres.
+    pub max_overlap_m: f64,
 }
 
 impl Default for StepMapParams {
     fn default() -> Self {
-        Self { ahead_margin_m: 0.05, same_step_m: 0.15, max_view_turn_rad: 20f64.to_radians() }
+        Self {
+            ahead_margin_m: 0.05,
+            same_step_m: 0.15,
+            max_view_turn_rad: 20f64.to_radians(),
+            min_width_m: crate::robot::hrp4::SOLE_SIZE_M[1],
+            max_overlap_m: 0.08,
+        }
     }
 }
 
@@ -52,6 +68,16 @@ pub struct StepMap {
 impl StepMap {
     /// Merges a view's rectangles (see [`merge`]).
     pub fn update(&mut self, seen: Vec<PlaneSegment>, p: &StepMapParams) {
+        let ascent = self.known.iter().max_by_key(|k| k.voxel_count()).map(|k| k.along());
+        let treads: Vec<PlaneSegment> = self.known.iter().chain(&seen).cloned().collect();
+        let seen = seen
+            .into_iter()
+            .filter(|s| {
+                let along = ascent.unwrap_or(s.along());
+                width_across_m(s, &along) >= p.min_width_m
+                    && !treads.iter().any(|t| stands_on(s, t, &along, p.max_overlap_m))
+            })
+            .collect();
         self.known = merge(&self.known, seen, p);
     }
 
@@ -73,6 +99,38 @@ impl StepMap {
         self.update(seen, p);
         without_partial_top(self.ahead(feet_z, p.ahead_margin_m), min_tread_m)
     }
+}
+
+/// Whether `s` lies over the lower tread `t` by more than `max_overlap_m` along `along`
+/// (and overlaps it across): something standing on that tread.
+fn stands_on(s: &PlaneSegment, t: &PlaneSegment, along: &nalgebra::Vector3<f64>, max_overlap_m: f64) -> bool {
+    if t.height_m() > s.height_m() - STANDING_ABOVE_M {
+        return false;
+    }
+    let across = nalgebra::Vector3::new(-along.y, along.x, 0.0);
+    let overlap = |d: &nalgebra::Vector3<f64>| {
+        let span = |r: &PlaneSegment| {
+            let v: Vec<f64> = r.corners().iter().map(|c| c.coords.dot(d)).collect();
+            (
+                v.iter().copied().fold(f64::INFINITY, f64::min),
+                v.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            )
+        };
+        let ((a0, a1), (b0, b1)) = (span(s), span(t));
+        a1.min(b1) - a0.max(b0)
+    };
+    overlap(along) > max_overlap_m && overlap(&across) > 0.0
+}
+
+/// Least height above a tread of a rectangle standing on it, metres (two views of one
+/// tread differ by about a centimetre).
+const STANDING_ABOVE_M: f64 = 0.03;
+
+/// The extent of `s` across the horizontal direction `along`, metres.
+fn width_across_m(s: &PlaneSegment, along: &nalgebra::Vector3<f64>) -> f64 {
+    let across = nalgebra::Vector3::new(-along.y, along.x, 0.0);
+    let t: Vec<f64> = s.corners().iter().map(|c| c.coords.dot(&across)).collect();
+    t.iter().copied().fold(f64::NEG_INFINITY, f64::max) - t.iter().copied().fold(f64::INFINITY, f64::min)
 }
 
 /// `ahead` up to its lowest step that is shallower than a foot needs, when that is not the

@@ -4,7 +4,9 @@
 //! sweep's returns enter a voxel grid in the world frame, those on the robot's own body at
 //! the sweep's configuration left out (a real lidar sees its own arms; the simulated one is
 //! blind to them, so the filter costs nothing there); the planner keeps the upper body off
-//! the occupied voxels' centroids (`planning::clearance::SeenPoints`).
+//! the occupied voxels' centroids (`planning::clearance::SeenPoints`), the legs off those
+//! that are not the steps' or the floor's own, and the soles off what stands on the floor,
+//! a tread or a landing (`planning::footholds`).
 
 use crate::cloud::PointCloud;
 use crate::geom3d::Capsule;

@@ -9,7 +9,12 @@
 //!
 //! The rest of the body (arms, trunk, head) is kept off every surface the lidar saw
 //! ([`SeenPoints`], from `perception::surroundings`): a stairwell's walls, a crate beside
-//! the flight. The legs are not: their feet stand on what the lidar saw.
+//! the flight. The legs (thigh, shank, and so the knee between them) are kept off the same
+//! surfaces except the steps' and the floor's own ([`SeenPoints::off_the_steps`]): their
+//! feet stand on those, and the step solids keep the legs off them already; a parcel on a
+//! tread or a box beside a lane is kept off. The soles are kept off what stands on the floor
+//! and the treads by the footholds (`footholds`' obstruction test), not here: a foot's box
+//! is no capsule.
 
 use crate::geom3d::Capsule;
 use crate::perception::PlaneSegment;
@@ -153,6 +158,20 @@ impl SeenPoints {
     /// The points.
     pub fn points(&self) -> &[Point3<f64>] {
         &self.points
+    }
+
+    /// The points that are neither the steps' nor the floor's own surfaces: farther than
+    /// `band_m` from every one of `blocks` (the steps as solids, [`step_blocks`]) and more
+    /// than `band_m` above `floor_z` (the floor under the start, and all below it). What the
+    /// legs are kept off: a parcel on a tread, a box or a wall beside a lane.
+    pub fn off_the_steps(&self, blocks: &[SceneBox], floor_z: f64, band_m: f64) -> Self {
+        Self::new(
+            self.points
+                .iter()
+                .filter(|q| q.z > floor_z + band_m && blocks.iter().all(|b| b.signed_distance(q) > band_m))
+                .copied()
+                .collect(),
+        )
     }
 
     /// The point nearest to `limb` at the configuration `kin` holds, `Nearest::block` being

@@ -7,7 +7,10 @@
 //! rectangle and its yaw from the staircase, and it is level (no roll or pitch: §6.2 takes
 //! every contact frame level; the rectangle's fitted normal is not a measure of a tread's
 //! tilt under range noise, and a tread's tilt is assumed level, not measured). Steps the
-//! feet cannot use are refused here, with the reason, before any motion is computed.
+//! feet cannot use are refused here, with the reason, before any motion is computed, and so
+//! is every stance (on the floor, a tread or a landing) whose sole, or its lane on the way
+//! there, is where the lidar saw something standing ([`PlanError::FloorObstructed`],
+//! [`PlanError::TreadObstructed`]): the lanes do not move around it.
 
 use super::gait::Legs;
 use super::PlanError;
@@ -140,14 +143,22 @@ pub struct GaitParams {
     /// `floor_band_m` of the floor's height under the sole. A 3 cm voxel grid holds about 34
     /// points under HRP-4's sole; 8 is a quarter of it.
     pub approach_floor_returns: usize,
-    /// A floor stance of a climb's plan is refused where at least this many of the
-    /// surroundings' points stand on the floor under a sole (above `floor_band_m`, below
-    /// 0.5 m over it): a surface there, a step perception did not take for one or a box.
-    /// Fewer are the scatter of a riser ahead of the toes: under 20 mm of range noise the
-    /// first riser's voxels stray several centimetres toward the robot along the rays, and
-    /// two of them stood under the last floor stance's toes (wide suite case 0). A 3 cm
-    /// voxel grid holds about 34 points under HRP-4's sole; 6 are a strip of it 4 cm deep.
+    /// A stance of a climb's plan (on the floor, a tread or a landing) is refused where at
+    /// least this many of the surroundings' points stand in a sole's way (its footprint
+    /// grown by `obstruction_margin_m`, and its lane back to where the foot stood before),
+    /// above `floor_band_m` and below 0.5 m over the floor or the perceived tread under
+    /// them, off the perceived steps' own surfaces: a step perception did not take for one,
+    /// a box, a parcel left on a tread. Fewer are the scatter of a riser ahead of the toes:
+    /// under 20 mm of range noise the first riser's voxels stray several centimetres toward
+    /// the robot along the rays, and two of them stood under the last floor stance's toes
+    /// (wide suite case 0). A 3 cm voxel grid holds about 34 points under HRP-4's sole; 6
+    /// are a strip of it 4 cm deep.
     pub floor_obstruction_returns: usize,
+    /// How far past a sole's outline, on every side, the obstruction test of a stance
+    /// (`floor_obstruction_returns`) looks, metres: the IK keeps the legs 3 cm
+    /// (`IkParams::body_clearance_m`) off what the lidar saw, but not the foot (its box is
+    /// no capsule), so the footholds keep as much room around the sole.
+    pub obstruction_margin_m: f64,
     /// How far ahead of the feet, along the ascent, the floor lies under the head's lidar
     /// and out of its sight, metres: tilting to 70 deg down from about 1.4 m, it sees the
     /// floor from about 0.5 m ahead of the feet. A sole nearer the start than this needs
@@ -184,6 +195,7 @@ impl Default for GaitParams {
             body_band_m: [0.4, 1.5],
             approach_floor_returns: 8,
             floor_obstruction_returns: 6,
+            obstruction_margin_m: 0.03,
             approach_blind_m: 0.6,
             floor_band_m: 0.06,
             test_foothold_shift_m: 0.0,
@@ -230,7 +242,7 @@ pub fn footholds_below(
         return Err(PlanError::NoSteps);
     }
     let lay = Layout::new(start, steps, seen, p);
-    let (o, u, w) = (lay.frame.o, lay.frame.u, lay.frame.w);
+    let u = lay.frame.u;
     let limit_rad = 10f64.to_radians();
     for (i, s) in steps.iter().enumerate() {
         let angle_rad = lay.up(s).dot(&u).clamp(-1.0, 1.0).acos();
@@ -245,7 +257,6 @@ pub fn footholds_below(
     let mut out = Vec::new();
     let mut prev_along = lay.start_along;
     for (i, s) in steps.iter().enumerate() {
-        let c = s.center();
         // The rise before the depth: a depth may grow from nearer (a step seen in part), a
         // rise does not, and a refusal for the depth sends the loop nearer to look again
         // (ci suite case 83: a 6 cm strip seen 1.03 m above the top tread, refused as
@@ -257,31 +268,14 @@ pub fn footholds_below(
             return Err(PlanError::HighRise { step: i, rise_m: rises[i], max_m: p.max_rise_m });
         }
         let (front, along, usable_m) = lay.foothold_along(&all, i, p);
-        let heel_over_m = front - (along - p.sole_length_m / 2.0);
-        if usable_m < p.min_tread_m || heel_over_m > p.heel_overhang_m + 1e-9 {
-            let toes_kept = all.get(i + 1).is_some_and(|n| n.front_on_riser());
-            let between_m = p.sole_length_m + p.toe_clearance_m - p.heel_overhang_m;
-            let min_m = if toes_kept { p.min_tread_m.max(between_m) } else { p.min_tread_m };
-            return Err(PlanError::ShortTread { step: i, depth_m: usable_m, min_m });
-        }
-        if i > 0 {
-            let back = (steps[i - 1].center() - o).dot(&u) + steps[i - 1].depth_m() / 2.0;
-            let gap = front - back;
-            if gap > p.max_gap_m {
-                return Err(PlanError::Gap { step: i, gap_m: gap, max_m: p.max_gap_m });
-            }
-        }
-        let side = (c - o).dot(&w);
-        for (f, lane) in Foot::BOTH.into_iter().zip(lanes) {
-            let over = (lane - side).abs() + p.sole_width_m / 2.0 - s.width_m() / 2.0;
-            if over > p.side_overhang_m {
-                return Err(PlanError::OffTheSide {
-                    step: i,
-                    foot: f,
-                    overhang_m: over,
-                    max_m: p.side_overhang_m,
-                });
-            }
+        if let Some(as_seen) = refused_as_seen(&lay, steps, i, (front, along, usable_m), lanes, &all, p) {
+            // A step refused for how it was seen (the loop would look closer) is refused for
+            // good where the lidar saw something standing in a foot's lane on it: a parcel
+            // that hides half the tread leaves it too narrow or too short, and no closer
+            // look takes it away.
+            let probe = lay.stance_on(lanes, along, s.height_m(), Some(i));
+            unobstructed(&lay, &all, &probe, std::slice::from_ref(&probe), out.len(), seen, p)?;
+            return Err(as_seen);
         }
         // How far along the foot may go: within the gait's stride of the stance before, and
         // within the legs' for this rise of its trailing foot (a high rise with the feet far
@@ -299,7 +293,7 @@ pub fn footholds_below(
             let within =
                 along - lay.start_along <= p.max_stride_m && nearest_m <= reach(prev_along, trail_along);
             let walk = if within { Vec::new() } else { lay.floor_walk(front, p) };
-            unobstructed(&walk, out.len(), seen, lay.floor_z, p)?;
+            unobstructed(&lay, &all, out.last().unwrap_or(start), &walk, out.len(), seen, p)?;
             if !walk.is_empty() {
                 prev_along = Layout::toes_behind(front, p);
                 trail_along = prev_along;
@@ -316,7 +310,7 @@ pub fn footholds_below(
             let walk: Vec<Stance> = strides(prev_along, across, p.approach_stride_m)
                 .map(|a| lay.stance_on(lanes, a + p.test_foothold_shift_m, below.height_m(), Some(i - 1)))
                 .collect();
-            unobstructed(&walk, out.len(), seen, below.height_m(), p)?;
+            unobstructed(&lay, &all, out.last().unwrap_or(start), &walk, out.len(), seen, p)?;
             out.extend(walk);
             prev_along = prev_along.max(across);
             trail_along = prev_along;
@@ -339,7 +333,10 @@ pub fn footholds_below(
         if stride > p.max_stride_m || stride < 0.0 {
             return Err(PlanError::Stride { step: i, stride_m: stride, max_m: p.max_stride_m });
         }
-        out.push(lay.stance_on(lanes, along + p.test_foothold_shift_m, s.height_m(), Some(i)));
+        let on_step = lay.stance_on(lanes, along + p.test_foothold_shift_m, s.height_m(), Some(i));
+        let before = out.last().unwrap_or(start);
+        unobstructed(&lay, &all, before, std::slice::from_ref(&on_step), out.len(), seen, p)?;
+        out.push(on_step);
         prev_along = along;
     }
     Ok(out)
@@ -373,10 +370,122 @@ pub fn approach(start: &Stance, rects: &[PlaneSegment], seen: &[Point3<f64>], p:
         let blind = (f.translation.vector - lay.frame.o.coords).dot(&lay.frame.u) - lay.start_along
             < p.approach_blind_m;
         on_seen_floor(f, seen, lay.floor_z, if blind { 0 } else { p.approach_floor_returns }, p)
+            && clear_of_steps(f, &steps, p)
     };
     let seen_to = walk.iter().take_while(|s| seen_free(&s.right) && seen_free(&s.left)).count();
     walk.truncate(seen_to);
     walk
+}
+
+/// Floor returns (surroundings points within `floor_band_m` of the floor) in the feet's lanes
+/// before the lowest step's front that show the lidar's sight reaching there
+/// ([`riser_in_sight`]): two, so that a lone stray is not taken for it.
+const FLOOR_IN_SIGHT_RETURNS: usize = 2;
+
+/// `Ok` when the lowest step of `rects` has its riser where its front edge is perceived, as
+/// far as the lidar can tell from the views `seen` holds, so that a walk on the floor toward
+/// it may end with the toes `toe_gap_m` behind that front: the front was placed on its riser,
+/// or the lidar saw floor in the feet's lanes before it (at least `FLOOR_IN_SIGHT_RETURNS`
+/// of `seen` within `floor_band_m` of the floor under `start`). The lidar sees whatever lies
+/// farther than the nearest floor it sees, and higher surfaces from nearer still: a riser
+/// beyond that floor would have shown its tread from the riser on, and floor stands only
+/// before a riser. Else [`PlanError::RiserOutOfSight`]: set down near the first riser, the
+/// robot has the floor before it and the tread's near part under its lidar, out of sight,
+/// and the front it sees is where its sight begins (set down within 0.3 m of the riser, the
+/// robot saw step 1 0.209 m deep, and the walk nearer, its toes 5 cm behind that front, put
+/// the right foot into the riser: friction 2.55, a fall in the first cycle). For the closed
+/// loop, whose `seen` is everything the lidar saw: a caller with nothing known beside the
+/// steps (ground truth, a rectangles file) has no sight to judge.
+pub fn riser_in_sight(
+    start: &Stance,
+    rects: &[PlaneSegment],
+    seen: &[Point3<f64>],
+    p: &GaitParams,
+) -> Result<(), PlanError> {
+    let steps = super::rectangles::by_height(rects);
+    let Some(first) = steps.first() else { return Ok(()) };
+    if first.front_on_riser() {
+        return Ok(());
+    }
+    let lay = Layout::new(start, &steps, seen, p);
+    let (o, u, w) = (lay.frame.o, lay.frame.u, lay.frame.w);
+    let (front, _, _) = lay.foothold_along(&steps, 0, p);
+    let lanes = lay.start_lanes.map(|l| l + lay.shift);
+    let floor = seen
+        .iter()
+        .filter(|q| {
+            let (along, across) = ((*q - o).dot(&u), (*q - o).dot(&w));
+            (q.z - lay.floor_z).abs() <= p.floor_band_m
+                && along < front
+                && lanes.iter().any(|l| (across - l).abs() <= p.sole_width_m / 2.0)
+        })
+        .count();
+    if floor >= FLOOR_IN_SIGHT_RETURNS {
+        Ok(())
+    } else {
+        Err(PlanError::RiserOutOfSight { step: 0, ahead_m: front - lay.start_along })
+    }
+}
+
+/// A walk back ([`retreat`]) shorter than this is not walked, metres: the feet land within
+/// millimetres of a plan's stance, and a robot that stepped back as far as the front asks is
+/// not sent back again by millimetres, view after view.
+const LEAST_WALK_BACK_M: f64 = 0.05;
+
+/// The stances on the floor that walk the feet back from `start`, away from the flight of
+/// `rects`, for a robot whose first riser is out of the lidar's sight ([`riser_in_sight`]):
+/// walking nearer could set a foot into that riser, and from farther back the lidar sees it.
+/// In strides of at most `approach_stride_m`, in the lanes the feet stand in, to where the
+/// lowest step's front as perceived is `approach_blind_m` ahead of the feet (the floor before
+/// it then in sight); as [`approach`], only where the lidar saw nothing standing on the
+/// floor (behind the feet it sees nothing) and never into or against a perceived step. The
+/// front as perceived moves toward the robot as nearer parts of the tread come into view,
+/// never past the riser, so walks back from it stop. Empty when the feet are that far back
+/// already (within `LEAST_WALK_BACK_M`), or there are no steps.
+pub fn retreat(start: &Stance, rects: &[PlaneSegment], seen: &[Point3<f64>], p: &GaitParams) -> Vec<Stance> {
+    if rects.is_empty() {
+        return Vec::new();
+    }
+    let steps = super::rectangles::by_height(rects);
+    let lay = Layout::new(start, &steps, seen, p);
+    let (front, _, _) = lay.foothold_along(&steps, 0, p);
+    let back_to = front - p.approach_blind_m;
+    if lay.start_along - back_to < LEAST_WALK_BACK_M {
+        return Vec::new();
+    }
+    let free = |f: &Isometry3<f64>| on_seen_floor(f, seen, lay.floor_z, 0, p) && clear_of_steps(f, &steps, p);
+    // `strides` walks up the ascent; down it is its mirror image.
+    strides(-lay.start_along, -back_to, p.approach_stride_m)
+        .map(|a| lay.stance_on(lay.start_lanes, -a, lay.floor_z, None))
+        .take_while(|s| free(&s.right) && free(&s.left))
+        .collect()
+}
+
+/// Whether the sole at `foot`, grown by `toe_clearance_m` on every side, stays outside every
+/// rectangle of `steps` seen from above: a floor stance's sole inside a step's footprint
+/// would stand in its block, against its riser. Two rectangles are apart when one of their
+/// four axes separates their corners.
+fn clear_of_steps(foot: &Isometry3<f64>, steps: &[&PlaneSegment], p: &GaitParams) -> bool {
+    let (half_l, half_w) =
+        (p.sole_length_m / 2.0 + p.toe_clearance_m, p.sole_width_m / 2.0 + p.toe_clearance_m);
+    let (x, y) = (foot.rotation * Vector3::x(), foot.rotation * Vector3::y());
+    let c = foot.translation.vector;
+    let sole = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+        .map(|(a, b)| c + x * (a * half_l) + y * (b * half_w));
+    let span = |points: &[Vector3<f64>; 4], axis: &Vector3<f64>| {
+        points.iter().fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], q| {
+            let t = q.x * axis.x + q.y * axis.y;
+            [lo.min(t), hi.max(t)]
+        })
+    };
+    steps.iter().all(|s| {
+        let corners: [Vector3<f64>; 4] = std::array::from_fn(|i| s.corners()[i].coords);
+        let along = s.along();
+        [along, Vector3::z().cross(&along), x, y].iter().any(|axis| {
+            let (a, b) = (span(&sole, axis), span(&corners, axis));
+            a[1] <= b[0] || b[1] <= a[0]
+        })
+    })
 }
 
 /// The flight's usual rise, against which a rise far above it means a step not seen: the
@@ -391,39 +500,87 @@ fn usual_rise_m(rises: &[f64]) -> Option<f64> {
     }
 }
 
+/// Why step `i` of `steps` (sorted by height, `all` the whole flight) cannot be planned as
+/// seen: its usable depth (`front`, `along`, `usable_m` from [`Layout::foothold_along`])
+/// too short for a sole, a gap before it, or a foot's lane (`lanes`) off its side; `None`
+/// when it can. Each is about the view: a closer look may see more of the step.
+fn refused_as_seen(
+    lay: &Layout,
+    steps: &[&PlaneSegment],
+    i: usize,
+    (front, along, usable_m): (f64, f64, f64),
+    lanes: [f64; 2],
+    all: &[&PlaneSegment],
+    p: &GaitParams,
+) -> Option<PlanError> {
+    let (o, u, w) = (lay.frame.o, lay.frame.u, lay.frame.w);
+    let heel_over_m = front - (along - p.sole_length_m / 2.0);
+    if usable_m < p.min_tread_m || heel_over_m > p.heel_overhang_m + 1e-9 {
+        let toes_kept = all.get(i + 1).is_some_and(|n| n.front_on_riser());
+        let between_m = p.sole_length_m + p.toe_clearance_m - p.heel_overhang_m;
+        let min_m = if toes_kept { p.min_tread_m.max(between_m) } else { p.min_tread_m };
+        return Some(PlanError::ShortTread { step: i, depth_m: usable_m, min_m });
+    }
+    if i > 0 {
+        let back = (steps[i - 1].center() - o).dot(&u) + steps[i - 1].depth_m() / 2.0;
+        let gap = front - back;
+        if gap > p.max_gap_m {
+            return Some(PlanError::Gap { step: i, gap_m: gap, max_m: p.max_gap_m });
+        }
+    }
+    let side = (steps[i].center() - o).dot(&w);
+    Foot::BOTH.into_iter().zip(lanes).find_map(|(f, lane)| {
+        let over = (lane - side).abs() + p.sole_width_m / 2.0 - steps[i].width_m() / 2.0;
+        (over > p.side_overhang_m).then_some(PlanError::OffTheSide {
+            step: i,
+            foot: f,
+            overhang_m: over,
+            max_m: p.side_overhang_m,
+        })
+    })
+}
+
 /// The approach walk ([`approach`]) stops before a sole with this many points standing
 /// under it: it walks toward a flight refused from afar, over ground no plan has judged,
 /// and errs toward stopping (a lone point is a stray: a noise spike, a mixed pixel at a
-/// riser's top). A climb's own floor walk refuses only a surface
+/// riser's top). A climb's own stances refuse only a surface
 /// ([`GaitParams::floor_obstruction_returns`], see [`unobstructed`]).
 const STANDING_RETURNS: usize = 2;
 
-/// `Ok` when no sole of the stances `walk` on a level floor at `floor_z` (the floor, or a
-/// tread walked across) stands where the lidar saw a surface on it (at least
-/// `floor_obstruction_returns` of `seen` standing under it); else the first such stance
-/// (counted from `first`, the plan's index of the walk's first) and foot.
+/// `Ok` when no foot of the stances `walk` (the plan's from index `first`, the feet standing
+/// at `before` ahead of the first) lands on or swings through a place where the lidar saw
+/// something standing (at least `floor_obstruction_returns` of `seen` in its way, see
+/// [`Layout::standing_in_lane`]; `steps` are the perceived steps, sorted by height); else
+/// the first such stance and foot, [`PlanError::FloorObstructed`] for a floor stance (the
+/// floor the walk starts on), [`PlanError::TreadObstructed`] for one on a step.
 fn unobstructed(
+    lay: &Layout,
+    steps: &[&PlaneSegment],
+    before: &Stance,
     walk: &[Stance],
     first: usize,
     seen: &[Point3<f64>],
-    floor_z: f64,
     p: &GaitParams,
 ) -> Result<(), PlanError> {
+    let mut from = before;
     for (stance, st) in (first..).zip(walk) {
         for foot in Foot::BOTH {
-            let under = UnderSole::count(st.foot(foot), seen, floor_z, p);
-            if under.standing >= p.floor_obstruction_returns.max(1) {
-                return Err(PlanError::FloorObstructed {
-                    stance,
-                    foot,
-                    points: under.standing,
-                    height_m: under.highest_m,
+            let (points, height_m) = lay.standing_in_lane(steps, from.foot(foot), st.foot(foot), seen, p);
+            if points >= p.floor_obstruction_returns.max(1) {
+                return Err(match st.step {
+                    None => PlanError::FloorObstructed { stance, foot, points, height_m },
+                    Some(step) => PlanError::TreadObstructed { stance, step, foot, points, height_m },
                 });
             }
         }
+        from = st;
     }
     Ok(())
 }
+
+/// A point up to this height above the floor or a tread stands on it, metres (higher, the
+/// legs pass under it; the IK keeps the body off it).
+const STANDING_M: f64 = 0.5;
 
 /// The lidar's returns under a sole on the floor: the surroundings' points inside the sole's
 /// outline within `floor_band_m` of the floor's height, and those above that band and below
@@ -437,7 +594,6 @@ struct UnderSole {
 
 impl UnderSole {
     fn count(foot: &Isometry3<f64>, seen: &[Point3<f64>], floor_z: f64, p: &GaitParams) -> Self {
-        const STANDING_M: f64 = 0.5;
         let inv = foot.inverse();
         let mut under = Self { floor: 0, standing: 0, highest_m: 0.0 };
         for q in seen {
@@ -575,6 +731,77 @@ impl Layout {
             Isometry3::from_parts(Translation3::new(xy.x, xy.y, height_m), self.yaw)
         };
         Stance { right: foot(lanes[0]), left: foot(lanes[1]), step }
+    }
+
+    /// Where step `s`'s front edge is along the ascent.
+    fn front(&self, s: &PlaneSegment) -> f64 {
+        (s.center() - self.frame.o).dot(&self.frame.u) - s.depth_m() / 2.0
+    }
+
+    /// The height of what a foot stands on at `along` the ascent: the highest of the floor
+    /// and the `steps` whose front edge is behind it.
+    fn surface_z(&self, steps: &[&PlaneSegment], along: f64) -> f64 {
+        steps.iter().filter(|s| self.front(s) <= along).map(|s| s.height_m()).fold(self.floor_z, f64::max)
+    }
+
+    /// Whether `q` is one of the perceived `steps`' own surfaces, within `band_m` of one: of
+    /// its solid (the rectangle extruded down: its tread, the riser under its front edge,
+    /// its nose), or of the riser rising from its back edge (the next step's, perceived or
+    /// not: a flight's highest rectangle seen from below ends at the riser above it). The
+    /// toes keep only `toe_clearance_m` behind the next riser, and under range noise its
+    /// voxels stray toward the robot along the rays by up to three standard deviations
+    /// (`floor_band_m`).
+    fn by_a_step(&self, steps: &[&PlaneSegment], q: &Point3<f64>, band_m: f64) -> bool {
+        steps.iter().any(|s| {
+            let (up, d) = (self.up(s), q - s.center());
+            let (along, across) = (d.dot(&up), d.dot(&Vector3::z().cross(&up)));
+            let (half_depth, top) = (s.depth_m() / 2.0, s.height_m());
+            across.abs() <= s.width_m() / 2.0 + band_m
+                && ((along.abs() <= half_depth + band_m && q.z <= top + band_m)
+                    || ((along - half_depth).abs() <= band_m && q.z >= top - band_m))
+        })
+    }
+
+    /// How many of `seen` stand in a foot's way as it goes from `from` to `to`, and the
+    /// highest of them above what is under it (metres, 0 when none). Its way: across the
+    /// ascent, the sole's width about both poses; along it, from the toes at `from` to the
+    /// toes at `to` (the whole sole there); both grown by `obstruction_margin_m`. A point
+    /// stands where it is more than `floor_band_m` and at most 0.5 m above the floor or the
+    /// perceived tread under it ([`Layout::surface_z`]) and not a perceived step's own
+    /// surface ([`Layout::by_a_step`]).
+    fn standing_in_lane(
+        &self,
+        steps: &[&PlaneSegment],
+        from: &Isometry3<f64>,
+        to: &Isometry3<f64>,
+        seen: &[Point3<f64>],
+        p: &GaitParams,
+    ) -> (usize, f64) {
+        let Frame { o, u, w } = self.frame;
+        let at = |f: &Isometry3<f64>| {
+            let v = f.translation.vector - o.coords;
+            (v.dot(&u), v.dot(&w))
+        };
+        let ((along0, lane0), (along1, lane1)) = (at(from), at(to));
+        let (half_length, half_width) = (p.sole_length_m / 2.0, p.sole_width_m / 2.0);
+        let margin = p.obstruction_margin_m;
+        let back = (along1 - half_length - margin).min(along0 + half_length);
+        let along = [back, along1 + half_length + margin];
+        let across = [lane0.min(lane1) - half_width - margin, lane0.max(lane1) + half_width + margin];
+        let (mut points, mut highest_m) = (0, 0.0_f64);
+        for q in seen {
+            let (a, c) = ((q - o).dot(&u), (q - o).dot(&w));
+            if a < along[0] || a > along[1] || c < across[0] || c > across[1] {
+                continue;
+            }
+            let dz = q.z - self.surface_z(steps, a);
+            if dz <= p.floor_band_m || dz > STANDING_M || self.by_a_step(steps, q, p.floor_band_m) {
+                continue;
+            }
+            points += 1;
+            highest_m = highest_m.max(dz);
+        }
+        (points, highest_m)
     }
 
     /// The floor stances up to the first step, whose front edge is at `front`: strides of
@@ -749,6 +976,59 @@ mod tests {
             }
             other => panic!("expected the floor stance refused, got {other:?}"),
         }
+    }
+
+    /// The parcel (0.32 x 0.20 x 0.12 m) on step 2, in the right foot's lane: the
+    /// loop set the sole on it, the knee and then the swinging foot struck it, and the robot
+    /// fell. A stance on a tread where the lidar saw something standing in a sole's way is
+    /// refused; the treads' and risers' own voxels, noisy, are no obstruction, nor is the
+    /// parcel beside the lane.
+    #[test]
+    fn a_tread_stance_where_the_lidar_saw_an_object_is_refused() {
+        let p = GaitParams::default();
+        let (rects, stance) = flight_and_stance(0.0);
+        // Voxel centroids every 3 cm over x in `xs` and y in `ys`, at height `z`.
+        let grid = |xs: [f64; 2], ys: [f64; 2], z: f64| -> Vec<Point3<f64>> {
+            let n = |r: [f64; 2]| ((r[1] - r[0]) / 0.03).round() as usize;
+            (0..=n(xs))
+                .flat_map(|i| {
+                    (0..=n(ys)).map(move |k| Point3::new(xs[0] + 0.03 * i as f64, ys[0] + 0.03 * k as f64, z))
+                })
+                .collect()
+        };
+        // Each tread seen 4 cm either side of its height, and each riser's voxels strayed
+        // 2 and 4.5 cm toward the robot (20 mm of range noise).
+        let mut steps_seen = Vec::new();
+        for r in &rects {
+            let (front, z) = (r.center().x - r.depth_m() / 2.0, r.height_m());
+            for dz in [-0.04, 0.04] {
+                steps_seen.extend(grid([front, front + 0.27], [-0.42, 0.42], z + dz));
+            }
+            for dx in [0.02, 0.045] {
+                for k in 0..5 {
+                    steps_seen.extend(grid([front - dx; 2], [-0.42, 0.42], z - 0.1 + 0.02 * k as f64));
+                }
+            }
+        }
+        let clear = footholds(&stance, &rects, &steps_seen, &LEGS, &p).expect("no obstruction");
+        let on_step_2 = clear.iter().position(|s| s.step == Some(1)).expect("a stance on step 2");
+        // The parcel's top on step 2 (its tread from x = 0.78, 0.34 m up) in the right lane.
+        let mut parcel = steps_seen.clone();
+        parcel.extend(grid([0.80, 1.04], [-0.19, -0.01], 0.46));
+        match footholds(&stance, &rects, &parcel, &LEGS, &p) {
+            Err(PlanError::TreadObstructed { stance, step: 1, foot: Foot::Right, points, height_m }) => {
+                assert_eq!(stance, on_step_2);
+                assert!(
+                    points >= p.floor_obstruction_returns && (height_m - 0.12).abs() < 1e-9,
+                    "{points} {height_m}"
+                );
+            }
+            other => panic!("a sole set on the parcel: {other:?}"),
+        }
+        // The same parcel 12 cm beside the right sole: no obstruction.
+        let mut beside = steps_seen.clone();
+        beside.extend(grid([0.80, 1.04], [-0.46, -0.28], 0.46));
+        assert_eq!(footholds(&stance, &rects, &beside, &LEGS, &p).expect("a parcel beside the lane"), clear);
     }
 
     /// Wide suite case 55: step 1 was never perceived (23 mm of noise), the flight seen as
@@ -1079,6 +1359,97 @@ mod tests {
         let stances = footholds(&start, &voxels, &[], &LEGS, &p).expect("the middle of a 0.24 m tread");
         let first = stances.iter().find(|s| s.step == Some(0)).expect("step 1");
         assert!((first.right.translation.x - 0.62).abs() < 1e-9);
+    }
+
+    /// The view: set down 0.28 m from the first riser of the paper's Exp. 1 (the
+    /// feet's middle to the riser), the robot sees step 1 only from where its lidar's sight
+    /// begins: 0.209 m of its 0.27 m tread, from 0.341 m, the front not on the riser, no
+    /// floor seen before it. The walk toward that front, one stride, put the toes `toe_gap_m`
+    /// behind it, 11 mm past the riser: the right foot struck it. That riser is out of sight,
+    /// and the feet walk back instead, to where the front is `approach_blind_m` ahead; a front
+    /// on its riser, or floor seen in a lane before it, is in sight.
+    #[test]
+    fn a_first_riser_out_of_sight_is_walked_away_from_not_toward() {
+        let p = GaitParams::default();
+        let stance_at = |x: f64| Stance {
+            right: Isometry3::translation(x, -0.1, 0.0),
+            left: Isometry3::translation(x, 0.1, 0.0),
+            step: None,
+        };
+        let start = stance_at(0.0);
+        let rects = [tread(0.341, 0.2, 0.209), tread(0.55, 0.4, 0.27), tread(0.82, 0.6, 0.27)];
+        match riser_in_sight(&start, &rects, &[], &p) {
+            Err(PlanError::RiserOutOfSight { step: 0, ahead_m }) => {
+                assert!((ahead_m - 0.341).abs() < 1e-9, "{ahead_m}")
+            }
+            other => panic!("a front seen where the sight begins: {other:?}"),
+        }
+        // The walk nearer goes past the riser at 0.28 m: what this refusal keeps from moving.
+        let nearer = approach(&start, &rects, &[], &p);
+        let toe = |st: &Stance| st.right.translation.x + p.sole_length_m / 2.0;
+        assert!(nearer.last().is_some_and(|st| toe(st) > 0.28), "the walk toward the front as seen");
+        // Floor seen beside the flight only, and one stray in a lane: still out of sight.
+        let mut seen: Vec<Point3<f64>> =
+            (0..20).flat_map(|i| [-0.6, 0.6].map(|y| Point3::new(0.4 + 0.03 * i as f64, y, 0.0))).collect();
+        seen.push(Point3::new(0.3, 0.1, 0.01));
+        assert!(riser_in_sight(&start, &rects, &seen, &p).is_err(), "a lone stray is no floor");
+        // Floor seen in the lanes before the front, or the front on its riser: in sight.
+        seen.push(Point3::new(0.32, -0.1, -0.01));
+        assert!(riser_in_sight(&start, &rects, &seen, &p).is_ok());
+        let mut placed = rects.clone();
+        placed[0] = rects[0].clone().with_front_on_riser(true);
+        assert!(riser_in_sight(&start, &placed, &[], &p).is_ok());
+
+        // The walk back: in the feet's lanes, within the approach's stride, on the floor, to
+        // the front less `approach_blind_m`.
+        let back = retreat(&start, &rects, &[], &p);
+        let mut from = 0.0;
+        for st in &back {
+            assert_eq!(st.step, None);
+            let x = st.right.translation.x;
+            assert!(x < from && from - x <= p.approach_stride_m + 1e-9, "{from:.3} -> {x:.3}");
+            for (f, y) in [(&st.right, -0.1), (&st.left, 0.1)] {
+                assert!((f.translation.x - x).abs() < 1e-9 && (f.translation.y - y).abs() < 1e-9);
+                assert!(f.translation.z.abs() < 1e-9);
+            }
+            from = x;
+        }
+        assert!((from - (0.341 - p.approach_blind_m)).abs() < 1e-9, "ends at {from:.3}");
+        // From there (within millimetres), nothing more is walked back.
+        assert!(retreat(&stance_at(from + 0.004), &rects, &[], &p).is_empty());
+        // A box seen where the feet would go: no stance there.
+        let boxed: Vec<Point3<f64>> = (0..10)
+            .flat_map(|i| {
+                (0..12).map(move |k| Point3::new(-0.3 + 0.03 * i as f64, -0.18 + 0.03 * k as f64, 0.2))
+            })
+            .collect();
+        assert!(retreat(&start, &rects, &boxed, &p).is_empty());
+    }
+
+    /// A walk nearer keeps every sole, grown by `toe_clearance_m`, off every perceived step's
+    /// footprint, not only the lowest step's front: a higher rectangle reaching nearer than
+    /// the lowest one's front (a view no plan has judged) stops the walk before it.
+    #[test]
+    fn the_walk_nearer_keeps_off_every_perceived_step() {
+        let p = GaitParams::default();
+        let sole = |y: f64| Isometry3::translation(0.0, y, 0.0);
+        let start = Stance { right: sole(-0.1), left: sole(0.1), step: None };
+        let floor: Vec<Point3<f64>> = (0..=30)
+            .flat_map(|i| (0..=14).map(move |k| Point3::new(0.03 * i as f64, -0.21 + 0.03 * k as f64, 0.0)))
+            .collect();
+        let toe = |st: &Stance| st.right.translation.x + p.sole_length_m / 2.0;
+        let lowest = tread(0.9, 0.15, 0.3);
+        let walk = approach(&start, std::slice::from_ref(&lowest), &floor, &p);
+        assert_eq!(walk.len(), 3);
+        assert!((toe(&walk[2]) - (0.9 - p.toe_gap_m)).abs() < 1e-9, "the toes toe_gap_m behind the front");
+        // A rectangle 0.15 m higher from 0.6 m to 1.8 m: its front nearer than the lowest's.
+        let nearer = PlaneSegment::new(Point3::new(1.2, 0.0, 0.3), Vector3::x(), 1.2, 1.0, Vector3::z(), 10)
+            .expect("valid rectangle");
+        let kept = approach(&start, &[lowest, nearer], &floor, &p);
+        assert!(!kept.is_empty() && kept.len() < walk.len(), "{} stances", kept.len());
+        for st in &kept {
+            assert!(toe(st) <= 0.6 - p.toe_clearance_m + 1e-9, "a toe at {:.3} m", toe(st));
+        }
     }
 
     /// The lowest steps planned alone, a higher one left for a closer look: the next one's

@@ -16,7 +16,7 @@ pub mod rectangles;
 
 pub use contact::{Contact, ContactSpec};
 pub use footholds::{Foot, Stance};
-pub use plan::{plan, plan_among, plan_approach, plan_below, Plan, PlanParams};
+pub use plan::{plan, plan_among, plan_approach, plan_below, plan_in_sight, plan_retreat, Plan, PlanParams};
 
 /// Why a climb was refused. Steps are numbered from 1, the lowest, in messages.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
@@ -56,18 +56,47 @@ pub enum PlanError {
         /// The flight's usual rise: the median of three or more rises, the lower of two.
         usual_m: f64,
     },
-    /// The lidar saw something standing on the floor where a floor stance puts a sole: a
-    /// step perception did not take for one, or an obstacle.
-    #[error("stance {}: the lidar saw {points} points standing up to {height_m:.3} m above the floor under the {foot:?} sole (a step not perceived, or an obstacle)", .stance + 1)]
+    /// The lidar saw something standing on the floor where a floor stance puts a sole, or
+    /// in its way there: a step perception did not take for one, or an obstacle.
+    #[error("stance {}: the lidar saw {points} points standing up to {height_m:.3} m above the floor in the {foot:?} sole's way (a step not perceived, or an obstacle)", .stance + 1)]
     FloorObstructed {
         /// 0-based stance.
         stance: usize,
         /// Which foot.
         foot: Foot,
-        /// The surroundings' points under the sole above the floor's band.
+        /// The surroundings' points in the sole's way above the floor's band.
         points: usize,
         /// The highest of them above the floor, metres.
         height_m: f64,
+    },
+    /// The lidar saw something standing on a tread or a landing where a stance on a step
+    /// puts a sole, or in its way there (an object left on the step): the foot's lane is
+    /// blocked, and the lanes do not move around it.
+    #[error("stance {} on step {}: the lidar saw {points} points standing up to {height_m:.3} m above the tread in the {foot:?} sole's way (an object on the step)", .stance + 1, .step + 1)]
+    TreadObstructed {
+        /// 0-based stance.
+        stance: usize,
+        /// 0-based step the stance stands on.
+        step: usize,
+        /// Which foot.
+        foot: Foot,
+        /// The surroundings' points in the sole's way above the tread's band.
+        points: usize,
+        /// The highest of them above the tread under them, metres.
+        height_m: f64,
+    },
+    /// The lowest step's front edge as perceived is not known to be its nose: it was not
+    /// placed on its riser, and the lidar saw no floor before it in the feet's lanes. Set
+    /// down near the first riser, the robot has the floor before it and the tread's near part
+    /// under its lidar, out of sight: the front it sees is where its sight begins, and the
+    /// riser may stand anywhere between the toes and it. A walk on the floor toward that
+    /// front could set a foot into the riser, so none is planned.
+    #[error("step {}: its front edge, {ahead_m:.3} m ahead of the feet, may be only where the lidar's sight begins: neither its riser nor the floor before it was seen, and no floor stance goes toward it", .step + 1)]
+    RiserOutOfSight {
+        /// 0-based step.
+        step: usize,
+        /// Its front edge as perceived, along the ascent from the middle of the feet, metres.
+        ahead_m: f64,
     },
     /// A rise the legs cannot climb.
     #[error("step {}: rise {rise_m:.3} m is higher than the legs can climb ({max_m:.3} m)", .step + 1)]
@@ -181,7 +210,8 @@ pub enum PlanError {
         /// When, seconds from the plan's start.
         t_s: f64,
     },
-    /// The body (an arm, the trunk, the head) enters a surface the lidar saw.
+    /// The body (an arm, the trunk, the head, a thigh or a shank) enters a surface the lidar
+    /// saw (for the legs: off the steps and the floor, see `clearance::SeenPoints::off_the_steps`).
     #[error("segment {}: {limb} touches a surface the lidar saw at ({:.3}, {:.3}, {:.3}) m ({:.1} mm deep) at t = {t_s:.2} s", .segment + 1, .point_m[0], .point_m[1], .point_m[2], .depth_m * 1e3)]
     BodyTouchesSurface {
         /// 0-based segment.
@@ -236,6 +266,10 @@ pub enum RefusalKind {
     MissingStep,
     /// [`PlanError::FloorObstructed`].
     FloorObstructed,
+    /// [`PlanError::TreadObstructed`].
+    TreadObstructed,
+    /// [`PlanError::RiserOutOfSight`].
+    RiserOutOfSight,
     /// [`PlanError::HighRise`].
     HighRise,
     /// [`PlanError::Gap`].
@@ -269,14 +303,18 @@ pub enum RefusalKind {
 }
 
 impl RefusalKind {
-    /// Whether a closer view of the steps may undo this refusal: a judgement of a step's
+    /// Whether another view of the steps may undo this refusal: a judgement of a step's
     /// extent as seen (a step seen in part is narrow or shallow, leaves a gap or a long
-    /// stride, or comes back turned), not of the robot's motion over the steps. Rises are
-    /// not: a height is measured whole from any view, and a staircase too high to climb
-    /// is refused before anything moves.
+    /// stride, or comes back turned; a first riser out of the lidar's sight, seen from
+    /// farther back), not of the robot's motion over the steps. Rises are not: a height is
+    /// measured whole from any view, and a staircase too high to climb is refused before
+    /// anything moves.
     pub fn about_the_view(self) -> bool {
         use RefusalKind as K;
-        matches!(self, K::NotStraight | K::ShortTread | K::Gap | K::OffTheSide | K::Stride)
+        matches!(
+            self,
+            K::NotStraight | K::ShortTread | K::Gap | K::OffTheSide | K::Stride | K::RiserOutOfSight
+        )
     }
 }
 
@@ -322,6 +360,12 @@ impl PlanError {
             }
             PlanError::FloorObstructed { stance, height_m, .. } => {
                 (K::FloorObstructed, None, Some(*stance), None, (Some(*height_m), None, Some("m")))
+            }
+            PlanError::TreadObstructed { stance, step, height_m, .. } => {
+                (K::TreadObstructed, Some(*step), Some(*stance), None, (Some(*height_m), None, Some("m")))
+            }
+            PlanError::RiserOutOfSight { step, ahead_m } => {
+                (K::RiserOutOfSight, Some(*step), None, None, (Some(*ahead_m), None, Some("m")))
             }
             PlanError::HighRise { step, rise_m, max_m } => {
                 (K::HighRise, Some(*step), None, None, m(*rise_m, *max_m))

@@ -75,8 +75,16 @@ pub struct IkParams {
     pub clearance_gain_per_s: f64,
     /// Least distance kept between the rest of the body (arms, trunk, head) and every
     /// surface the lidar saw, metres, measured to the surroundings' voxel centroids (so a
-    /// noisy wall's nearest centroids stand a little proud of it). 3 cm, as the legs.
+    /// noisy wall's nearest centroids stand a little proud of it), and between the legs
+    /// (thigh, shank) and every such surface off the steps and the floor
+    /// (`leg_surface_band_m`). 3 cm, as the legs from the steps.
     pub body_clearance_m: f64,
+    /// The surroundings' points within this of a step solid, or of the floor under the
+    /// start, are the steps' and the floor's own surfaces, which the legs are not kept off
+    /// by `body_clearance_m` (their feet stand on them; `leg_clearance_m` keeps the legs off
+    /// the steps), metres: three standard deviations of a 20 mm range noise, as
+    /// `GaitParams::floor_band_m` (a riser's voxels stray that far toward the robot).
+    pub leg_surface_band_m: f64,
 }
 
 impl Default for IkParams {
@@ -102,6 +110,7 @@ impl Default for IkParams {
             clearance_range_m: 0.08,
             clearance_gain_per_s: 5.0,
             body_clearance_m: 0.03,
+            leg_surface_band_m: 0.06,
         }
     }
 }
@@ -320,20 +329,27 @@ pub struct Tracker<'m> {
     upper_limbs: Vec<Limb>,
     seen: Arc<SeenPoints>,
     probes: ProbeCache,
+    /// The seen points off the steps and the floor: what the legs are kept off.
+    leg_seen: SeenPoints,
+    leg_probes: ProbeCache,
     base_ref: nalgebra::UnitQuaternion<f64>,
     com_jac: nalgebra::Matrix3xX<f64>,
     frame_jac: nalgebra::Matrix6xX<f64>,
     qp: ik::Solver,
-    /// The legs' clearance rows, then the rest of the body's.
-    clear: [ik::Inequality; 2],
+    /// The legs' clearance rows from the steps, the rest of the body's from the seen
+    /// surfaces, the legs' from the seen surfaces off the steps.
+    clear: [ik::Inequality; 3],
     least: Option<(f64, usize, usize)>,
     least_body: Option<(f64, usize, usize)>,
+    least_leg_surface: Option<(f64, usize, usize)>,
 }
 
 impl<'m> Tracker<'m> {
     /// A tracker from configuration `q0` (whose joints are also the posture term's reference;
     /// the base task holds the base upright, facing where the feet point), keeping the legs `p.leg_clearance_m`
-    /// off `blocks` and the rest of the body `p.body_clearance_m` off the `seen` surfaces.
+    /// off `blocks` and the rest of the body `p.body_clearance_m` off the `seen` surfaces, the
+    /// legs as far off those of them off the steps and the floor under the soles at `q0`
+    /// ([`SeenPoints::off_the_steps`]).
     pub fn new(
         model: &'m RobotModel,
         q0: &[f64],
@@ -347,6 +363,8 @@ impl<'m> Tracker<'m> {
         let upper = upper_body_mask(model, &feet);
         let limbs = clearance::limbs(model, &feet);
         let upper_limbs = clearance::upper_limbs(model, &feet);
+        let floor_z = feet.iter().map(|&f| kin.frame_pose(f).translation.z).fold(f64::INFINITY, f64::min);
+        let leg_seen = seen.off_the_steps(blocks, floor_z, p.leg_surface_band_m);
         // The base held upright: a reference taken from q0 as it is would keep whatever tilt
         // the last motion left, and the tilts of successive plans would add up (Exp. 2 ended
         // its 11 steps pitched 14 deg forward). Its heading follows the feet (see `tick`);
@@ -362,6 +380,7 @@ impl<'m> Tracker<'m> {
             jacobian: nalgebra::DMatrix::zeros(0, model.nv()),
             bound: nalgebra::DVector::zeros(0),
         };
+        let legs_off_seen = body.clone();
         let mut t = Self {
             model,
             p: p.clone(),
@@ -375,14 +394,17 @@ impl<'m> Tracker<'m> {
             upper_limbs,
             seen,
             probes: ProbeCache::default(),
+            leg_seen,
+            leg_probes: ProbeCache::default(),
             base_ref,
             com_jac,
             frame_jac,
             qp: ik::Solver::with_tolerance(model.nv(), p.damping, p.qp_tolerance)
                 .with_active_set(p.active_set),
-            clear: [legs, body],
+            clear: [legs, body, legs_off_seen],
             least: None,
             least_body: None,
+            least_leg_surface: None,
         };
         t.update_clearances();
         Ok(t)
@@ -410,6 +432,16 @@ impl<'m> Tracker<'m> {
             p.body_clearance_m,
             p.clearance_gain_per_s,
             &mut self.clear[1],
+            false,
+        );
+        self.least_leg_surface = clearance_rows(
+            kin,
+            &mut self.frame_jac,
+            &self.limbs,
+            |i, limb| self.leg_probes.nearest(i, &self.leg_seen, limb.capsule(kin), range),
+            p.body_clearance_m,
+            p.clearance_gain_per_s,
+            &mut self.clear[2],
             false,
         );
     }
@@ -454,6 +486,19 @@ impl<'m> Tracker<'m> {
     /// The surfaces the lidar saw, as this tracker keeps the body off them.
     pub fn seen(&self) -> &SeenPoints {
         &self.seen
+    }
+
+    /// The least clearance between a leg capsule and a surface the lidar saw off the steps
+    /// and the floor, with the capsule's index (see [`Tracker::limb_name`]) and the point's
+    /// (in [`Tracker::leg_seen`]).
+    pub fn least_leg_surface_clearance(&self) -> Option<(f64, usize, usize)> {
+        self.least_leg_surface
+    }
+
+    /// The surfaces the lidar saw off the steps and the floor, as this tracker keeps the
+    /// legs off them.
+    pub fn leg_seen(&self) -> &SeenPoints {
+        &self.leg_seen
     }
 
     /// One QP toward `targets`, integrated over `dt_s`.
@@ -552,7 +597,8 @@ pub fn com_target(seg: &Segment, tau: f64) -> (Point3<f64>, nalgebra::Vector3<f6
 
 /// Tracks `segments` from configuration `q0`: one QP per sample at `p.rate_hz`, keeping the
 /// legs `p.leg_clearance_m` off the `blocks` (the steps, see [`clearance::step_blocks`]) and
-/// the rest of the body `p.body_clearance_m` off the `seen` surfaces.
+/// the whole body `p.body_clearance_m` off the `seen` surfaces (the legs off those off the
+/// steps and the floor, see [`Tracker::new`]).
 pub fn track(
     model: &RobotModel,
     q0: &[f64],
@@ -626,6 +672,18 @@ pub fn track(
                     });
                 }
             }
+            if let Some((d, limb, point)) = tracker.least_leg_surface_clearance() {
+                if d < 0.0 {
+                    let at = tracker.leg_seen().points()[point];
+                    return Err(PlanError::BodyTouchesSurface {
+                        segment: si,
+                        limb: tracker.limb_name(limb).to_string(),
+                        point_m: [at.x, at.y, at.z],
+                        depth_m: -d,
+                        t_s: t,
+                    });
+                }
+            }
             let kin = tracker.kinematics();
             let com_error = (kin.com() - com_ref).norm();
             if com_error > stats.max_com_error_m {
@@ -672,6 +730,33 @@ mod tests {
 
     fn sole(yaw_deg: f64) -> Isometry3<f64> {
         Isometry3::rotation(nalgebra::Vector3::z() * yaw_deg.to_radians())
+    }
+
+    /// The knee: a parcel's voxel 2 cm off the right shank is kept off by the legs'
+    /// clearance (`body_clearance_m`, as the arms and trunk); the floor under the soles and
+    /// a step's tread, which the feet stand on (the step solids keep the legs off the steps),
+    /// are not.
+    #[test]
+    fn the_legs_are_kept_off_what_the_lidar_saw_off_the_steps_and_the_floor() {
+        let model = hrp4::model().expect("the model");
+        let q0 = hrp4::half_sitting_at(&model, &Isometry3::identity()).expect("standing at the origin");
+        let mut kin = Kinematics::new(&model);
+        kin.update(&q0).expect("a configuration");
+        let limbs = clearance::limbs(&model, &hrp4::sole_frames(&model).expect("soles"));
+        let shank = limbs.iter().find(|l| l.name == "R_KNEE_LINK").expect("the right shank");
+        let c = shank.capsule(&kin);
+        let mid = Point3::from((c.a.coords + c.b.coords) / 2.0);
+        let parcel = mid - nalgebra::Vector3::y() * (c.radius_m + 0.02);
+        let floor = Point3::new(mid.x, mid.y, 0.02);
+        let step = crate::perception::PlaneSegment::level_along_x(0.3, 0.17, 0.28);
+        let blocks = clearance::step_blocks(&[step], -0.1);
+        let tread = Point3::new(0.44, 0.0, 0.19);
+        let seen = Arc::new(SeenPoints::new(vec![floor, tread, parcel]));
+        let tracker = Tracker::new(&model, &q0, &blocks, seen, &IkParams::default()).expect("a tracker");
+        assert_eq!(tracker.leg_seen().points(), &[parcel][..], "only the parcel is kept off");
+        let (d, limb, point) = tracker.least_leg_surface_clearance().expect("the parcel is near the shank");
+        assert_eq!((tracker.limb_name(limb), point), ("R_KNEE_LINK", 0));
+        assert!((d - 0.02).abs() < 1e-3, "{d}");
     }
 
     #[test]

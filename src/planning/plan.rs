@@ -2,7 +2,7 @@
 //! gait's segments with their polygons and margins, and the joint trajectory out (§6).
 
 use super::clearance::{step_blocks, SeenPoints};
-use super::footholds::{approach, footholds_below, GaitParams, Stance};
+use super::footholds::{approach, footholds_below, retreat, riser_in_sight, GaitParams, Stance};
 use super::gait::{segments, Body, Legs, Segment, StepParams};
 use super::motion::{track, IkParams, JointTrajectory, Tracking};
 use super::{reach, PlanError};
@@ -148,6 +148,31 @@ pub fn plan_below(
     .ok_or(PlanError::NoSteps)
 }
 
+/// [`plan_below`] where the first riser may be out of the lidar's sight (the closed loop, on
+/// the floor it started from; `seen` is everything the lidar saw): a climb that would first
+/// walk the floor toward the lowest step is refused as [`riser_in_sight`] refuses it, unless
+/// that riser is in sight. A robot set down near the first riser plans from where it stands
+/// (its first stance onto the step) or not at all, and never walks a foot into a riser it
+/// did not see.
+pub fn plan_in_sight(
+    model: &RobotModel,
+    q0: &[f64],
+    rects: &[PlaneSegment],
+    below: usize,
+    seen: Arc<SeenPoints>,
+    max_stances: Option<usize>,
+    p: &PlanParams,
+) -> Result<Plan, PlanError> {
+    plan_stances(model, q0, rects, seen, max_stances, p, |start, pts, legs| {
+        let stances = footholds_below(start, rects, below, pts, legs, &p.gait)?;
+        if stances.first().is_some_and(|s| s.step.is_none()) {
+            riser_in_sight(start, rects, pts, &p.gait)?;
+        }
+        Ok(stances)
+    })?
+    .ok_or(PlanError::NoSteps)
+}
+
 /// The walk on the floor toward the flight of `rects` ([`approach`]), its first
 /// `max_stances` stances, planned as [`plan_among`] plans a climb but with the steps left
 /// unjudged: the closed loop walks it to look again at a flight it refused from afar.
@@ -162,6 +187,23 @@ pub fn plan_approach(
 ) -> Result<Option<Plan>, PlanError> {
     plan_stances(model, q0, rects, seen, max_stances, p, |start, pts, _| {
         Ok(approach(start, rects, pts, &p.gait))
+    })
+}
+
+/// The walk on the floor back from the flight of `rects` ([`retreat`]), its first
+/// `max_stances` stances, planned as [`plan_approach`] plans its walk: the closed loop walks
+/// it to see a first riser that was out of the lidar's sight ([`riser_in_sight`]).
+/// `Ok(None)` when there is nothing left to walk.
+pub fn plan_retreat(
+    model: &RobotModel,
+    q0: &[f64],
+    rects: &[PlaneSegment],
+    seen: Arc<SeenPoints>,
+    max_stances: Option<usize>,
+    p: &PlanParams,
+) -> Result<Option<Plan>, PlanError> {
+    plan_stances(model, q0, rects, seen, max_stances, p, |start, pts, _| {
+        Ok(retreat(start, rects, pts, &p.gait))
     })
 }
 

@@ -260,6 +260,13 @@ pub struct PlanReport {
     pub refusal: Option<Refusal>,
     /// Planning wall time, seconds.
     pub wall_s: f64,
+    /// The lowest step left for a closer look, with every step above it, as the closed loop
+    /// leaves it (seen shallower than a foot needs while lower steps remain:
+    /// [`without_partial_top`](crate::perception::step_map::without_partial_top)): the
+    /// refusal it would have met. The plan climbs the steps below it, the step bounding the
+    /// tread below it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub closer_look: Option<Refusal>,
     /// The plan.
     #[serde(flatten)]
     pub plan: Option<PlanMsg>,

@@ -7,7 +7,7 @@
 use super::expect::expect;
 use super::suite::{fnv1a, Default as FieldDefault, Dist, Field, Kind, Suite, Val, FIELDS};
 use crate::planning::footholds::GaitParams;
-use crate::scenario::{BoxSpec, ExpectSpec, Scenario};
+use crate::scenario::{BoxSpec, ExpectSpec, Handrails, ObjectSpec, Risers, Scenario};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::collections::BTreeMap;
@@ -274,12 +274,108 @@ fn build(
         }
         s.boxes.push(b);
     }
+    real_features(&mut s, v, rng)?;
     fit_room(&mut s);
     let issues = s.issues();
     match issues.first() {
         Some(i) => Err(format!("`{}` {}", i.field, i.reason)),
         None => Ok(s),
     }
+}
+
+fn word<'a>(values: &'a BTreeMap<String, Val>, key: &str, default: &'a str) -> &'a str {
+    match values.get(key) {
+        Some(Val::Text(w)) => w,
+        _ => default,
+    }
+}
+
+/// Sizes (along, across, height) of the objects a suite can leave on treads, metres: a
+/// shoe, a parcel (a shoe box), a bag, a person standing.
+fn object_size_m(kind: &str) -> [f64; 3] {
+    match kind {
+        "shoe" => [0.30, 0.12, 0.11],
+        "bag" => [0.35, 0.25, 0.40],
+        "person" => [0.30, 0.50, 1.70],
+        _ => [0.32, 0.20, 0.12],
+    }
+}
+
+/// The features of real stairs a suite draws (nosings, open risers, uneven rises and
+/// treads, handrails, objects on treads), drawn after everything else so that a suite
+/// without them draws exactly as before. Each consumes the case's stream only when on.
+fn real_features(s: &mut Scenario, v: &BTreeMap<String, Val>, rng: &mut ChaCha8Rng) -> Result<(), String> {
+    let st = &mut s.staircase;
+    st.nosing_m = num(v, "nosing_m");
+    st.nosing_thickness_m = num(v, "nosing_thickness_m");
+    st.tread_thickness_m = num(v, "tread_thickness_m");
+    st.risers = if word(v, "risers", "closed") == "open" { Risers::Open } else { Risers::Closed };
+    st.handrails = match word(v, "handrails", "none") {
+        "left" => Handrails::Left,
+        "right" => Handrails::Right,
+        "both" => Handrails::Both,
+        _ => Handrails::None,
+    };
+    st.handrail_height_m = num(v, "handrail_height_m");
+    let n = st.steps as usize;
+    let jitter = num(v, "rise_jitter_m");
+    let odd = word(v, "odd_step", "none");
+    if jitter > 0.0 || odd != "none" {
+        let mut rises: Vec<f64> = (0..n)
+            .map(|_| st.rise_m + if jitter > 0.0 { jitter * (rng.random::<f64>() - 0.5) } else { 0.0 })
+            .collect();
+        match odd {
+            "bottom" => rises[0] += num(v, "odd_rise_m"),
+            "top" => rises[n - 1] += num(v, "odd_rise_m"),
+            _ => {}
+        }
+        if rises.iter().any(|&r| r <= 0.02) {
+            return Err(format!(
+                "a rise of {:.3} m is not a step",
+                rises.iter().fold(f64::INFINITY, |a, &b| a.min(b))
+            ));
+        }
+        st.rises_m = rises;
+    }
+    let tread_jitter = num(v, "tread_jitter_m");
+    if tread_jitter > 0.0 {
+        st.treads_m = (0..n).map(|_| st.tread_m + tread_jitter * (rng.random::<f64>() - 0.5)).collect();
+    }
+    let kind = word(v, "object_kind", "parcel");
+    let place = word(v, "object_place", "anywhere").to_string();
+    let size_m = object_size_m(kind);
+    let on = num(v, "object_step") as u32;
+    for k in 0..num(v, "objects") as usize {
+        let step = if on > 0 { on.min(st.steps) } else { rng.random_range(1..=st.steps) };
+        let layout = st.layout()[step as usize - 1];
+        let depth = layout.going_m + st.nosing_m;
+        // A person stands facing down the flight; a thing lies roughly along the tread.
+        let turn = if kind == "person" { 0.0 } else { 20.0 * (2.0 * rng.random::<f64>() - 1.0) };
+        let (len, wid) = (size_m[0], size_m[1]);
+        let half_w = st.width_m / 2.0;
+        let free = (half_w - wid / 2.0).max(0.0);
+        let across = match place.as_str() {
+            "lane" => {
+                let side = if rng.random::<bool>() { 1.0 } else { -1.0 };
+                side * (0.1 + 0.04 * (2.0 * rng.random::<f64>() - 1.0)).min(free)
+            }
+            "side" => {
+                let side = if rng.random::<bool>() { 1.0 } else { -1.0 };
+                side * free
+            }
+            _ => free * (2.0 * rng.random::<f64>() - 1.0),
+        };
+        let along = (depth - len.min(depth)) * rng.random::<f64>() + len.min(depth) / 2.0;
+        s.objects.push(ObjectSpec {
+            name: format!("{kind}_{}", k + 1),
+            step,
+            along_m: along.min(depth),
+            across_m: across,
+            size_m,
+            yaw_deg: turn,
+        });
+    }
+    Ok(())
 }
 
 /// A box's footprint, counter-clockwise.
@@ -334,7 +430,17 @@ fn fit_room(s: &mut Scenario) {
     let lo = pts.iter().fold([f64::INFINITY; 2], |m, q| [m[0].min(q[0]), m[1].min(q[1])]);
     let hi = pts.iter().fold([f64::NEG_INFINITY; 2], |m, q| [m[0].max(q[0]), m[1].max(q[1])]);
     let top = s.staircase.top_m() + crate::scenario::ROBOT_HEADROOM_M + 0.5;
+    for o in &s.objects {
+        pts.extend(o.placed(&s.staircase).0);
+    }
     let tallest = s.boxes.iter().map(|b| b.center_m[2] + b.size_m[2] / 2.0 + 0.1).fold(0.0, f64::max);
+    let handrail = if s.staircase.handrails == Handrails::None { 0.0 } else { s.staircase.handrail_height_m };
+    let tallest = s
+        .objects
+        .iter()
+        .map(|o| o.placed(&s.staircase).1 + o.size_m[2] + 0.1)
+        .fold(tallest, f64::max)
+        .max(s.staircase.top_m() + handrail + 0.1);
     s.room.center_m = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0];
     s.room.size_m =
         [hi[0] - lo[0] + 2.0 * ROOM_MARGIN_M, hi[1] - lo[1] + 2.0 * ROOM_MARGIN_M, top.max(tallest).max(3.0)];

@@ -136,7 +136,33 @@ pub const FIELDS: &[Field] = &[
     Field { key: "stairwell_gap_m", kind: Kind::Float { lo: 0.0, hi: 1.0 }, doc: "gap between the flight's sides and the stairwell walls, m", default: Default::Num(0.0) },
     Field { key: "missing_step", kind: Kind::Int { lo: 0, hi: 199 }, doc: "a step left out of the flight (1 = lowest; 0 = none)", default: Default::Num(0.0) },
     Field { key: "blondel_m", kind: Kind::Float { lo: 0.0, hi: 3.0 }, doc: "a constraint, not a field: 2 x rise + tread must lie in this range (a value or a range), else the case is redrawn", default: Default::Num(f64::NAN) },
+    Field { key: "nosing_m", kind: Kind::Float { lo: 0.0, hi: 0.1 }, doc: "projection of each tread's nosing past the riser below, m", default: Default::Num(0.0) },
+    Field { key: "nosing_thickness_m", kind: Kind::Float { lo: 0.005, hi: 0.1 }, doc: "thickness of the nosing, m", default: Default::Num(0.03) },
+    Field { key: "risers", kind: Kind::Word(RISERS), doc: "closed (solid steps) or open (tread slabs with gaps)", default: Default::Word("closed") },
+    Field { key: "tread_thickness_m", kind: Kind::Float { lo: 0.01, hi: 0.2 }, doc: "thickness of an open-riser tread slab, m", default: Default::Num(0.04) },
+    Field { key: "rise_jitter_m", kind: Kind::Float { lo: 0.0, hi: 0.1 }, doc: "each rise drawn within +/- half this of rise_m (the largest minus the smallest at most this), m", default: Default::Num(0.0) },
+    Field { key: "odd_step", kind: Kind::Word(ODD_STEPS), doc: "a step whose rise differs from the others by odd_rise_m: the bottom, the top or none", default: Default::Word("none") },
+    Field { key: "odd_rise_m", kind: Kind::Float { lo: -0.1, hi: 0.1 }, doc: "how much the odd step's rise differs (a floor finish, a slab), m", default: Default::Num(0.0) },
+    Field { key: "tread_jitter_m", kind: Kind::Float { lo: 0.0, hi: 0.1 }, doc: "each tread drawn within +/- half this of tread_m, m", default: Default::Num(0.0) },
+    Field { key: "handrails", kind: Kind::Word(HANDRAILS), doc: "handrails on the flight's sides: none, left, right, both", default: Default::Word("none") },
+    Field { key: "handrail_height_m", kind: Kind::Float { lo: 0.5, hi: 1.5 }, doc: "height of a handrail above the nosing line, m", default: Default::Num(0.9) },
+    Field { key: "objects", kind: Kind::Int { lo: 0, hi: 5 }, doc: "objects left on the treads", default: Default::Num(0.0) },
+    Field { key: "object_kind", kind: Kind::Word(OBJECT_KINDS), doc: "what an object is (its size): shoe, parcel, bag, person", default: Default::Word("parcel") },
+    Field { key: "object_place", kind: Kind::Word(OBJECT_PLACES), doc: "where across the tread an object stands: in a foot's lane, at the tread's side, anywhere", default: Default::Word("anywhere") },
+    Field { key: "object_step", kind: Kind::Int { lo: 0, hi: 200 }, doc: "the step an object stands on (1 = lowest; 0: any, drawn)", default: Default::Num(0.0) },
 ];
+
+/// Kinds of risers.
+pub const RISERS: &[&str] = &["closed", "open"];
+/// Which step's rise differs from the others.
+pub const ODD_STEPS: &[&str] = &["none", "bottom", "top"];
+/// Sides with a handrail.
+pub const HANDRAILS: &[&str] = &["none", "left", "right", "both"];
+/// Objects left on treads, each with its size (along, across, height), metres: a shoe, a
+/// parcel (a shoe box), a bag, a person standing (shoulders 0.5 m wide, 1.7 m tall).
+pub const OBJECT_KINDS: &[&str] = &["shoe", "parcel", "bag", "person"];
+/// Where across a tread an object is drawn.
+pub const OBJECT_PLACES: &[&str] = &["lane", "side", "anywhere"];
 
 /// The field named `key`.
 pub fn field(key: &str) -> Option<&'static Field> {

@@ -174,8 +174,31 @@ pub fn format_params(r: &CaseResult) -> String {
         "noise_mm",
         "friction",
     ];
-    let parts: Vec<String> =
+    let mut parts: Vec<String> =
         keys.iter().filter_map(|k| r.params.get(*k).map(|v| format!("{k}={}", short(v)))).collect();
+    // The features of real stairs, only where a case has them.
+    let real = [
+        "nosing_m",
+        "risers",
+        "rise_jitter_m",
+        "odd_step",
+        "odd_rise_m",
+        "handrails",
+        "objects",
+        "object_kind",
+        "object_place",
+    ];
+    for k in real {
+        let (Some(v), Some(f)) = (r.params.get(k), super::suite::field(k)) else { continue };
+        let default = match f.default {
+            super::suite::Default::Num(x) => v.as_f64() == Some(x),
+            super::suite::Default::Word(w) => matches!(v, super::suite::Val::Text(t) if t == w),
+            super::suite::Default::Flag(b) => v == &super::suite::Val::Bool(b),
+        };
+        if !default {
+            parts.push(format!("{k}={}", short(v)));
+        }
+    }
     format!("[{}]", parts.join(" "))
 }
 

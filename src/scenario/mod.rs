@@ -28,6 +28,8 @@ pub struct Scenario {
     pub room: RoomSpec,
     /// Extra boxes: clutter, walls, obstacles.
     pub boxes: Vec<BoxSpec>,
+    /// Things left on a tread or on the floor, placed relative to the flight.
+    pub objects: Vec<ObjectSpec>,
     /// The robot's start on the floor.
     pub robot: RobotStart,
     /// The tilting lidar.
@@ -70,6 +72,7 @@ impl Default for Scenario {
             staircase: StaircaseSpec::default(),
             room: RoomSpec::default(),
             boxes: Vec::new(),
+            objects: Vec::new(),
             robot: RobotStart::default(),
             lidar: LidarSpec::default(),
             expect: None,
@@ -77,29 +80,100 @@ impl Default for Scenario {
     }
 }
 
-/// A straight staircase of identical solid steps, each a box from the floor to its tread.
+/// A straight staircase. Its steps are alike unless per-step lists say otherwise; each is a
+/// solid block from the floor to its tread (closed risers) or a slab between two stringers
+/// (open risers), with an optional nosing. Step `i`'s riser stands at the sum of the treads
+/// before it along the ascent, its tread at the sum of the rises up to it; the nosing
+/// projects past the riser toward the robot. [`StaircaseSpec::layout`] gives each step's
+/// numbers, which the world, the ground truth and the expectations all read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct StaircaseSpec {
     /// Number of steps (at least 1).
     pub steps: u32,
-    /// Height of each step above the previous one, metres.
+    /// Height of each step above the previous one, metres (`rises_m` overrides it).
     pub rise_m: f64,
-    /// Depth of each tread along the staircase direction, metres.
+    /// Depth of each tread along the staircase direction, riser to riser (the going),
+    /// metres (`treads_m` overrides it).
     pub tread_m: f64,
+    /// Each step's own rise, lowest first, metres; empty: every step rises `rise_m`. Real
+    /// flights vary: IRC R311.7.5.1 allows 9.5 mm between the largest and smallest rise, and
+    /// a floor finish laid later makes the bottom or top rise differ by more.
+    pub rises_m: Vec<f64>,
+    /// Each step's own tread (riser to riser), lowest first, metres; empty: `tread_m`.
+    pub treads_m: Vec<f64>,
     /// Width of the steps across the staircase direction, metres.
     pub width_m: f64,
     /// Direction of ascent in the world, degrees about +z from +x.
     pub yaw_deg: f64,
-    /// World (x, y) of the middle of the first step's front edge, on the floor, metres.
+    /// World (x, y) of the middle of the first step's riser, on the floor, metres (the first
+    /// nosing, if any, projects `nosing_m` before it).
     pub start_m: [f64; 2],
     /// Extra depth of the top step (a landing), metres; 0 for none.
     pub landing_m: f64,
-    /// Coulomb friction coefficient of the step surfaces.
+    /// Coulomb friction coefficient of the step surfaces (`frictions` overrides it).
     pub friction: f64,
+    /// Each step's own friction coefficient, lowest first; empty: `friction`.
+    pub frictions: Vec<f64>,
     /// Steps left out of the flight (1 = the lowest; not the top one): the tread before
     /// the gap is followed by one two rises up, as on a stair with a missing step.
     pub missing_steps: Vec<u32>,
+    /// How far each tread projects past the riser below it toward the robot, metres (IRC
+    /// R311.7.5.3: 19 to 32 mm on solid-riser stairs with treads under 279 mm); 0: none.
+    pub nosing_m: f64,
+    /// Thickness of the projecting nosing (the tread board's edge), metres.
+    pub nosing_thickness_m: f64,
+    /// Closed risers (solid steps) or open ones (treads as slabs with a gap between them,
+    /// carried by a stringer at each side).
+    pub risers: Risers,
+    /// Thickness of a tread slab on an open-riser flight, metres.
+    pub tread_thickness_m: f64,
+    /// Handrails along the flight's sides.
+    pub handrails: Handrails,
+    /// Height of a handrail's top above the nosing line, metres (IRC R311.7.8.1: 34 to 38 in,
+    /// 0.86 to 0.97 m).
+    pub handrail_height_m: f64,
+    /// Posts (balusters) under a handrail: one on every tread when 1, every other when 2 ...;
+    /// 0: one at each end only.
+    pub handrail_post_every: u32,
+}
+
+/// How the space under each tread is closed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Risers {
+    /// Solid steps: each a block from the floor to its tread.
+    #[default]
+    Closed,
+    /// Treads as slabs `tread_thickness_m` thick, open between them, on two side stringers.
+    Open,
+}
+
+/// Which sides of the flight have a handrail.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Handrails {
+    /// No handrail.
+    #[default]
+    None,
+    /// On the left of the ascent.
+    Left,
+    /// On the right of the ascent.
+    Right,
+    /// On both sides.
+    Both,
+}
+
+impl Handrails {
+    /// The sides with a rail: +1 left, -1 right.
+    pub fn sides(self) -> &'static [f64] {
+        match self {
+            Handrails::None => &[],
+            Handrails::Left => &[1.0],
+            Handrails::Right => &[-1.0],
+            Handrails::Both => &[1.0, -1.0],
+        }
+    }
 }
 
 impl Default for StaircaseSpec {
@@ -108,13 +182,51 @@ impl Default for StaircaseSpec {
             steps: 3,
             rise_m: 0.20,
             tread_m: 0.27,
+            rises_m: Vec::new(),
+            treads_m: Vec::new(),
             width_m: 0.50,
             yaw_deg: 0.0,
             start_m: [0.60, 0.0],
             landing_m: 0.0,
             friction: 0.7,
+            frictions: Vec::new(),
             missing_steps: Vec::new(),
+            nosing_m: 0.0,
+            nosing_thickness_m: 0.03,
+            risers: Risers::Closed,
+            tread_thickness_m: 0.04,
+            handrails: Handrails::None,
+            handrail_height_m: 0.90,
+            handrail_post_every: 1,
         }
+    }
+}
+
+/// One step of a flight as built (indices from 0 = the lowest).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepLayout {
+    /// Its index, 0 for the lowest.
+    pub index: usize,
+    /// Its rise above the tread below (the floor for the first), metres.
+    pub rise_m: f64,
+    /// Its tread's height above the floor, metres.
+    pub height_m: f64,
+    /// Distance along the ascent from the first riser to its riser, metres.
+    pub riser_m: f64,
+    /// Its tread's depth from its riser to the next riser (with the landing for the top
+    /// step), metres; the nosing adds to it in front.
+    pub going_m: f64,
+    /// Friction coefficient of its surfaces.
+    pub friction: f64,
+    /// Whether the flight leaves it out (a missing step).
+    pub missing: bool,
+}
+
+impl StepLayout {
+    /// Distance along the ascent from the first riser to its tread's front edge (the nose),
+    /// metres.
+    pub fn nose_m(&self, nosing_m: f64) -> f64 {
+        self.riser_m - nosing_m
     }
 }
 
@@ -124,23 +236,58 @@ impl StaircaseSpec {
         self.yaw_deg.to_radians()
     }
 
-    /// Length of the flight along its ascent, landing included, metres.
+    /// Step `i`'s rise, metres.
+    pub fn rise_of(&self, i: usize) -> f64 {
+        self.rises_m.get(i).copied().unwrap_or(self.rise_m)
+    }
+
+    /// Step `i`'s tread, riser to riser, landing not included, metres.
+    pub fn tread_of(&self, i: usize) -> f64 {
+        self.treads_m.get(i).copied().unwrap_or(self.tread_m)
+    }
+
+    /// Every step of the flight, lowest first, missing ones included (flagged).
+    pub fn layout(&self) -> Vec<StepLayout> {
+        let n = self.steps as usize;
+        let (mut riser_m, mut height_m) = (0.0, 0.0);
+        (0..n)
+            .map(|i| {
+                let rise_m = self.rise_of(i);
+                height_m += rise_m;
+                let going_m = self.tread_of(i) + if i + 1 == n { self.landing_m } else { 0.0 };
+                let step = StepLayout {
+                    index: i,
+                    rise_m,
+                    height_m,
+                    riser_m,
+                    going_m,
+                    friction: self.frictions.get(i).copied().unwrap_or(self.friction),
+                    missing: self.missing_steps.contains(&(i as u32 + 1)),
+                };
+                riser_m += self.tread_of(i);
+                step
+            })
+            .collect()
+    }
+
+    /// Length of the flight along its ascent from the first riser, landing included, metres.
     pub fn length_m(&self) -> f64 {
-        self.tread_m * f64::from(self.steps) + self.landing_m
+        (0..self.steps as usize).map(|i| self.tread_of(i)).sum::<f64>() + self.landing_m
     }
 
     /// Height of the top tread, metres.
     pub fn top_m(&self) -> f64 {
-        self.rise_m * f64::from(self.steps)
+        (0..self.steps as usize).map(|i| self.rise_of(i)).sum()
     }
 
-    /// The flight's footprint on the floor, counter-clockwise from the first step's front
-    /// right corner (x, y), metres.
+    /// The flight's footprint on the floor, its first nosing included, counter-clockwise
+    /// from the first step's front right corner (x, y), metres.
     pub fn footprint_m(&self) -> [[f64; 2]; 4] {
         let (c, s) = (self.yaw_rad().cos(), self.yaw_rad().sin());
         let at = |a: f64, w: f64| [self.start_m[0] + a * c - w * s, self.start_m[1] + a * s + w * c];
         let (l, h) = (self.length_m(), self.width_m / 2.0);
-        [at(0.0, -h), at(l, -h), at(l, h), at(0.0, h)]
+        let front = -self.nosing_m;
+        [at(front, -h), at(l, -h), at(l, h), at(front, h)]
     }
 }
 
@@ -190,6 +337,62 @@ pub struct BoxSpec {
 impl Default for BoxSpec {
     fn default() -> Self {
         Self { name: String::new(), center_m: [0.0, 0.0, 0.1], size_m: [0.2, 0.2, 0.2], yaw_deg: 0.0 }
+    }
+}
+
+/// Something left on a tread or on the floor (a shoe, a parcel, a bag), a box placed in the
+/// flight's frame: along its ascent and across it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ObjectSpec {
+    /// Name for reports (optional).
+    pub name: String,
+    /// The tread it stands on (1 = the lowest step); 0: the floor.
+    pub step: u32,
+    /// Its centre's distance along the ascent from that tread's front edge (its nose), or on
+    /// the floor from the first riser (negative: before it), metres.
+    pub along_m: f64,
+    /// Its centre's offset across the flight from its middle line, left positive, metres.
+    pub across_m: f64,
+    /// Full extents (along, across, height) before the yaw, metres.
+    pub size_m: [f64; 3],
+    /// Rotation about +z from the ascent, degrees.
+    pub yaw_deg: f64,
+}
+
+impl Default for ObjectSpec {
+    fn default() -> Self {
+        // A shoe box on the lowest tread, in its middle.
+        Self {
+            name: String::new(),
+            step: 1,
+            along_m: 0.15,
+            across_m: 0.0,
+            size_m: [0.3, 0.2, 0.12],
+            yaw_deg: 0.0,
+        }
+    }
+}
+
+impl ObjectSpec {
+    /// Its footprint's corners (x, y) and the height of its base, in the world, counter-
+    /// clockwise; metres.
+    pub fn placed(&self, st: &StaircaseSpec) -> ([[f64; 2]; 4], f64) {
+        let (a, base_z_m) = match st.layout().get((self.step as usize).wrapping_sub(1)) {
+            Some(step) if self.step > 0 => (step.nose_m(st.nosing_m) + self.along_m, step.height_m),
+            _ => (self.along_m, 0.0),
+        };
+        let yaw = st.yaw_rad();
+        let (u, w) = ([yaw.cos(), yaw.sin()], [-yaw.sin(), yaw.cos()]);
+        let c = [
+            st.start_m[0] + u[0] * a + w[0] * self.across_m,
+            st.start_m[1] + u[1] * a + w[1] * self.across_m,
+        ];
+        let turn = yaw + self.yaw_deg.to_radians();
+        let (ct, sn) = (turn.cos(), turn.sin());
+        let (hx, hy) = (self.size_m[0] / 2.0, self.size_m[1] / 2.0);
+        let at = |x: f64, y: f64| [c[0] + x * ct - y * sn, c[1] + x * sn + y * ct];
+        ([at(-hx, -hy), at(hx, -hy), at(hx, hy), at(-hx, hy)], base_z_m)
     }
 }
 

@@ -217,6 +217,7 @@ impl Scenario {
                 format!("step {m} is listed twice"),
             );
         }
+        self.flight_issues(&mut v);
 
         let r = &self.room;
         if finite(&mut v, "room.size_m", &r.size_m) {
@@ -300,6 +301,94 @@ impl Scenario {
         v
     }
 
+    /// The per-step lists, nosings, open risers, handrails and objects of the flight.
+    fn flight_issues(&self, v: &mut Vec<Issue>) {
+        let s = &self.staircase;
+        let n = s.steps as usize;
+        for (key, list) in [("rises_m", &s.rises_m), ("treads_m", &s.treads_m), ("frictions", &s.frictions)] {
+            let field = format!("staircase.{key}");
+            check(
+                v,
+                list.is_empty() || list.len() == n,
+                &field,
+                format!("has {} values for {n} steps (one a step, lowest first, or none)", list.len()),
+            );
+            if finite(v, &field, list) {
+                check(v, list.iter().all(|&x| x > 0.0), &field, "every value must be > 0");
+            }
+        }
+        let least_rise = (0..n).map(|i| s.rise_of(i)).fold(f64::INFINITY, f64::min);
+        let least_tread = (0..n).map(|i| s.tread_of(i)).fold(f64::INFINITY, f64::min);
+        non_negative(v, "staircase.nosing_m", s.nosing_m);
+        check(
+            v,
+            s.nosing_m < least_tread / 2.0,
+            "staircase.nosing_m",
+            format!("{:.3} m projects more than half the shortest tread ({least_tread:.3} m)", s.nosing_m),
+        );
+        positive(v, "staircase.nosing_thickness_m", s.nosing_thickness_m);
+        if s.nosing_m > 0.0 {
+            check(
+                v,
+                s.nosing_thickness_m < least_rise,
+                "staircase.nosing_thickness_m",
+                format!("{:.3} m is not below the lowest rise ({least_rise:.3} m)", s.nosing_thickness_m),
+            );
+        }
+        positive(v, "staircase.tread_thickness_m", s.tread_thickness_m);
+        if s.risers == super::Risers::Open {
+            check(
+                v,
+                s.tread_thickness_m < least_rise,
+                "staircase.tread_thickness_m",
+                format!(
+                    "{:.3} m slabs leave no gap under the lowest rise ({least_rise:.3} m)",
+                    s.tread_thickness_m
+                ),
+            );
+        }
+        positive(v, "staircase.handrail_height_m", s.handrail_height_m);
+        for (i, o) in self.objects.iter().enumerate() {
+            let f = |k: &str| format!("objects[{i}].{k}");
+            check(
+                v,
+                o.step as usize <= n,
+                &f("step"),
+                format!("step {} is not one of the flight's {n} (0: the floor)", o.step),
+            );
+            check(
+                v,
+                !s.missing_steps.contains(&o.step),
+                &f("step"),
+                format!("step {} is missing from the flight", o.step),
+            );
+            if finite(v, &f("size_m"), &o.size_m) {
+                check(v, o.size_m.iter().all(|&x| x > 0.0), &f("size_m"), "every size must be > 0");
+            }
+            finite(v, &f("yaw_deg"), &[o.yaw_deg]);
+            if finite(v, &f("along_m"), &[o.along_m]) && o.step >= 1 && o.step as usize <= n {
+                let depth = s.layout()[o.step as usize - 1].going_m + s.nosing_m;
+                check(
+                    v,
+                    (0.0..=depth).contains(&o.along_m),
+                    &f("along_m"),
+                    format!(
+                        "{:.3} m is off step {}'s tread (0 to {depth:.3} m from its nose)",
+                        o.along_m, o.step
+                    ),
+                );
+            }
+            if finite(v, &f("across_m"), &[o.across_m]) && o.step >= 1 {
+                check(
+                    v,
+                    o.across_m.abs() <= s.width_m / 2.0,
+                    &f("across_m"),
+                    format!("{:.3} m is off the {:.3} m wide tread", o.across_m, s.width_m),
+                );
+            }
+        }
+    }
+
     /// Whether the world can be built as described: the flight inside the room and under its
     /// ceiling with headroom for the robot on the top step, the robot starting on free floor.
     fn world_issues(&self, v: &mut Vec<Issue>) {
@@ -366,6 +455,10 @@ impl Scenario {
             let rect = [at(-hx, -hy), at(hx, -hy), at(hx, hy), at(-hx, hy)];
             let d = distance_to_rect(&p, &rect);
             check(v, d >= ROBOT_RADIUS_M, "robot.position_m", format!("the robot starts {d:.2} m from boxes[{i}]: its feet need {ROBOT_RADIUS_M} m of free floor"));
+        }
+        for (i, o) in self.objects.iter().enumerate() {
+            let d = distance_to_rect(&p, &o.placed(s).0);
+            check(v, d >= ROBOT_RADIUS_M, "robot.position_m", format!("the robot starts {d:.2} m from objects[{i}]: its feet need {ROBOT_RADIUS_M} m of free floor"));
         }
     }
 }

@@ -15,6 +15,10 @@ pub enum SurfaceRole {
     Step(usize),
     /// An extra box from the scenario.
     Clutter,
+    /// A fixed part of the staircase that is not a tread: a handrail or its posts.
+    Fixture,
+    /// Something left on a tread or the floor (the scenario's `[[objects]]`).
+    Object,
 }
 
 /// A solid box with a yaw about +z. Valid once built: finite pose, positive extents.

@@ -41,6 +41,8 @@ pub fn world_xml(scene: &Scene, robot: &RobotFragment) -> String {
             SurfaceRole::Wall | SurfaceRole::Ceiling => "0.8 0.8 0.78 0.3",
             SurfaceRole::Step(_) => "0.65 0.45 0.3 1",
             SurfaceRole::Clutter => "0.4 0.6 0.4 1",
+            SurfaceRole::Fixture => "0.3 0.3 0.35 1",
+            SurfaceRole::Object => "0.8 0.5 0.2 1",
         };
         let _ = writeln!(
             geoms,

@@ -7,7 +7,7 @@
 pub mod geometry;
 pub mod mjcf;
 
-use crate::scenario::{Scenario, ScenarioError};
+use crate::scenario::{Risers, Scenario, ScenarioError};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector2, Vector3};
 
 pub use geometry::{SceneBox, StepTop, SurfaceRole};
@@ -66,31 +66,8 @@ impl Scene {
             ));
         }
 
-        let st = &s.staircase;
-        let yaw = st.yaw_rad();
-        let along = Vector2::new(yaw.cos(), yaw.sin());
-        let start = Vector2::new(st.start_m[0], st.start_m[1]);
-        let mut steps = Vec::new();
-        for i in 0..st.steps as usize {
-            if st.missing_steps.contains(&(i as u32 + 1)) {
-                continue;
-            }
-            let depth = st.tread_m + if i + 1 == st.steps as usize { st.landing_m } else { 0.0 };
-            let top = st.rise_m * (i + 1) as f64;
-            let mid = start + along * (st.tread_m * i as f64 + depth / 2.0);
-            let half = Vector3::new(depth / 2.0, st.width_m / 2.0, top / 2.0);
-            let centre = Point3::new(mid.x, mid.y, top / 2.0);
-            let b = SceneBox::new(
-                &format!("step_{}", i + 1),
-                SurfaceRole::Step(i),
-                centre,
-                half,
-                yaw,
-                st.friction,
-            );
-            steps.push(StepTop::of_box(i, &b));
-            boxes.push(b);
-        }
+        let (flight, steps) = flight_boxes(s);
+        boxes.extend(flight);
         for (i, b) in s.boxes.iter().enumerate() {
             // The scenario's own names get a prefix with the box's number: they can never
             // collide with each other or with the generator's (`floor`, `wall_left`,
@@ -110,6 +87,29 @@ impl Scene {
                 0.7,
             ));
         }
+        for (i, o) in s.objects.iter().enumerate() {
+            let name = if o.name.is_empty() {
+                format!("object_{}", i + 1)
+            } else {
+                format!("object_{}_{}", i + 1, o.name)
+            };
+            let (corners, base_z_m) = o.placed(&s.staircase);
+            let centre = Point3::new(
+                corners.iter().map(|c| c[0]).sum::<f64>() / 4.0,
+                corners.iter().map(|c| c[1]).sum::<f64>() / 4.0,
+                base_z_m + o.size_m[2] / 2.0,
+            );
+            let yaw = s.staircase.yaw_rad() + o.yaw_deg.to_radians();
+            boxes.push(SceneBox::new(
+                &name,
+                SurfaceRole::Object,
+                centre,
+                Vector3::from(o.size_m) / 2.0,
+                yaw,
+                0.7,
+            ));
+        }
+        let yaw = s.staircase.yaw_rad();
         let robot_start = Isometry3::from_parts(
             Translation3::new(s.robot.position_m[0], s.robot.position_m[1], 0.0),
             UnitQuaternion::from_euler_angles(0.0, 0.0, s.robot.yaw_deg.to_radians()),
@@ -192,4 +192,88 @@ impl Scene {
     pub fn signed_distance(&self, p: &Point3<f64>) -> f64 {
         self.boxes.iter().map(|b| b.signed_distance(p)).fold(f64::INFINITY, f64::min)
     }
+}
+
+/// Cross-section of a handrail and its posts, metres (a 5 cm bar on 4 cm balusters).
+const RAIL_M: f64 = 0.05;
+const POST_M: f64 = 0.04;
+/// How far a handrail's posts stand in from the flight's side, metres.
+const RAIL_INSET_M: f64 = 0.05;
+
+/// The staircase's boxes (steps, nosings, slabs, handrails) and each present step's tread,
+/// the ground truth: the rectangle a foot can stand on, from its nose to the next riser.
+fn flight_boxes(s: &Scenario) -> (Vec<SceneBox>, Vec<StepTop>) {
+    let st = &s.staircase;
+    let yaw = st.yaw_rad();
+    let along = Vector2::new(yaw.cos(), yaw.sin());
+    let left = Vector2::new(-yaw.sin(), yaw.cos());
+    let start = Vector2::new(st.start_m[0], st.start_m[1]);
+    // A box spanning [a0, a1] along the ascent, [w0, w1] across and [z0, z1] up.
+    let block =
+        |name: String, role: SurfaceRole, [a0, a1]: [f64; 2], [w0, w1]: [f64; 2], [z0, z1]: [f64; 2], mu| {
+            let mid = start + along * ((a0 + a1) / 2.0) + left * ((w0 + w1) / 2.0);
+            let half = Vector3::new((a1 - a0) / 2.0, (w1 - w0) / 2.0, (z1 - z0) / 2.0);
+            SceneBox::new(&name, role, Point3::new(mid.x, mid.y, (z0 + z1) / 2.0), half, yaw, mu)
+        };
+    let (mut boxes, mut tops) = (Vec::new(), Vec::new());
+    let half_w = st.width_m / 2.0;
+    let layout = st.layout();
+    for step in layout.iter().filter(|l| !l.missing) {
+        let (i, top) = (step.index, step.height_m);
+        let (nose, riser, back) = (step.nose_m(st.nosing_m), step.riser_m, step.riser_m + step.going_m);
+        let role = SurfaceRole::Step(i);
+        let name = format!("step_{}", i + 1);
+        let width = [-half_w, half_w];
+        let tread = match st.risers {
+            Risers::Closed if st.nosing_m <= 0.0 => {
+                block(name, role, [riser, back], width, [0.0, top], step.friction)
+            }
+            Risers::Closed => {
+                let board = st.nosing_thickness_m;
+                boxes.push(block(
+                    name.clone(),
+                    role,
+                    [riser, back],
+                    width,
+                    [0.0, top - board],
+                    step.friction,
+                ));
+                block(format!("{name}_tread"), role, [nose, back], width, [top - board, top], step.friction)
+            }
+            Risers::Open => {
+                block(name, role, [nose, back], width, [top - st.tread_thickness_m, top], step.friction)
+            }
+        };
+        tops.push(StepTop::of_box(i, &tread));
+        boxes.push(tread);
+        for &side in st.handrails.sides() {
+            let w = side * (half_w - RAIL_INSET_M);
+            let across = [w - RAIL_M / 2.0, w + RAIL_M / 2.0];
+            let rail_top = top + st.handrail_height_m;
+            let end = if step.index + 1 == layout.len() { back } else { nose + st.tread_of(i) };
+            let tag = if side > 0.0 { "left" } else { "right" };
+            boxes.push(block(
+                format!("handrail_{tag}_{}", i + 1),
+                SurfaceRole::Fixture,
+                [nose, end],
+                across,
+                [rail_top - RAIL_M, rail_top],
+                0.5,
+            ));
+            let every = st.handrail_post_every as usize;
+            let post_here = if every == 0 { i == 0 || i + 1 == layout.len() } else { i % every == 0 };
+            if post_here {
+                let a = nose + (RAIL_INSET_M + POST_M / 2.0).min(st.tread_of(i) / 2.0);
+                boxes.push(block(
+                    format!("post_{tag}_{}", i + 1),
+                    SurfaceRole::Fixture,
+                    [a - POST_M / 2.0, a + POST_M / 2.0],
+                    [w - POST_M / 2.0, w + POST_M / 2.0],
+                    [top, rail_top - RAIL_M],
+                    0.5,
+                ));
+            }
+        }
+    }
+    (boxes, tops)
 }
