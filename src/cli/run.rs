@@ -178,7 +178,7 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
     }
     print_summary(&report);
     // A scenario written by `regress` says what the bench should do: the verdict against it.
-    let verdict = scenario.expect.as_ref().map(|e| (e, classify(e.outcome, &report, false)));
+    let verdict = scenario.expect.as_ref().map(|e| (e, classify(e.outcome, e.before_step, &report, false)));
     if let Some((e, v)) = &verdict {
         println!("verdict: {v} (expected {:?}: {})", e.outcome, e.reason);
     }

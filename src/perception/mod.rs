@@ -542,6 +542,7 @@ pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, 
         cloud.points(),
         &cloud.viewpoint(),
         Some(found.ground_m),
+        noise_m,
         &p.riser,
     );
     let riser_ms = ms(t);

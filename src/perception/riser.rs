@@ -83,7 +83,8 @@ impl RiserParams {
 /// riser below it where `points` show one whole (see the module's doc); the segment keeps
 /// its back edge, width, height and normal, and is marked [`PlaneSegment::front_on_riser`].
 /// `ground_m` is the height of the surface the sensor stands over (the floor, or the tread
-/// under the robot), which bounds the band of the lowest segment as a tread below does.
+/// under the robot), which bounds the band of the lowest segment as a tread below does;
+/// `noise_m`, the sweep's measured range noise, sets the least nosing believed.
 /// Left as they are: a segment whose front does not face the sensor (the sensor past its
 /// middle: a tread under or behind the robot), and a lone segment deeper than wide (with
 /// no flight to give its ascent, its "front" may be a side: the step's side face or a
@@ -93,6 +94,7 @@ pub fn place_fronts(
     points: &[Point3<f32>],
     viewpoint: &Point3<f64>,
     ground_m: Option<f64>,
+    noise_m: Option<f64>,
     p: &RiserParams,
 ) -> usize {
     if !p.enabled {
@@ -114,7 +116,8 @@ pub fn place_fronts(
             .fold(f64::NEG_INFINITY, f64::max);
         let band = [(top - p.band_m[1]).max(below + p.band_m[0]), top - p.band_m[0]];
         if let Some(riser) = riser_along(s, points, band, p) {
-            let front = nosing_ahead(s, points, riser, p).unwrap_or(riser);
+            let least_m = NOSING_MIN_M.max(NOSING_NOISE_FACTOR * noise_m.unwrap_or(0.0));
+            let front = nosing_ahead(s, points, riser, least_m, p).unwrap_or(riser);
             if let Some(placed) = with_front(s, front) {
                 *s = placed;
                 moved += 1;
@@ -168,34 +171,67 @@ fn riser_along(s: &PlaneSegment, points: &[Point3<f32>], band: [f64; 2], p: &Ris
 /// being at `riser_m`: where the tread's own returns (within `band_m[0]` of its top) run on
 /// past the riser, at least `min_returns` of them in the window's half beyond it, the nose
 /// is their 80th percentile (a range error moves a return on the nose's top down and away
-/// from the sensor, back onto the tread, more often than past the edge). `None` for a
-/// riser under a plain nose: past it, at the top's height, is air.
-fn nosing_ahead(s: &PlaneSegment, points: &[Point3<f32>], riser_m: f64, p: &RiserParams) -> Option<f64> {
+/// from the sensor, back onto the tread, more often than past the edge), at most the
+/// segment's own front. `None` for a riser under a plain nose: past it, at the top's height,
+/// is air, and the segment's voxel front stands on or behind it.
+fn nosing_ahead(
+    s: &PlaneSegment,
+    points: &[Point3<f32>],
+    riser_m: f64,
+    least_m: f64,
+    p: &RiserParams,
+) -> Option<f64> {
     let out = -s.along();
     let side = Vector3::new(-out.y, out.x, 0.0);
     let c = s.center();
     let top = s.height_m();
     let half_width = s.width_m() / 2.0 - p.side_margin_m;
-    let mut ahead: Vec<f64> = points
+    let top_returns: Vec<f64> = points
         .iter()
         .map(|q| q.cast::<f64>())
         .filter(|q| (q.z - top).abs() < p.band_m[0])
         .map(|q| q - c)
         .filter(|d| d.dot(&side).abs() < half_width)
         .map(|d| d.dot(&out) - riser_m)
-        .filter(|t| *t > NOSING_MIN_M && *t < p.half_window_m)
         .collect();
-    if ahead.len() < p.min_returns {
+    let mut ahead: Vec<f64> =
+        top_returns.iter().copied().filter(|t| *t > least_m && *t < p.half_window_m).collect();
+    // A nosing's top and face give past its least projection at least `NOSING_SHARE` of
+    // the returns of a strip of the tread `NOSING_STRIP_M` deep behind the riser; a plain
+    // nose's strays under range noise are a thin spread by the edge. And the segment's own
+    // front, from its voxels, stands past the riser too: a plain tread's voxel front comes
+    // back onto the tread under noise, rarely out past it.
+    let behind = top_returns.iter().filter(|t| **t < 0.0 && **t > -NOSING_STRIP_M).count();
+    let voxel_front_m = s.depth_m() / 2.0 - riser_m;
+    if ahead.len() < p.min_returns
+        || (ahead.len() as f64) < NOSING_SHARE * behind as f64
+        || voxel_front_m < least_m
+    {
         return None;
     }
     ahead.sort_by(f64::total_cmp);
     let k = ((ahead.len() - 1) as f64 * 0.8).round() as usize;
-    Some(riser_m + ahead[k])
+    Some(riser_m + ahead[k].min(voxel_front_m))
 }
 
-/// Least projection past the riser a tread's return must have to be a nosing's, metres (a
-/// voxel's centroid on the nose itself strays about this far under range noise).
-const NOSING_MIN_M: f64 = 0.005;
+/// Least projection past the riser of a nosing's returns, and of the tread's voxel front,
+/// metres: IRC's least nosing is 19 mm, and under 20 mm of range noise a plain nose's voxel
+/// front and a few dozen of its returns stray up to about 15 mm past the riser (the Exp. 1
+/// flight's fronts, `tests/perception.rs`).
+const NOSING_MIN_M: f64 = 0.015;
+
+/// ... and at least this many times the sweep's measured range noise: at grazing incidence
+/// a range error moves a return almost wholly along the tread, and under 20 mm of noise a
+/// far plain nose's voxel front and returns stray past 15 mm (the Exp. 1 flight's top step,
+/// `tests/perception.rs`). A nosing shorter than that under such noise is left on its
+/// riser.
+const NOSING_NOISE_FACTOR: f64 = 1.5;
+
+/// The strip of a tread behind its riser that a nosing's returns are weighed against,
+/// metres, and the share of its returns a nosing shows past `NOSING_MIN_M` (see
+/// [`nosing_ahead`]).
+const NOSING_STRIP_M: f64 = 0.035;
+const NOSING_SHARE: f64 = 0.25;
 
 /// `s` with its front `front_m` from its old centre against its ascent, its back kept;
 /// `None` when that leaves no depth.
@@ -250,12 +286,12 @@ mod tests {
         let eye = Point3::new(0.0, 0.0, 1.4);
         let p = RiserParams::default();
         // A tread 0.3 m up whose nose stands 25 mm before its riser (at 1.025 m); the
-        // segment's front from voxels at 1.01.
-        let seg = tread(1.01, 0.3, 0.29);
+        // segment's front from voxels at 1.003.
+        let seg = tread(1.003, 0.3, 0.297);
         let mut cloud = wall(1.025, 0.15, 0.27);
         cloud.extend(patch(1.0, 1.3, 0.3));
         let mut one = [seg.clone()];
-        assert_eq!(place_fronts(&mut one, &cloud, &eye, None, &p), 1);
+        assert_eq!(place_fronts(&mut one, &cloud, &eye, None, None, &p), 1);
         let front = one[0].center().x - one[0].depth_m() / 2.0;
         assert!((front - 1.0).abs() < 0.006, "the front on the nose at 1.0, not the riser: {front:.4}");
         assert!(one[0].front_on_riser());
@@ -263,7 +299,7 @@ mod tests {
         let mut plain = wall(1.025, 0.15, 0.3);
         plain.extend(patch(1.025, 1.3, 0.3));
         let mut one = [seg.clone()];
-        assert_eq!(place_fronts(&mut one, &plain, &eye, None, &p), 1);
+        assert_eq!(place_fronts(&mut one, &plain, &eye, None, None, &p), 1);
         let front = one[0].center().x - one[0].depth_m() / 2.0;
         assert!((front - 1.025).abs() < 1e-3, "{front:.4}");
     }
@@ -279,7 +315,7 @@ mod tests {
         // tread ahead of and behind the window.
         let mut riser = wall(1.0, 0.15, 0.3);
         riser.extend(wall(1.2, 0.285, 0.3));
-        assert_eq!(place_fronts(&mut one, &riser, &eye, None, &p), 1);
+        assert_eq!(place_fronts(&mut one, &riser, &eye, None, None, &p), 1);
         let front = one[0].center().x - one[0].depth_m() / 2.0;
         assert!((front - 1.0).abs() < 1e-3, "front at {front:.4}");
         assert!((one[0].center().x + one[0].depth_m() / 2.0 - 1.3).abs() < 1e-9, "the back kept");
@@ -287,28 +323,28 @@ mod tests {
         assert!(one[0].front_on_riser());
         // A riser seen only in its upper part (a view over the nose): not believed.
         let mut part = [seg.clone()];
-        assert_eq!(place_fronts(&mut part, &wall(1.0, 0.25, 0.3), &eye, None, &p), 0);
+        assert_eq!(place_fronts(&mut part, &wall(1.0, 0.25, 0.3), &eye, None, None, &p), 0);
         assert_eq!(part[0], seg);
         // Nothing within the window (the true nose 10 cm off): not believed.
         let mut far = [seg.clone()];
-        assert_eq!(place_fronts(&mut far, &wall(0.9, 0.15, 0.3), &eye, None, &p), 0);
+        assert_eq!(place_fronts(&mut far, &wall(0.9, 0.15, 0.3), &eye, None, None, &p), 0);
         // Disabled: the rectangles as §4 gives them.
         let mut off = [seg.clone()];
         assert_eq!(
-            place_fronts(&mut off, &riser, &eye, None, &RiserParams { enabled: false, ..p.clone() }),
+            place_fronts(&mut off, &riser, &eye, None, None, &RiserParams { enabled: false, ..p.clone() }),
             0
         );
         // Seen from past its middle (a tread under or behind the robot), its front does not
         // face the sensor: left as it is, whatever stands under its back edge.
         let mut back = [seg.clone()];
         let behind = Point3::new(1.2, 0.0, 1.4);
-        assert_eq!(place_fronts(&mut back, &riser, &behind, None, &p), 0);
+        assert_eq!(place_fronts(&mut back, &riser, &behind, None, None, &p), 0);
         assert_eq!(back[0], seg);
         // A lone segment deeper than wide may have its axes swapped: left as it is.
         let deep = PlaneSegment::new(Point3::new(1.5, 0.0, 0.3), Vector3::x(), 1.0, 0.4, Vector3::z(), 100)
             .expect("valid rectangle");
         let mut lone = [deep.clone()];
-        assert_eq!(place_fronts(&mut lone, &wall(1.0, 0.15, 0.3), &eye, None, &p), 0);
+        assert_eq!(place_fronts(&mut lone, &wall(1.0, 0.15, 0.3), &eye, None, None, &p), 0);
         assert_eq!(lone[0], deep);
     }
 
@@ -326,16 +362,20 @@ mod tests {
                 pts.extend(wall(0.776 + 0.002 * k as f64, z, z + 0.001));
             }
         }
-        place_fronts(&mut segs, &pts, &eye, None, &p);
+        place_fronts(&mut segs, &pts, &eye, None, None, &p);
         let front = segs[1].center().x - segs[1].depth_m() / 2.0;
         assert!((front - 0.8).abs() < 1e-3, "front at {front:.4}");
         // The same with the lower tread known only as the ground under the sensor (the
         // floor, or the tread the robot stands on).
         let mut upper = [tread(0.825, 0.30, 0.3)];
-        place_fronts(&mut upper, &pts, &eye, Some(0.22), &p);
+        place_fronts(&mut upper, &pts, &eye, Some(0.22), None, &p);
         let front = upper[0].center().x - upper[0].depth_m() / 2.0;
         assert!((front - 0.8).abs() < 1e-3, "front at {front:.4}");
         let mut unbounded = [tread(0.825, 0.30, 0.3)];
-        assert_eq!(place_fronts(&mut unbounded, &pts, &eye, None, &p), 0, "the strays outnumber the riser");
+        assert_eq!(
+            place_fronts(&mut unbounded, &pts, &eye, None, None, &p),
+            0,
+            "the strays outnumber the riser"
+        );
     }
 }

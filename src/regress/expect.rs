@@ -114,7 +114,11 @@ pub fn expect(s: &Scenario, gait: &GaitParams, feet_half_spacing_m: f64) -> Expe
     let lanes = lanes_m(s, feet_half_spacing_m);
     for (k, o) in s.objects.iter().enumerate() {
         match object_in_the_way(s, o, lanes, gait) {
-            Some(Blocks::Lane(why)) => return refuse(format!("objects[{k}] {why}")),
+            Some(Blocks::Lane(why)) => {
+                // Refused before a foot is set on the object's tread: from the floor the
+                // lidar may not see a high tread, and the steps below it are safe to climb.
+                return ExpectSpec { before_step: Some(o.step), ..refuse(format!("objects[{k}] {why}")) };
+            }
             Some(Blocks::Near(why)) => either.push(format!("objects[{k}] {why}")),
             None => {}
         }
@@ -124,6 +128,7 @@ pub fn expect(s: &Scenario, gait: &GaitParams, feet_half_spacing_m: f64) -> Expe
     }
     if either.is_empty() {
         ExpectSpec {
+            before_step: None,
             outcome: ExpectedOutcome::Climb,
             reason: format!(
                 "every step within the planner's limits: rise {max_rise_m:.3} <= {:.3} m, tread {min_tread_m:.3} >= {:.3} m, soles {:.3} m inside the flight's sides ({:.3} m over allowed)",
@@ -131,7 +136,7 @@ pub fn expect(s: &Scenario, gait: &GaitParams, feet_half_spacing_m: f64) -> Expe
             ),
         }
     } else {
-        ExpectSpec { outcome: ExpectedOutcome::Either, reason: either.join("; ") }
+        ExpectSpec { outcome: ExpectedOutcome::Either, reason: either.join("; "), before_step: None }
     }
 }
 
@@ -259,7 +264,7 @@ pub fn lanes_m(s: &Scenario, feet_half_spacing_m: f64) -> [f64; 2] {
 }
 
 fn refuse(reason: String) -> ExpectSpec {
-    ExpectSpec { outcome: ExpectedOutcome::Refuse, reason }
+    ExpectSpec { outcome: ExpectedOutcome::Refuse, reason, before_step: None }
 }
 
 /// How far the worse foot's sole overhangs the flight's side when it keeps its start lane,

@@ -135,9 +135,11 @@ fn one(suite: &Suite, robot: &Robot, index: usize, plan: &Plan) -> Result<Case, 
             Ok(mut scenario) => {
                 scenario.seed = noise_seed(suite.seed, index, 0);
                 let expected = match by_hand {
-                    Some((outcome, why)) => {
-                        ExpectSpec { outcome: *outcome, reason: format!("set by the suite: {why}") }
-                    }
+                    Some((outcome, why)) => ExpectSpec {
+                        outcome: *outcome,
+                        reason: format!("set by the suite: {why}"),
+                        before_step: None,
+                    },
                     None => expect(&scenario, &robot.gait, robot.feet_half_spacing_m),
                 };
                 scenario.expect = Some(expected);

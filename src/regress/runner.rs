@@ -187,7 +187,8 @@ fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
     let seed = noise_seed(info.seed, case.index, job.seed_index);
     let mut scenario = case.scenario.clone();
     scenario.seed = seed;
-    let expect = scenario.expect.clone().map_or(ExpectedOutcome::Climb, |e| e.outcome);
+    let (expect, before_step) =
+        scenario.expect.clone().map_or((ExpectedOutcome::Climb, None), |e| (e.outcome, e.before_step));
     let mut result = CaseResult {
         suite: info.name.clone(),
         suite_hash: info.hash.clone(),
@@ -245,7 +246,7 @@ fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
     match outcome {
         Ok(Ok(report)) => {
             result = result.with_report(&report);
-            result.verdict = classify(expect, &report, timed_out);
+            result.verdict = classify(expect, before_step, &report, timed_out);
             result.message = report.why_failed();
         }
         Ok(Err(e)) => {

@@ -73,12 +73,22 @@ impl fmt::Display for Verdict {
     }
 }
 
-/// The verdict of `report` against `expect`; `timed_out` when the runner cancelled it.
-pub fn classify(expect: ExpectedOutcome, report: &ClimbReport, timed_out: bool) -> Verdict {
+/// The verdict of `report` against `expect`; `timed_out` when the runner cancelled it. A
+/// `refuse` with `before_step` (1-based) forbids a foot on that step and above only; without
+/// it, on the whole staircase.
+pub fn classify(
+    expect: ExpectedOutcome,
+    before_step: Option<u32>,
+    report: &ClimbReport,
+    timed_out: bool,
+) -> Verdict {
     if timed_out {
         return Verdict::Timeout;
     }
-    let stepped = report.cycles.iter().any(|c| c.to != Footing::Floor);
+    // A foot set where the expectation forbids one: on the staircase, or on `before_step`
+    // and above it.
+    let first_forbidden = before_step.map_or(1, |k| k as usize);
+    let stepped = report.cycles.iter().any(|c| matches!(c.to, Footing::Step(k) if k >= first_forbidden));
     let fell = matches!(report.stop, Some(StopReason::Fell { .. }))
         || report.cycles.iter().any(|c| c.execution.fell);
     if fell {
@@ -170,27 +180,30 @@ mod tests {
         use ExpectedOutcome::*;
         use Footing::*;
         let climbed = report(&[Floor, Step(1), Step(2), Step(3)], None, false);
-        assert_eq!(classify(Climb, &climbed, false), Verdict::ClimbedClean);
-        assert_eq!(classify(Refuse, &climbed, false), Verdict::SteppedOntoUnclimbable);
-        assert_eq!(classify(Climb, &climbed, true), Verdict::Timeout);
+        assert_eq!(classify(Climb, None, &climbed, false), Verdict::ClimbedClean);
+        assert_eq!(classify(Refuse, None, &climbed, false), Verdict::SteppedOntoUnclimbable);
+        assert_eq!(classify(Climb, None, &climbed, true), Verdict::Timeout);
         // Refused after walking closer on the floor: as expected, or a false refusal.
         let looked = report(&[Floor, Floor], refused(3), false);
-        assert_eq!(classify(Refuse, &looked, false), Verdict::RefusedAsExpected);
-        assert_eq!(classify(Either, &looked, false), Verdict::RefusedAsExpected);
-        assert_eq!(classify(Climb, &looked, false), Verdict::FalseRefusal);
+        assert_eq!(classify(Refuse, None, &looked, false), Verdict::RefusedAsExpected);
+        assert_eq!(classify(Either, None, &looked, false), Verdict::RefusedAsExpected);
+        assert_eq!(classify(Climb, None, &looked, false), Verdict::FalseRefusal);
         // Refused once on the stairs: an unclimbable staircase was stepped onto.
         let late = report(&[Step(1)], refused(2), false);
-        assert_eq!(classify(Refuse, &late, false), Verdict::SteppedOntoUnclimbable);
-        assert_eq!(classify(Either, &late, false), Verdict::FalseRefusal);
+        assert_eq!(classify(Refuse, None, &late, false), Verdict::SteppedOntoUnclimbable);
+        assert_eq!(classify(Either, None, &late, false), Verdict::FalseRefusal);
+        // Something in a lane on step 2, seen from step 1: refused before a foot went on it.
+        assert_eq!(classify(Refuse, Some(2), &late, false), Verdict::RefusedAsExpected);
+        assert_eq!(classify(Refuse, Some(1), &late, false), Verdict::SteppedOntoUnclimbable);
         let nothing = report(&[], Some(StopReason::NoStaircaseAhead { cycle: 1, last_view: None }), false);
-        assert_eq!(classify(Climb, &nothing, false), Verdict::NoStaircaseFound);
-        assert_eq!(classify(Refuse, &nothing, false), Verdict::RefusedAsExpected);
+        assert_eq!(classify(Climb, None, &nothing, false), Verdict::NoStaircaseFound);
+        assert_eq!(classify(Refuse, None, &nothing, false), Verdict::RefusedAsExpected);
         let hit = report(&[Floor, Step(1), Step(2), Step(3)], None, true);
-        assert_eq!(classify(Climb, &hit, false), Verdict::CheckViolated);
+        assert_eq!(classify(Climb, None, &hit, false), Verdict::CheckViolated);
         let fell = report(&[Step(1)], Some(StopReason::Fell { cycle: 1 }), true);
-        assert_eq!(classify(Climb, &fell, false), Verdict::Fell);
+        assert_eq!(classify(Climb, None, &fell, false), Verdict::Fell);
         let gave_up = report(&[Floor], Some(StopReason::CyclesExhausted { cycles: 40 }), false);
-        assert_eq!(classify(Climb, &gave_up, false), Verdict::Error);
+        assert_eq!(classify(Climb, None, &gave_up, false), Verdict::Error);
         assert!(Verdict::ALL.iter().filter(|v| v.pass()).count() == 2);
     }
 }

@@ -60,6 +60,11 @@ pub struct ExpectSpec {
     /// Why (the limit and the value that decide it).
     #[serde(default)]
     pub reason: String,
+    /// For `refuse`: the step (1 = the lowest) no foot may be set on; the steps below it may
+    /// be climbed first (something in a lane on a high tread is seen only from nearer).
+    /// Absent: no foot on the staircase at all.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub before_step: Option<u32>,
 }
 
 impl Default for Scenario {

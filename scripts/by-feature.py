@@ -1,0 +1,56 @@
+#!/usr/bin/env python3
+"""The `real` suite's results by feature of real stairs, as a Markdown table.
+
+Usage: scripts/by-feature.py out/regress/real/results.jsonl
+
+A run counts under every feature its case has (nosing, open risers, uneven rises or treads,
+handrails, objects on treads), and under "plain" when it has none. Friction ratio and CoM
+margin are over the runs that climbed (median / worst)."""
+import json
+import statistics
+import sys
+
+
+def features(p):
+    f = []
+    if p.get("nosing_m", 0) > 0:
+        f.append("nosings")
+    if p.get("risers") == "open":
+        f.append("open risers")
+    if p.get("rise_jitter_m", 0) > 0 or p.get("odd_step", "none") != "none" or p.get("tread_jitter_m", 0) > 0:
+        f.append("uneven rises or treads")
+    if p.get("handrails", "none") != "none":
+        f.append("handrails")
+    if p.get("objects", 0) > 0:
+        f.append("objects on treads")
+    return f or ["plain"]
+
+
+def main(path):
+    rows = {}
+    for line in open(path):
+        r = json.loads(line)
+        for f in features(r["params"]):
+            rows.setdefault(f, []).append(r)
+    order = ["nosings", "open risers", "uneven rises or treads", "handrails", "objects on treads", "plain"]
+    print("| feature | runs | passed | climbed clean | refused as expected | friction ratio (median / largest) | CoM margin mm (median / least) |")
+    print("|---|---|---|---|---|---|---|")
+    for f in order + [k for k in rows if k not in order]:
+        rs = rows.get(f, [])
+        if not rs:
+            continue
+        climbed = [r for r in rs if r["verdict"] == "climbed_clean"]
+        fr = [r["max_friction_ratio"] for r in climbed]
+        mg = [r["min_margin_m"] * 1e3 for r in climbed if r["min_margin_m"] is not None]
+        fmt = lambda xs, worst: f"{statistics.median(xs):.3f} / {worst(xs):.3f}" if xs else "-"
+        fmtm = lambda xs: f"{statistics.median(xs):.1f} / {min(xs):.1f}" if xs else "-"
+        print(f"| {f} | {len(rs)} | {sum(r['pass'] for r in rs)} | {len(climbed)} | "
+              f"{sum(r['verdict'] == 'refused_as_expected' for r in rs)} | {fmt(fr, max)} | {fmtm(mg)} |")
+    allr = [json.loads(l) for l in open(path)]
+    print(f"\nall: {sum(r['pass'] for r in allr)} of {len(allr)} passed; falls "
+          f"{sum(r['verdict'] == 'fell' for r in allr)}, errors {sum(r['verdict'] == 'error' for r in allr)}, "
+          f"timeouts {sum(r['verdict'] == 'timeout' for r in allr)}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])
