@@ -102,26 +102,40 @@ pub fn place_fronts(
     }
     let heights: Vec<f64> = segments.iter().map(|s| s.height_m()).chain(ground_m).collect();
     let lone = segments.len() == 1;
-    let mut moved = 0;
-    for s in segments.iter_mut() {
-        if (viewpoint - s.center()).dot(&s.along()) >= 0.0 || (lone && s.depth_m() > s.width_m()) {
-            continue;
-        }
-        let top = s.height_m();
-        // The highest tread below this one (a rise of more than twice the band's near end).
-        let below = heights
-            .iter()
-            .copied()
-            .filter(|&h| h < top - 2.0 * p.band_m[0])
-            .fold(f64::NEG_INFINITY, f64::max);
-        let band = [(top - p.band_m[1]).max(below + p.band_m[0]), top - p.band_m[0]];
-        if let Some(riser) = riser_along(s, points, band, p) {
-            let least_m = NOSING_MIN_M.max(NOSING_NOISE_FACTOR * noise_m.unwrap_or(0.0));
-            let front = nosing_ahead(s, points, riser, least_m, p).unwrap_or(riser);
-            if let Some(placed) = with_front(s, front) {
-                *s = placed;
-                moved += 1;
+    let least_m = NOSING_MIN_M.max(NOSING_NOISE_FACTOR * noise_m.unwrap_or(0.0));
+    // Each segment's riser, and how far its nose projects past it where a nosing is seen.
+    let found: Vec<Option<(f64, Option<f64>)>> = segments
+        .iter()
+        .map(|s| {
+            if (viewpoint - s.center()).dot(&s.along()) >= 0.0 || (lone && s.depth_m() > s.width_m()) {
+                return None;
             }
+            let top = s.height_m();
+            // The highest tread below this one (a rise of more than twice the band's near end).
+            let below = heights
+                .iter()
+                .copied()
+                .filter(|&h| h < top - 2.0 * p.band_m[0])
+                .fold(f64::NEG_INFINITY, f64::max);
+            let band = [(top - p.band_m[1]).max(below + p.band_m[0]), top - p.band_m[0]];
+            let riser = riser_along(s, points, band, p)?;
+            Some((riser, nosing_ahead(s, points, riser, least_m, p).map(|nose| nose - riser)))
+        })
+        .collect();
+    // A flight's treads have one nosing (building codes: within a few millimetres): where
+    // at least half the risers found show one, every front goes that far past its riser (the
+    // median); else none does. Mixed, a tread whose nosing went unseen would keep its front
+    // on the riser while the next one's moved to its nose, and the span between them lose a
+    // nosing's depth.
+    let risers = found.iter().flatten().count();
+    let seen: Vec<f64> = found.iter().flatten().filter_map(|(_, n)| *n).collect();
+    let nosing_m =
+        if !seen.is_empty() && 2 * seen.len() >= risers { median(seen).unwrap_or(0.0) } else { 0.0 };
+    let mut moved = 0;
+    for (s, f) in segments.iter_mut().zip(found) {
+        if let Some(placed) = f.and_then(|(riser, _)| with_front(s, riser + nosing_m)) {
+            *s = placed;
+            moved += 1;
         }
     }
     moved
@@ -170,9 +184,7 @@ fn riser_along(s: &PlaneSegment, points: &[Point3<f32>], band: [f64; 2], p: &Ris
 /// to 32 mm on short treads), as a distance toward the front from `s`'s centre, the riser
 /// being at `riser_m`: where the tread's own returns (within `band_m[0]` of its top) run on
 /// past the riser, at least `min_returns` of them in the window's half beyond it, the nose
-/// is their 80th percentile (a range error moves a return on the nose's top down and away
-/// from the sensor, back onto the tread, more often than past the edge), at most the
-/// segment's own front. `None` for a riser under a plain nose: past it, at the top's height,
+/// is the 70th percentile of the returns past the riser, at most the segment's own front. `None` for a riser under a plain nose: past it, at the top's height,
 /// is air, and the segment's voxel front stands on or behind it.
 fn nosing_ahead(
     s: &PlaneSegment,
@@ -194,8 +206,7 @@ fn nosing_ahead(
         .filter(|d| d.dot(&side).abs() < half_width)
         .map(|d| d.dot(&out) - riser_m)
         .collect();
-    let mut ahead: Vec<f64> =
-        top_returns.iter().copied().filter(|t| *t > least_m && *t < p.half_window_m).collect();
+    let ahead = top_returns.iter().filter(|t| **t > least_m && **t < p.half_window_m).count();
     // A nosing's top and face give past its least projection at least `NOSING_SHARE` of
     // the returns of a strip of the tread `NOSING_STRIP_M` deep behind the riser; a plain
     // nose's strays under range noise are a thin spread by the edge. And the segment's own
@@ -203,15 +214,17 @@ fn nosing_ahead(
     // back onto the tread under noise, rarely out past it.
     let behind = top_returns.iter().filter(|t| **t < 0.0 && **t > -NOSING_STRIP_M).count();
     let voxel_front_m = s.depth_m() / 2.0 - riser_m;
-    if ahead.len() < p.min_returns
-        || (ahead.len() as f64) < NOSING_SHARE * behind as f64
-        || voxel_front_m < least_m
-    {
+    if ahead < p.min_returns || (ahead as f64) < NOSING_SHARE * behind as f64 || voxel_front_m < least_m {
         return None;
     }
-    ahead.sort_by(f64::total_cmp);
-    let k = ((ahead.len() - 1) as f64 * 0.8).round() as usize;
-    Some(riser_m + ahead[k].min(voxel_front_m))
+    // The nose: the 70th percentile of every return past the riser (the test above counts
+    // only those past the least projection, which under noise lie past a short nosing's
+    // nose): short of the nose by a few millimetres on its top's spread, past it by about as
+    // much where its face's returns stray, at most the segment's own front.
+    let mut past: Vec<f64> = top_returns.into_iter().filter(|t| *t > 0.0 && *t < p.half_window_m).collect();
+    past.sort_by(f64::total_cmp);
+    let k = ((past.len() - 1) as f64 * NOSE_QUANTILE).round() as usize;
+    Some(riser_m + past[k].min(voxel_front_m))
 }
 
 /// Least projection past the riser of a nosing's returns, and of the tread's voxel front,
@@ -232,6 +245,8 @@ const NOSING_NOISE_FACTOR: f64 = 1.5;
 /// [`nosing_ahead`]).
 const NOSING_STRIP_M: f64 = 0.035;
 const NOSING_SHARE: f64 = 0.25;
+/// The quantile of a nosing's returns past its riser taken for its nose.
+const NOSE_QUANTILE: f64 = 0.7;
 
 /// `s` with its front `front_m` from its old centre against its ascent, its back kept;
 /// `None` when that leaves no depth.
@@ -293,7 +308,9 @@ mod tests {
         let mut one = [seg.clone()];
         assert_eq!(place_fronts(&mut one, &cloud, &eye, None, None, &p), 1);
         let front = one[0].center().x - one[0].depth_m() / 2.0;
-        assert!((front - 1.0).abs() < 0.006, "the front on the nose at 1.0, not the riser: {front:.4}");
+        // On the nose at 1.0, not the riser at 1.025: short of it by at most a centimetre
+        // (the 70th percentile of its top's returns), never past it.
+        assert!((1.0..1.01).contains(&front), "the front on the nose at 1.0, not the riser: {front:.4}");
         assert!(one[0].front_on_riser());
         // The same riser under a plain nose: the front on the riser.
         let mut plain = wall(1.025, 0.15, 0.3);

@@ -154,6 +154,15 @@ pub struct GaitParams {
     /// (wide suite case 0). A 3 cm voxel grid holds about 34 points under HRP-4's sole; 6
     /// are a strip of it 4 cm deep.
     pub floor_obstruction_returns: usize,
+    /// The same on a tread or a landing: a stance there is refused where at least this many
+    /// points stand in a sole's way. Higher than on the floor: between two steps the next
+    /// riser stands just past the toes, and under 20-25 mm of range noise its voxels stray
+    /// past the 6 cm band that keeps a perceived step's own surfaces out (`floor_band_m`),
+    /// or belong to a step not yet perceived: 7 to 16 of them stood in a sole's way on the
+    /// wide suite's noisiest flights. A thing that leaves no room for a sole shows more: a
+    /// shoe's top alone is 30 x 12 cm, 40 voxels of 3 cm (the parcel on Exp. 1:
+    /// 43 points). 20 is half a shoe's top.
+    pub tread_obstruction_returns: usize,
     /// How far past a sole's outline, on every side, the obstruction test of a stance
     /// (`floor_obstruction_returns`) looks, metres: the IK keeps the legs 3 cm
     /// (`IkParams::body_clearance_m`) off what the lidar saw, but not the foot (its box is
@@ -195,6 +204,7 @@ impl Default for GaitParams {
             body_band_m: [0.4, 1.5],
             approach_floor_returns: 8,
             floor_obstruction_returns: 6,
+            tread_obstruction_returns: 20,
             obstruction_margin_m: 0.03,
             approach_blind_m: 0.6,
             floor_band_m: 0.06,
@@ -566,7 +576,9 @@ fn unobstructed(
     for (stance, st) in (first..).zip(walk) {
         for foot in Foot::BOTH {
             let (points, height_m) = lay.standing_in_lane(steps, from.foot(foot), st.foot(foot), seen, p);
-            if points >= p.floor_obstruction_returns.max(1) {
+            let least =
+                if st.step.is_some() { p.tread_obstruction_returns } else { p.floor_obstruction_returns };
+            if points >= least.max(1) {
                 return Err(match st.step {
                     None => PlanError::FloorObstructed { stance, foot, points, height_m },
                     Some(step) => PlanError::TreadObstructed { stance, step, foot, points, height_m },
@@ -1019,7 +1031,7 @@ mod tests {
             Err(PlanError::TreadObstructed { stance, step: 1, foot: Foot::Right, points, height_m }) => {
                 assert_eq!(stance, on_step_2);
                 assert!(
-                    points >= p.floor_obstruction_returns && (height_m - 0.12).abs() < 1e-9,
+                    points >= p.tread_obstruction_returns && (height_m - 0.12).abs() < 1e-9,
                     "{points} {height_m}"
                 );
             }

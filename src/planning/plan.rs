@@ -142,10 +142,7 @@ pub fn plan_below(
     max_stances: Option<usize>,
     p: &PlanParams,
 ) -> Result<Plan, PlanError> {
-    plan_stances(model, q0, rects, seen, max_stances, p, |start, pts, legs| {
-        footholds_below(start, rects, below, pts, legs, &p.gait)
-    })?
-    .ok_or(PlanError::NoSteps)
+    plan_climb(model, q0, (rects, below), seen, max_stances, p, false)
 }
 
 /// [`plan_below`] where the first riser may be out of the lidar's sight (the closed loop, on
@@ -163,9 +160,23 @@ pub fn plan_in_sight(
     max_stances: Option<usize>,
     p: &PlanParams,
 ) -> Result<Plan, PlanError> {
+    plan_climb(model, q0, (rects, below), seen, max_stances, p, true)
+}
+
+/// The climb of the `below` lowest of `rects`, its first riser required in sight when the
+/// climb starts with a floor walk and `in_sight` is set ([`plan_below`], [`plan_in_sight`]).
+fn plan_climb(
+    model: &RobotModel,
+    q0: &[f64],
+    (rects, below): (&[PlaneSegment], usize),
+    seen: Arc<SeenPoints>,
+    max_stances: Option<usize>,
+    p: &PlanParams,
+    in_sight: bool,
+) -> Result<Plan, PlanError> {
     plan_stances(model, q0, rects, seen, max_stances, p, |start, pts, legs| {
         let stances = footholds_below(start, rects, below, pts, legs, &p.gait)?;
-        if stances.first().is_some_and(|s| s.step.is_none()) {
+        if in_sight && stances.first().is_some_and(|s| s.step.is_none()) {
             riser_in_sight(start, rects, pts, &p.gait)?;
         }
         Ok(stances)
