@@ -129,11 +129,15 @@ pub fn run(a: PlanArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// What a plan starts from: the rectangles, the start configuration, the surfaces seen
+/// around the steps, and whether the rectangles are perceived.
+type Inputs = (Vec<PlaneSegment>, Vec<f64>, Arc<SeenPoints>, bool);
+
 /// The rectangles, the start configuration, the surfaces seen around the steps (a
 /// perceived scenario's whole scan, the body kept off it as the loop does; nothing
 /// otherwise), and whether the rectangles are perceived (a rectangles file, a scan), not
 /// ground truth.
-fn inputs(a: &PlanArgs, model: &RobotModel) -> Result<(Vec<PlaneSegment>, Vec<f64>, Arc<SeenPoints>, bool)> {
+fn inputs(a: &PlanArgs, model: &RobotModel) -> Result<Inputs> {
     let is_txt = a.input.as_deref().and_then(Path::extension).is_some_and(|e| e.eq_ignore_ascii_case("txt"));
     if is_txt {
         let path = a.input.as_deref().unwrap_or(Path::new(""));
