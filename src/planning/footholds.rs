@@ -163,6 +163,13 @@ pub struct GaitParams {
     /// shoe's top alone is 30 x 12 cm, 40 voxels of 3 cm (the parcel on Exp. 1:
     /// 43 points). 20 is half a shoe's top.
     pub tread_obstruction_returns: usize,
+    /// The surroundings' points within this of a perceived step's solid are that step's own
+    /// surfaces (its tread, its riser, its nose), not something standing in a sole's way,
+    /// metres: as `IkParams::leg_surface_band_m`, three standard deviations of 25 mm of range
+    /// noise plus half a voxel (at `floor_band_m`'s 6 cm, 22 strays of the next riser stood
+    /// in a sole's way on the wide suite's 45, at 24.5 mm). A thing lower than this on a tread
+    /// is not told from the tread's own noise.
+    pub step_band_m: f64,
     /// How far past a sole's outline, on every side, the obstruction test of a stance
     /// (`floor_obstruction_returns`) looks, metres: the IK keeps the legs 3 cm
     /// (`IkParams::body_clearance_m`) off what the lidar saw, but not the foot (its box is
@@ -205,6 +212,7 @@ impl Default for GaitParams {
             approach_floor_returns: 8,
             floor_obstruction_returns: 6,
             tread_obstruction_returns: 20,
+            step_band_m: 0.09,
             obstruction_margin_m: 0.03,
             approach_blind_m: 0.6,
             floor_band_m: 0.06,
@@ -807,7 +815,7 @@ impl Layout {
                 continue;
             }
             let dz = q.z - self.surface_z(steps, a);
-            if dz <= p.floor_band_m || dz > STANDING_M || self.by_a_step(steps, q, p.floor_band_m) {
+            if dz <= p.floor_band_m || dz > STANDING_M || self.by_a_step(steps, q, p.step_band_m) {
                 continue;
             }
             points += 1;

@@ -82,8 +82,11 @@ pub struct IkParams {
     /// The surroundings' points within this of a step solid, or of the floor under the
     /// start, are the steps' and the floor's own surfaces, which the legs are not kept off
     /// by `body_clearance_m` (their feet stand on them; `leg_clearance_m` keeps the legs off
-    /// the steps), metres: three standard deviations of a 20 mm range noise, as
-    /// `GaitParams::floor_band_m` (a riser's voxels stray that far toward the robot).
+    /// the steps), metres: three standard deviations of the suites' highest range noise,
+    /// 25 mm (the wide suite), plus half a 3 cm voxel: a riser's or a tread's voxels stray
+    /// that far. At 6 cm (3 sigma of 20 mm) the legs were kept off strays of the wide suite's
+    /// noisiest treads and the IK found no solution (wide 59, 24 mm) or the plan a worse one
+    /// (wide 50, 55).
     pub leg_surface_band_m: f64,
 }
 
@@ -110,7 +113,7 @@ impl Default for IkParams {
             clearance_range_m: 0.08,
             clearance_gain_per_s: 5.0,
             body_clearance_m: 0.03,
-            leg_surface_band_m: 0.06,
+            leg_surface_band_m: 0.09,
         }
     }
 }
