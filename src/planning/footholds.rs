@@ -158,17 +158,17 @@ pub struct GaitParams {
     /// points stand in a sole's way. Higher than on the floor: between two steps the next
     /// riser stands just past the toes, and under 20-25 mm of range noise its voxels stray
     /// past the 6 cm band that keeps a perceived step's own surfaces out (`floor_band_m`),
-    /// or belong to a step not yet perceived: 7 to 16 of them stood in a sole's way on the
-    /// wide suite's noisiest flights. A thing that leaves no room for a sole shows more: a
+    /// or belong to a step not yet perceived: 7 to 16 of them stood in a sole's way on
+    /// flights under 21-25 mm of noise. A thing that leaves no room for a sole shows more: a
     /// shoe's top alone is 30 x 12 cm, 40 voxels of 3 cm (the parcel on Exp. 1:
     /// 43 points). 20 is half a shoe's top.
     pub tread_obstruction_returns: usize,
     /// The surroundings' points within this of a perceived step's solid are that step's own
     /// surfaces (its tread, its riser, its nose), not something standing in a sole's way,
     /// metres: as `IkParams::leg_surface_band_m`, three standard deviations of 25 mm of range
-    /// noise plus half a voxel (at `floor_band_m`'s 6 cm, 22 strays of the next riser stood
-    /// in a sole's way on the wide suite's 45, at 24.5 mm). A thing lower than this on a tread
-    /// is not told from the tread's own noise.
+    /// noise plus half a voxel (at `floor_band_m`'s 6 cm, over 20 strays of the next riser
+    /// stood in a sole's way under 24.5 mm of noise). A thing lower than this on a tread is
+    /// not told from the tread's own noise.
     pub step_band_m: f64,
     /// How far past a sole's outline, on every side, the obstruction test of a stance
     /// (`floor_obstruction_returns`) looks, metres: the IK keeps the legs 3 cm

@@ -84,9 +84,8 @@ pub struct IkParams {
     /// by `body_clearance_m` (their feet stand on them; `leg_clearance_m` keeps the legs off
     /// the steps), metres: three standard deviations of the suites' highest range noise,
     /// 25 mm (the wide suite), plus half a 3 cm voxel: a riser's or a tread's voxels stray
-    /// that far. At 6 cm (3 sigma of 20 mm) the legs were kept off strays of the wide suite's
-    /// noisiest treads and the IK found no solution (wide 59, 24 mm) or the plan a worse one
-    /// (wide 50, 55).
+    /// that far (at 3 sigma of 20 mm, the legs were kept off strays of treads under 21-25 mm
+    /// of noise, and the IK could find no solution).
     pub leg_surface_band_m: f64,
 }
 
