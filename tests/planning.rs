@@ -229,10 +229,9 @@ fn exp1_ground_truth_is_planned_to_the_top() {
 
 #[test]
 fn the_papers_rectangles_are_planned() {
-    let Ok(text) = std::fs::read_to_string("../shared/paper/exp1/rectangles.txt") else {
-        eprintln!("skipped: ../shared/paper/exp1/rectangles.txt is absent");
-        return;
-    };
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/paper_exp1/rectangles.txt");
+    let text = std::fs::read_to_string(&path).expect("the paper's Exp. 1 rectangles, a committed fixture");
     let rects = rectangles::parse(&text).unwrap();
     assert_eq!(rects.len(), 3);
     let first = rectangles::by_height(&rects)[0];
