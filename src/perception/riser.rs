@@ -2,16 +2,18 @@
 //!
 //! §4 finds the treads as level segments, and a rectangle's edges come from its voxels. Under
 //! range noise those edges err by centimetres: the nose's returns scatter along the rays, and
-//! the voxels of a tread's edge mix with its riser's (the envelope's 0.24 m treads at 10 mm of
-//! noise, fronts off by up to 8 mm; wide suite case 34 at 23 mm, by up to 28 mm, a 0.269 m
-//! tread seen 0.245 m deep). The riser under a nose is a vertical surface facing the sensor,
-//! seen by hundreds of returns from the floor and the treads below: whatever their scatter
-//! along the rays, they lie about the nose's distance along the ascent, and their median
-//! places the nose within 3 mm on those same views. Filter 1 drops those returns (their
+//! the voxels of a tread's edge mix with its riser's (by up to about 1 cm at 10 mm of noise,
+//! 3 cm at 20-25 mm: regression `tread-edge-mixed-with-its-riser`). The riser under a nose
+//! is a vertical surface facing the sensor, seen by hundreds of returns from the floor and
+//! the treads below: whatever their scatter along the rays, they lie about the nose's
+//! distance along the ascent, and their median places the nose within millimetres. Filter 1
+//! drops those returns (their
 //! normals are level), so they are taken from the whole cloud, in a band below the tread's
-//! top and a window about its front edge as the segment has it; a riser seen in part (its
-//! returns all in the upper or the lower half of the band: a view over the nose, or a
-//! partial view of the floor below it) leaves the edge as it was. A tread whose own returns
+//! top and a window about its front edge as the segment has it (its place from the band's
+//! lower half: a nosing's face stands in the upper); a riser seen in part (its returns all
+//! in the upper or the lower half of the band, where a nosing's face stands for its
+//! shadowed top: a view over the nose, or a partial view of the floor below it) leaves the
+//! edge as it was. A tread whose own returns
 //! run on past its riser has a nosing: its front is then the nose, not the riser (a foot on
 //! the tread below keeps its toes behind the nose, not under it).
 
@@ -165,18 +167,24 @@ fn riser_along(s: &PlaneSegment, points: &[Point3<f32>], band: [f64; 2], p: &Ris
     if near.len() < p.min_returns {
         return None;
     }
-    // The median, twice again over the returns within a halved window about it: the riser's
-    // returns are a dense peak, the treads' strays a thin spread on either side.
-    let mut at = median(near.iter().map(|r| r.0))?;
-    for w in [p.half_window_m / 2.0, p.half_window_m / 4.0] {
-        at = median(near.iter().map(|r| r.0).filter(|t| (t - at).abs() < w))?;
-    }
-    let on: Vec<f64> =
-        near.iter().filter(|r| (r.0 - at).abs() < p.half_window_m / 4.0).map(|r| r.1).collect();
+    // The median of the band's lower half, twice again over its returns within a halved
+    // window about it: the riser's returns are a dense peak, the treads' strays a thin spread
+    // on either side. Not the upper half: a nosing's face (as deep as the tread's thickness,
+    // 25-40 mm) stands there a nosing's depth before the riser, and from near the flight it
+    // shadows the riser's top; mixed in, its returns pulled the riser out by 5-13 mm.
     let mid = (band[0] + band[1]) / 2.0;
-    let upper = on.iter().filter(|&&z| z > mid).count();
-    let least = (p.min_half_share * on.len() as f64).ceil() as usize;
-    let whole = on.len() >= p.min_returns && upper >= least && on.len() - upper >= least;
+    let lower: Vec<f64> = near.iter().filter(|r| r.1 < mid).map(|r| r.0).collect();
+    let mut at = median(lower.iter().copied())?;
+    for w in [p.half_window_m / 2.0, p.half_window_m / 4.0] {
+        at = median(lower.iter().copied().filter(|t| (t - at).abs() < w))?;
+    }
+    // Seen whole: returns about it in the band's lower half, and in its upper half either
+    // its own or a nosing's face before it (which shadows the riser's top from near).
+    let at_riser = |t: f64| (t - at).abs() < p.half_window_m / 4.0;
+    let lower = near.iter().filter(|r| r.1 < mid && at_riser(r.0)).count();
+    let upper = near.iter().filter(|r| r.1 >= mid && (at_riser(r.0) || r.0 > at)).count();
+    let least = (p.min_half_share * (lower + upper) as f64).ceil() as usize;
+    let whole = lower + upper >= p.min_returns && upper >= least && lower >= least;
     whole.then_some(at)
 }
 
@@ -319,6 +327,33 @@ mod tests {
         assert_eq!(place_fronts(&mut one, &plain, &eye, None, None, &p), 1);
         let front = one[0].center().x - one[0].depth_m() / 2.0;
         assert!((front - 1.025).abs() < 1e-3, "{front:.4}");
+    }
+
+    #[test]
+    fn a_nosings_face_does_not_pull_the_riser_out() {
+        // A tread 0.3 m up, 30 mm thick, its nose 25 mm before its riser at 1.025 m, seen
+        // from near: the face's returns (1.0 m, 0.27-0.3 m up) outnumber the riser's, whose
+        // top the nosing shadows; both scattered 10 mm along the rays.
+        let p = RiserParams::default();
+        let seg = tread(1.003, 0.3, 0.297);
+        let spread = |pts: Vec<Point3<f32>>| -> Vec<Point3<f32>> {
+            pts.iter()
+                .flat_map(|q| (-2..=2).map(move |k| Point3::new(q.x + 0.005 * k as f32, q.y, q.z)))
+                .collect()
+        };
+        let mut cloud = spread(wall(1.025, 0.15, 0.265));
+        // Its top shadowed to 0.245 m: the band's upper half holds the face alone.
+        let mut shadowed = spread(wall(1.025, 0.15, 0.245));
+        for _ in 0..3 {
+            cloud.extend(spread(wall(1.0, 0.27, 0.3)));
+            shadowed.extend(spread(wall(1.0, 0.27, 0.3)));
+        }
+        let band = [0.3 - p.band_m[1], 0.3 - p.band_m[0]];
+        for pts in [cloud, shadowed] {
+            let riser = riser_along(&seg, &pts, band, &p).expect("a riser seen whole");
+            let at_x = seg.center().x - riser;
+            assert!((at_x - 1.025).abs() < 2e-3, "the riser at {at_x:.4}, not 1.025");
+        }
     }
 
     #[test]

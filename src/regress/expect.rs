@@ -112,6 +112,10 @@ pub fn expect(s: &Scenario, gait: &GaitParams, feet_half_spacing_m: f64) -> Expe
         either.push(format!("a foot's lane overhangs the flight by {over:.3} m, within {SIDE_TOLERANCE_M} m of plan.gait.side_overhang_m"));
     }
     let lanes = lanes_m(s, feet_half_spacing_m);
+    // The highest tread with something near a lane on it: seen only from nearer, it may be
+    // refused from the steps below it (and the lanes, moved away from it, may leave a lower
+    // tread too narrow: a refusal there is about it too).
+    let mut object_step = None;
     for (k, o) in s.objects.iter().enumerate() {
         match object_in_the_way(s, o, lanes, gait) {
             Some(Blocks::Lane(why)) => {
@@ -119,7 +123,10 @@ pub fn expect(s: &Scenario, gait: &GaitParams, feet_half_spacing_m: f64) -> Expe
                 // lidar may not see a high tread, and the steps below it are safe to climb.
                 return ExpectSpec { before_step: Some(o.step), ..refuse(format!("objects[{k}] {why}")) };
             }
-            Some(Blocks::Near(why)) => either.push(format!("objects[{k}] {why}")),
+            Some(Blocks::Near(why)) => {
+                object_step = object_step.max((o.step > 0).then_some(o.step));
+                either.push(format!("objects[{k}] {why}"))
+            }
             None => {}
         }
     }
@@ -136,7 +143,7 @@ pub fn expect(s: &Scenario, gait: &GaitParams, feet_half_spacing_m: f64) -> Expe
             ),
         }
     } else {
-        ExpectSpec { outcome: ExpectedOutcome::Either, reason: either.join("; "), before_step: None }
+        ExpectSpec { outcome: ExpectedOutcome::Either, reason: either.join("; "), before_step: object_step }
     }
 }
 
@@ -302,6 +309,28 @@ mod tests {
         assert_eq!(outcome(|s| s.staircase.width_m = 0.32), ExpectedOutcome::Either);
         // The same flight with the robot 20 cm off its middle line: the left lane is off.
         assert_eq!(outcome(|s| s.robot.position_m[1] = 0.2), ExpectedOutcome::Refuse);
+    }
+
+    #[test]
+    fn something_near_a_lane_high_on_the_flight_may_be_refused_from_below_it() {
+        let mut s = Scenario::default();
+        s.staircase.steps = 6;
+        s.staircase.width_m = 1.2;
+        // A person-tall bag in the right lane on step 5: the lanes may move away from it.
+        let bag = crate::scenario::ObjectSpec {
+            step: 5,
+            along_m: 0.12,
+            across_m: -0.1,
+            size_m: [0.3, 0.25, 0.5],
+            ..Default::default()
+        };
+        s.objects.push(bag.clone());
+        let e = expect(&s, &GaitParams::default(), FEET);
+        assert_eq!((e.outcome, e.before_step), (ExpectedOutcome::Either, Some(5)), "{}", e.reason);
+        // On the floor beside the path: any refusal comes before the flight.
+        s.objects[0] = crate::scenario::ObjectSpec { step: 0, along_m: -0.3, across_m: 0.3, ..bag };
+        let e = expect(&s, &GaitParams::default(), FEET);
+        assert_eq!((e.outcome, e.before_step), (ExpectedOutcome::Either, None), "{}", e.reason);
     }
 
     #[test]

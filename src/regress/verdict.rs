@@ -74,8 +74,8 @@ impl fmt::Display for Verdict {
 }
 
 /// The verdict of `report` against `expect`; `timed_out` when the runner cancelled it. A
-/// `refuse` with `before_step` (1-based) forbids a foot on that step and above only; without
-/// it, on the whole staircase.
+/// refusal (`refuse`, or `either` refused) with `before_step` (1-based) forbids a foot on
+/// that step and above only before it; without it, on the whole staircase.
 pub fn classify(
     expect: ExpectedOutcome,
     before_step: Option<u32>,
@@ -195,6 +195,9 @@ mod tests {
         // Something in a lane on step 2, seen from step 1: refused before a foot went on it.
         assert_eq!(classify(Refuse, Some(2), &late, false), Verdict::RefusedAsExpected);
         assert_eq!(classify(Refuse, Some(1), &late, false), Verdict::SteppedOntoUnclimbable);
+        // Something near a lane on step 2 (`either`): a refusal from step 1 is one outcome.
+        assert_eq!(classify(Either, Some(2), &late, false), Verdict::RefusedAsExpected);
+        assert_eq!(classify(Either, Some(1), &late, false), Verdict::FalseRefusal);
         let nothing = report(&[], Some(StopReason::NoStaircaseAhead { cycle: 1, last_view: None }), false);
         assert_eq!(classify(Climb, None, &nothing, false), Verdict::NoStaircaseFound);
         assert_eq!(classify(Refuse, None, &nothing, false), Verdict::RefusedAsExpected);

@@ -60,9 +60,10 @@ pub struct ExpectSpec {
     /// Why (the limit and the value that decide it).
     #[serde(default)]
     pub reason: String,
-    /// For `refuse`: the step (1 = the lowest) no foot may be set on; the steps below it may
-    /// be climbed first (something in a lane on a high tread is seen only from nearer).
-    /// Absent: no foot on the staircase at all.
+    /// For `refuse`, and `either`'s refusal: the step (1 = the lowest) no foot may be set on
+    /// before refusing; the steps below it may be climbed first (something in or near a lane
+    /// on a high tread is seen only from nearer). Absent: a refusal comes before any foot is
+    /// on the staircase.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub before_step: Option<u32>,
 }
