@@ -30,7 +30,9 @@ test: setup
 	@set -o pipefail; $(CARGO) test --release 2>&1 | tee out/test.log
 	@awk '/^test result:/ { p += $$4; f += $$6; i += $$8 } END { printf "stairbench: %d passed, %d failed, %d skipped\n", p, f, i }' out/test.log
 
+# Formatting and clippy (the [lints] of Cargo.toml, warnings as errors); CI runs it.
 lint: setup
+	@$(CARGO) fmt --version >/dev/null 2>&1 && $(CARGO) clippy --version >/dev/null 2>&1 || rustup component add rustfmt clippy
 	$(CARGO) fmt --check
 	$(CARGO) clippy --release --all-targets -- -D warnings
 

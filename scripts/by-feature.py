@@ -1,7 +1,11 @@
 #!/usr/bin/env python3
 """The `real` suite's results by feature of real stairs, as a Markdown table.
 
-Usage: scripts/by-feature.py out/regress/real/results.jsonl
+Usage: scripts/by-feature.py out/regress/real/results.jsonl [--write BENCHMARKS.md]
+
+With --write, the table replaces the section between `<!-- real-by-feature -->` and
+`<!-- /real-by-feature -->` in that file (with the command that made it), as the bench's own
+`--write` does.
 
 A run counts under every feature its case has (nosing, open risers, uneven rises or treads,
 handrails, objects on treads), and under "plain" when it has none. Friction ratio and CoM
@@ -26,7 +30,9 @@ def features(p):
     return f or ["plain"]
 
 
-def main(path):
+def table(path):
+    out = []
+    print = lambda s="": out.append(s)  # noqa: E731 (the table is collected, not printed)
     rows = {}
     for line in open(path):
         r = json.loads(line)
@@ -50,7 +56,26 @@ def main(path):
     print(f"\nall: {sum(r['pass'] for r in allr)} of {len(allr)} passed; falls "
           f"{sum(r['verdict'] == 'fell' for r in allr)}, errors {sum(r['verdict'] == 'error' for r in allr)}, "
           f"timeouts {sum(r['verdict'] == 'timeout' for r in allr)}")
+    return "\n".join(out) + "\n"
+
+
+def write(md, text):
+    begin, end = "<!-- real-by-feature -->", "<!-- /real-by-feature -->"
+    doc = open(md).read()
+    if begin not in doc or end not in doc:
+        sys.exit(f"{md} has no {begin} ... {end} section to replace")
+    head, rest = doc.split(begin, 1)
+    _, tail = rest.split(end, 1)
+    cmd = ("Command: `./target/release/stairbench regress real --out DIR --jobs 2`, then "
+           "`scripts/by-feature.py DIR/results.jsonl --write BENCHMARKS.md`\n\n")
+    open(md, "w").write(head + begin + "\n" + cmd + text + end + tail)
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    args = sys.argv[1:]
+    if len(args) == 3 and args[1] == "--write":
+        write(args[2], table(args[0]))
+    elif len(args) == 1:
+        sys.stdout.write(table(args[0]))
+    else:
+        sys.exit(__doc__)

@@ -19,6 +19,7 @@ pub mod geom3d;
 pub mod params;
 pub mod perception;
 pub mod planning;
+pub mod plot_font;
 pub mod record;
 pub mod regress;
 pub mod robot;

@@ -317,3 +317,29 @@ fn the_smoke_suite_passes_every_case_and_refuses_the_unclimbable_ones_in_time() 
     assert!(failing.is_empty(), "failing smoke cases: {failing:#?}");
     assert_eq!(o.status.code(), Some(0));
 }
+
+/// Every incident kept in the `regressions` suite passes, replayed on the noise seed it ran
+/// on (a scenario-file case's draw 0 is its own seed), with the expectation the suite gives.
+#[test]
+fn the_regressions_suite_passes_every_incident_on_its_own_seed() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let out = dir("regressions");
+    let o = stairbench(&["regress", "regressions", "--out", out.to_str().unwrap(), "--quiet"]);
+    assert_ne!(o.status.code(), Some(2), "the runner itself did not fail");
+    let results = read(&out.join("results.jsonl")).unwrap();
+    let suite = stairbench::regress::suite::load(Path::new("scenarios/suites/regressions.toml")).unwrap();
+    assert_eq!(results.len(), suite.explicit.len(), "a verdict for every incident");
+    for (r, case) in results.iter().zip(&suite.explicit) {
+        let file =
+            Scenario::load(case.scenario.as_ref().expect("every incident is a scenario file")).unwrap();
+        assert_eq!(r.noise_seed, file.seed, "{}: replayed on its own seed", r.id);
+        println!("{} {:<40} expected {:?}: {}", r.id, case.name, r.expect, r.verdict);
+    }
+    let failing: Vec<String> = results
+        .iter()
+        .filter(|r| !r.pass)
+        .map(|r| format!("{} {:?} ({}): {}", r.id, r.name, r.verdict, r.message.as_deref().unwrap_or("")))
+        .collect();
+    assert!(failing.is_empty(), "failing incidents: {failing:#?}");
+    assert_eq!(o.status.code(), Some(0));
+}

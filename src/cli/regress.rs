@@ -25,7 +25,7 @@ const SUITE_DIR: &str = "scenarios/suites";
 pub struct RegressArgs {
     #[command(subcommand)]
     command: Option<RegressCommand>,
-    /// The suite: a file, or a name in scenarios/suites/ (smoke, ci, envelope, wide, real).
+    /// The suite: a file, or a name in scenarios/suites/ (smoke, ci, envelope, wide, real, regressions).
     #[arg(required = true)]
     suite: Option<PathBuf>,
     /// Output folder: results.jsonl, junit.xml, cases/<id>.toml, the maps (default

@@ -269,28 +269,27 @@ pub fn run<E: Executor>(
 /// that goes to look again (with the refusal; the steps' upper part is reconstructed from
 /// nearer, as in the paper):
 /// - a refused step above the next one: the climb of the steps below it, when its first
-///   stance is on the flight (ci suite case 175: from step 4 of 12, step 10, seen 0.91 m of
-///   its 1.33 m width at the edge of the lidar's view, refused the climb "would overhang
-///   its side");
+///   stance is on the flight (a far step seen in part at the edge of the lidar's view is
+///   refused as overhung: regression `far-step-in-part-and-an-unloaded-foot`);
 /// - else, with the feet on the floor the climb started from (within `floor_band_m` of
 ///   `start_floor_z_m`), the first stances of the walk on the floor toward them. Never from
 ///   a step: the walk's "floor" would be the tread under the feet, and its stances within
-///   the lidar's blind reach need no returns under them (ci suite case 83: from the top
-///   tread, toward a strip seen on the room's wall, the right foot went 0.19 m past the
-///   tread's back edge and the robot fell).
+///   the lidar's blind reach need no returns under them (a walk from the top tread toward
+///   a strip seen on a wall went past the tread's back edge: regression
+///   `wall-strip-taken-for-a-step`).
 ///
 /// On that floor, no stance walks toward a first riser out of the lidar's sight
 /// ([`riser_in_sight`]: its front not placed on the riser, no floor seen before it): set
-/// down within 0.3 m of the first riser, the robot saw step 1 in part (0.209 m of its
-/// tread) from where its sight begins; the walk nearer put its toes 5 cm behind that front
-/// and the right foot into the riser (friction 2.55, a fall in the first cycle). Such a
-/// robot plans from where it stands (the climb's first stance onto the step), or walks back
-/// until the riser is in sight ([`plan_retreat`]), and looks again.
+/// down within 0.3 m of the first riser, the robot sees step 1 in part from where its sight
+/// begins, and a walk nearer puts the feet into the riser (regression
+/// `set-down-near-the-first-riser`). Such a robot plans from where it stands (the climb's
+/// first stance onto the step), or walks back until the riser is in sight
+/// ([`plan_retreat`]), and looks again.
 ///
 /// The step map's lowest step left for a closer look ([`NextInput::deferred`]):
-/// no foot goes on it, but its front bounds the tread below it (envelope 0.10 x 0.22: left
-/// out of the plan, step 2's tread was planned as the top, open behind, and the toe struck
-/// its riser).
+/// no foot goes on it, but its front bounds the tread below it (left out of the plan, the
+/// tread below would be planned as the top, open behind, and the toe strike its riser:
+/// regression `step-2-planned-as-the-top`).
 ///
 /// The refusal when neither is possible (nothing left to walk on the floor, a refused next
 /// step, feet on a step), or they are refused too.

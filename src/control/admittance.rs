@@ -136,12 +136,12 @@ pub fn light_contact(
 /// landed foot hovered: the touch was often the foot's own inertia or a brief bounce, it
 /// then read 0-7 N for a second while the weight was still on the other foot, and once the
 /// distribution wanted its share, [`press`] drove it down at the approach's speed into a
-/// second impact (ci case 157: 41 N normal with 22 N tangential). The target is at least
-/// `landing_preload_n`, so the foot stays down before the weight comes. (On the lowest rises
-/// with the deepest treads the first impacts grew with it, and 0 measured better; their
-/// cause was the leading leg landing straight, fixed in the plan, see
-/// [`crate::planning::reach`].) Its horizontal offset yields to its tangential force error
-/// once it touches (as in [`light_contact`]); its tilt returns to the plan.
+/// second impact (regression `landed-foot-pressed-into-a-second-impact`). The target is at
+/// least `landing_preload_n`, so the foot stays down before the weight comes. (The preload
+/// makes a straight leg's touchdown strike harder; the plan keeps the leading leg from
+/// landing straight, see [`crate::planning::reach`] and regression
+/// `leading-leg-landed-straight`.) Its horizontal offset yields to its tangential force
+/// error once it touches (as in [`light_contact`]); its tilt returns to the plan.
 pub fn landing(
     offset: &mut FootOffset,
     measured: &Vector3<f64>,
@@ -172,10 +172,10 @@ pub fn landing(
 
 /// A foot of a double support that should carry some of the weight and reads no contact:
 /// its landing was read from a tick of force with the sole still in the air (at x 2 speed,
-/// Exp. 1's left foot read 20.5 N for one tick 3 mm above the floor, was held there, and the
-/// CoM moved onto it until the robot tipped onto it, 0.2 mm outside its polygon), or it
-/// stands on the ground with the other leg holding all the weight (ci case 175, step after
-/// step: 0-4 N while 25-31 N were wanted). It goes down at the approach's speed
+/// Exp. 1's left foot read 20.5 N for one tick 3 mm above the floor, was held there, and
+/// the CoM moved onto it until the robot tipped onto it, 0.2 mm outside its polygon), or it
+/// stands on the ground with the other leg holding all the weight (regression
+/// `far-step-in-part-and-an-unloaded-foot`). It goes down at the approach's speed
 /// (`approach_speed_m_s`, no farther than `max_seek_m` below the plan) to meet the ground;
 /// its horizontal offset and tilt return to the plan. A foot that has just landed follows
 /// [`landing`] instead until it is loaded.

@@ -52,10 +52,10 @@ pub struct PerceptionParams {
     /// repeatability below 10 m; the bench's default sensor noise). A sweep measured
     /// noisier ([`noise::range_noise_m`]) gets k grown in proportion
     /// ([`noise::neighbours_for`]): on k = 10 under 20 mm of noise the normals of the near,
-    /// steeply seen treads were noise, Filter 1 kept 9,588 of 258,059 points (58,158
-    /// noise-free; wide suite case 55), and the paper's Exp. 1 lost its first step from the
-    /// start view in 6 of 10 noise draws (0 of 10 with k = 20). A cloud without scan rows
-    /// (a file) keeps k.
+    /// steeply seen treads are noise, Filter 1 keeps a small share of the points it keeps
+    /// noise-free, and a step goes unseen (regression `step-1-never-perceived`; on the
+    /// paper's Exp. 1 flight the first step from the start view in most noise draws, in
+    /// none with k = 20). A cloud without scan rows (a file) keeps k.
     pub reference_noise_m: f64,
     /// Whether k grows with the sweep's measured range noise (see `reference_noise_m`);
     /// `false` runs the paper's k whatever the noise.
@@ -87,21 +87,21 @@ pub struct PerceptionParams {
     /// about 6 cm between them, see the gait's `max_gap_m`).
     pub flight_gap_m: f64,
     /// Beyond §4.2's Filter 3: a segment's voxels must cover at least this share of its
-    /// footprint (its convex hull), or it is a few scattered voxels, not a surface: 4
-    /// voxels of floor spread over 0.3 m by 1 m passed the sole-sized footprint test and
-    /// joined a flight as a step turned 16 deg (ci suite case 104). A tread seen from afar,
-    /// sampled every 3-5 cm in range by a 2 cm voxel grid, covers 30 % or more.
+    /// footprint (its convex hull), or it is a few scattered voxels, not a surface: a few
+    /// voxels of floor spread over a sole's footprint pass the footprint test and would join
+    /// a flight as a turned step (regression `scattered-floor-voxels-joined-the-flight`). A
+    /// tread seen from afar, sampled every 3-5 cm in range by a 2 cm voxel grid, covers
+    /// 30 % or more.
     pub min_segment_cover: f64,
     /// Beyond §4.3: a step's rectangle leaves out the points beyond an empty row at either
     /// end (rows: strips a voxel wide, across the ascent and along it) whose rows hold less
     /// than this share of the segment's median row: they are strays apart from the tread.
     /// Under range noise the top of a riser scatters along the rays, and the returns within
-    /// the tread's plane join it a few voxels a row up to 6 cm ahead of the nose (ci case
-    /// 182, 15 mm of noise: rows of 2, 0 and 7 voxels ahead of step 6's rows of 28-45, its
-    /// front put 6.6 cm toward the robot; the step below it, 0.265 m deep, was refused as
-    /// 0.210 m up to it). The sparse row next to the tread stays: a tread's own edge, cut by
-    /// the voxel grid, holds any part of a row. A far tread sampled one row in two has
-    /// empty rows between full ones: not sparse, kept.
+    /// the tread's plane join it a few voxels a row up to 6 cm ahead of the nose, and its
+    /// front so far toward the robot leaves the step below it short up to it (regression
+    /// `riser-strays-moved-a-front-edge`). The sparse row next to the tread stays: a
+    /// tread's own edge, cut by the voxel grid, holds any part of a row. A far tread
+    /// sampled one row in two has empty rows between full ones: not sparse, kept.
     pub min_edge_row_fill: f64,
     /// Beyond §4: each step's front edge placed on the riser below it, from the whole
     /// cloud's returns there (see [`riser`]); `[perception.riser]` in a parameters file.

@@ -20,9 +20,10 @@ pub struct StepMapParams {
     pub same_step_m: f64,
     /// A view's rectangle turned from the known step's by more than this (on the nearest of
     /// its axes) is not a view of that tread's outline, and gives it no edges; radians.
-    /// 20 degrees: partial views of one tread come back turned up to 12 degrees (ci suite
-    /// case 7) and their edges still hold; a view whose flight axis came from two near-square
-    /// pieces under 20 mm of noise came back turned 40 degrees (smoke suite, `noisy-20mm`).
+    /// 20 degrees: partial views of one tread come back turned by up to about 12 degrees and
+    /// their edges still hold (regression `partial-view-turned-a-step`); a view whose flight
+    /// axis comes from two near-square pieces under 20 mm of noise can come back turned 40
+    /// degrees (regression `near-square-pieces-turned-the-view`).
     pub max_view_turn_rad: f64,
     /// A view's rectangle narrower than this across the flight's ascent (the known steps',
     /// else its own) holds no sole and is no step: a handrail's top, a shoe lying along the
@@ -137,10 +138,10 @@ fn width_across_m(s: &PlaneSegment, along: &nalgebra::Vector3<f64>) -> f64 {
 /// next step: at the far edge of what the lidar sees, a tread is often seen only in part
 /// (Exp. 2, seed 3: 11 cm of a 26.5 cm tread, from step 2), and planning the next stances
 /// must not be refused for a step a later scan, from closer, sees whole. The steps above it
-/// wait with it: the plan cannot pass a step it has no foothold on (ci suite case 103: a
-/// 21 cm view of step 7 was left for later while it was the top, then planned when a
-/// higher step came into view, and refused). A staircase whose next step is too shallow is
-/// still refused.
+/// wait with it: the plan cannot pass a step it has no foothold on (a step left for later
+/// while it was the top, then planned once a higher step came into view, was refused:
+/// regression `deferred-step-planned-below-a-higher-one`). A staircase whose next step is
+/// too shallow is still refused.
 pub fn without_partial_top(mut ahead: Vec<PlaneSegment>, min_tread_m: f64) -> NextInput {
     ahead.sort_by(|a, b| a.height_m().total_cmp(&b.height_m()));
     let first_shallow = ahead.iter().skip(1).position(|s| s.depth_m() < min_tread_m).map(|i| i + 1);
@@ -153,10 +154,9 @@ pub fn without_partial_top(mut ahead: Vec<PlaneSegment>, min_tread_m: f64) -> Ne
 /// ([`merge_view`]): the one on more voxels, reaching to the other's front and back edges
 /// where they are farther out (each view misses part of a tread: its front close to the
 /// riser, its back from afar). New rectangles that are one step, once merged (a view that
-/// split a tread in two), are one: ci case 188, under 20 mm of noise, saw step 3 as two
-/// pieces side by side, each merged with the known step into a whole tread; the two at one
-/// height left the first no depth up to the "next" one's front, and its foot was planned
-/// on the nose (the robot fell).
+/// split a tread in two), are one: two at one height would leave the first no depth up to
+/// the "next" one's front, and its foot on the nose (regression
+/// `tread-split-in-two-under-20mm`).
 pub fn merge(known: &[PlaneSegment], seen: Vec<PlaneSegment>, p: &StepMapParams) -> Vec<PlaneSegment> {
     let matches = |a: &PlaneSegment, b: &PlaneSegment| same_step(a, b, p);
     let merged = |s: &PlaneSegment, k: &PlaneSegment| merge_view(s, k, p.max_view_turn_rad);
@@ -208,11 +208,11 @@ fn span(r: &PlaneSegment, axis: &nalgebra::Vector3<f64>) -> [f64; 2] {
 
 /// Whether `a` and `b` are two pieces of one tread side by side: lying along each other
 /// (within `max_view_turn_rad`), over the same depth (their spans along the ascent overlap
-/// by at least half the shallower's), less than `same_step_m` apart across. Under 21 mm of
-/// noise the wide suite's case 14 saw step 1's right end from afar (0.24 m wide) and, from
-/// nearer, its middle (0.60 m wide), 6 mm apart: two treads at one height, the first "3 mm
-/// deep up to the next one's front", and the climb was refused. Treads of a flight are a
-/// rise apart in height; at one height and over one depth, pieces side by side are one.
+/// by at least half the shallower's), less than `same_step_m` apart across. Under 20 mm of
+/// noise one end of a tread may be seen from afar and its middle from nearer, a few
+/// millimetres apart; kept as two treads at one height, the first has no depth up to the
+/// next one's front (regression `noisy-views-in-pieces-and-turned`). Treads of a flight are
+/// a rise apart in height; at one height and over one depth, pieces side by side are one.
 fn side_by_side(a: &PlaneSegment, b: &PlaneSegment, p: &StepMapParams) -> bool {
     let u = a.along();
     let b = axis_nearest(b, &u);
@@ -229,41 +229,21 @@ fn side_by_side(a: &PlaneSegment, b: &PlaneSegment, p: &StepMapParams) -> bool {
 }
 
 /// The new view `s` of the known step `k`: the view of the two that rests on more voxels
-/// (the fuller), stretched along the ascent to the other's edges where they reach farther.
-/// Each view misses part of a tread, and does not add one as long as its rectangle lies
-/// along the known one (within `max_turn_rad`; a view turned beyond it gives no edges, see
-/// [`StepMapParams::max_view_turn_rad`]): close to a riser the legs hide its
-/// front (the nose), and from afar the next step's nose hides its back (Exp. 2, step 6: the
-/// farthest view, on the most voxels, ended 4 cm short of the back; the closer ones within
-/// 1 cm), and 8 voxels of a tread (ci suite case 15) ended 7 cm short of the 417 of the
-/// view before (the tread came out 0.21 m deep: refused, shorter than the foot).
-/// Everything else is the fuller view's, since a view of part of a tread gets the rest of
-/// it wrong:
-/// - The height: 14 voxels of a landing seen at a grazing angle from the step below came
-///   out 1.7 cm under the 3671 of the view before (ci suite case 60), and the last stance
-///   was planned that far under the landing (touchdown 19 mm off).
-/// - The direction: a partial view's rectangle is fitted to what the legs leave of a tread,
-///   and turns (ci suite case 7: from step 6, 557 voxels of step 7 came out yawed 12 degrees
-///   from the 1123 of the view before; the plan was refused, "not a straight staircase").
-/// - The sides: close to a step, the robot's own legs hide part of the next tread, and a
-///   view of its one side (ci suite case 9: 0.71 m of a 1.33 m tread, 54 voxels against the
-///   known 308) had narrowed the step under the feet' lanes and the plan was refused.
-/// - The plane: a partial view (the near part of the tread hidden under the lidar) fits its
-///   plane to a strip 10-15 cm deep: on Exp. 1 such a view of step 2 came out tilted 2-4
-///   degrees (full views: under 1 degree); a foot planned on that tilt came down on its toe
-///   or heel (the footholds are level now, and the normal is reported, not planned on).
-///
-/// An edge's place is as far as the view surely saw tread ([`surely_seen`]), not its corner:
-/// a rectangle yawed by a degree or two (as perception returns them) has a front corner up
-/// to `width/2 * sin(yaw)` ahead of its front edge, and taking that corner for the edge
-/// moved the nose toward the robot at every merge (on the 50 cm Exp. 1 treads, 1.2-1.6 cm
-/// over three scans: the heel came down on the nose); nor, for a turned view, its edge's
-/// midpoint (wide suite case 14: 8 cm beyond the tread at both ends).
+/// (the fuller), stretched along the ascent to the other's edges where they reach farther,
+/// since each view misses part of a tread (the legs hide its front from close, the next
+/// nose its back from afar, a sparse view ends short: regression
+/// `sparse-view-cut-a-tread-short`). An edge is as far as a view surely saw tread
+/// ([`surely_seen`]), not a yawed rectangle's corner nor a turned one's edge midpoint
+/// (regression `noisy-views-in-pieces-and-turned`); a view turned beyond `max_turn_rad`
+/// gives no edges ([`StepMapParams::max_view_turn_rad`]). The rest is the fuller view's,
+/// since a view of part of a tread gets it wrong: its height (regression
+/// `tilted-tread-and-sunk-landing`), direction (regression `partial-view-turned-a-step`),
+/// sides (regression `side-view-narrowed-a-step`) and plane.
 fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSegment {
     let (fuller, other) = if k.voxel_count() > s.voxel_count() { (k, s) } else { (s, k) };
-    // Which of its axes is the ascent, a view of one tread only guesses (see `axis_nearest`):
-    // the known step's says, even when the new view is the fuller (ci suite case 16: the top
-    // tread alone in view, 1101 voxels against 1091, its width taken for its depth).
+    // Which of its axes is the ascent, a view of one tread only guesses (see
+    // `axis_nearest`): the known step's says, even when the new view is the fuller (the top
+    // tread alone in view: regression `top-tread-alone-axes-swapped`).
     let fuller = axis_nearest(fuller, &k.along());
     let along = fuller.along();
     let other = axis_nearest(other, &along);
@@ -303,11 +283,10 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
 /// rectangle is turned against the known ascent, that touching point lies anywhere within
 /// `width/2 * sin(turn)` of the midpoint along the ascent, and only the inner bound is
 /// sure. A turned rectangle of a tread reaches beyond it at both ends by about
-/// `(width * sin(turn) * cos(turn) - depth * sin(turn)^2) / 2`: wide suite case 14 (21 mm
-/// of noise) first saw step 6 in a view whose flight axis came out turned 19.7 degrees,
-/// 0.46 m deep and 0.68 m wide on a 0.289 m tread, and its midpoints, taken as edges,
-/// stretched the merged step 8 cm beyond the tread at both ends (a heel came down 25 mm
-/// over step 5's front edge). For a view along the known ascent, the midpoint.
+/// `(width * sin(turn) * cos(turn) - depth * sin(turn)^2) / 2`: its midpoints, taken as
+/// edges, stretch a merged step centimetres beyond the tread at 20 degrees, and a heel
+/// planned on it comes down over the front edge below (regression
+/// `noisy-views-in-pieces-and-turned`). For a view along the known ascent, the midpoint.
 fn surely_seen(
     r: &PlaneSegment,
     c: &nalgebra::Point3<f64>,
@@ -320,11 +299,11 @@ fn surely_seen(
 }
 
 /// `r`, the same rectangle, described with the one of its four horizontal axes (ascent,
-/// left, their opposites) nearest `along` as its direction of ascent. Which of a rectangle's
-/// axes is the ascent is perception's guess, from the view alone; with a single tread in view
-/// it guesses from the direction to the sensor, and close to a riser (the sensor almost over
-/// the nose) it took the tread's width for its depth (ci suite case 11: step 2 seen 1.08 m
-/// "deep", 0.23 m wide, and merged into a 0.13 m tread).
+/// left, their opposites) nearest `along` as its direction of ascent. Which of a
+/// rectangle's axes is the ascent is perception's guess, from the view alone; with a single
+/// tread in view it guesses from the direction to the sensor, and close to a riser (the
+/// sensor almost over the nose) it took the tread's width for its depth (regression
+/// `tread-width-taken-for-its-depth`).
 fn axis_nearest(r: &PlaneSegment, along: &nalgebra::Vector3<f64>) -> PlaneSegment {
     let u = r.along();
     let left = nalgebra::Vector3::z().cross(&u);
@@ -431,8 +410,8 @@ mod tests {
         assert_eq!(apart.len(), 2);
     }
 
-    /// ci case 188: a view splits the known step 3 (0.9 m wide) in two pieces side by
-    /// side; the map keeps one step 3, whole.
+    /// Regression `tread-split-in-two-under-20mm`: a view splits the known step 3 (0.9 m
+    /// wide) in two pieces side by side; the map keeps one step 3, whole.
     #[test]
     fn a_view_that_splits_a_tread_in_two_leaves_one_step() {
         let known = vec![
@@ -451,10 +430,10 @@ mod tests {
         assert_eq!(merged.len(), 2);
     }
 
-    /// Wide suite case 14 (21 mm of noise): step 1's right end seen from afar, its middle
-    /// from nearer, 6 mm apart across: one step, not two at one height (the first was left
-    /// "3 mm deep up to the next one's front" and the climb refused). A piece beside it
-    /// over another depth, or turned across it, stays apart.
+    /// Regression `noisy-views-in-pieces-and-turned` (21 mm of noise): step 1's right end
+    /// seen from afar, its middle from nearer, 6 mm apart across: one step, not two at one
+    /// height (the first was left "3 mm deep up to the next one's front" and the climb
+    /// refused). A piece beside it over another depth, or turned across it, stays apart.
     #[test]
     fn pieces_of_a_tread_side_by_side_are_one_step() {
         let end = level(Point3::new(0.146, -0.40, 0.152), Vector3::x(), 0.244, 0.235, 60);
@@ -472,7 +451,8 @@ mod tests {
 
     #[test]
     fn a_view_of_one_side_of_a_step_does_not_narrow_it() {
-        // ci case 9: 0.71 m of a 1.33 m tread, on its left, seen from close.
+        // Regression `side-view-narrowed-a-step`: 0.71 m of a 1.33 m tread, on its left,
+        // seen from close.
         let known = level(Point3::new(1.31, 0.0, 0.17), Vector3::x(), 0.26, 1.33, 308);
         let side = level(Point3::new(1.38, 0.24, 0.17), Vector3::x(), 0.12, 0.71, 54);
         let merged = merge(std::slice::from_ref(&known), vec![side], &StepMapParams::default());
@@ -532,11 +512,12 @@ mod tests {
         }
     }
 
-    /// Wide suite case 14 (21 mm of noise), in the flight's frame: step 6 (true 1.444 m to
-    /// 1.733 m along the flight) was first seen in a view whose axis came out turned 19.7
-    /// degrees, 0.462 m by 0.678 m; the next view saw it along the flight, 0.322 m deep. The
-    /// merged step must not reach the turned rectangle's midpoints (1.367 m and 1.80 m: a
-    /// heel was planned 25 mm over the step below's front edge).
+    /// Regression `noisy-views-in-pieces-and-turned` (21 mm of noise), in the flight's
+    /// frame: step 6 (true 1.444 m to 1.733 m along the flight) was first seen in a view
+    /// whose axis came out turned 19.7 degrees, 0.462 m by 0.678 m; the next view saw it
+    /// along the flight, 0.322 m deep. The merged step must not reach the turned
+    /// rectangle's midpoints (1.367 m and 1.80 m: a heel was planned 25 mm over the step
+    /// below's front edge).
     #[test]
     fn a_turned_view_does_not_stretch_a_step() {
         let at = |deg: f64| Vector3::new(deg.to_radians().cos(), deg.to_radians().sin(), 0.0);
@@ -549,8 +530,9 @@ mod tests {
         assert!(front > 1.444 - 0.025 && back < 1.733 + 0.025, "step 6 at {front:.3}..{back:.3} m");
     }
 
-    /// ci suite case 11: with one tread in view, perception took its width for its depth
-    /// (ascent turned 90 degrees); the merge must read that view along the known ascent.
+    /// Regression `tread-width-taken-for-its-depth`: with one tread in view, perception
+    /// took its width for its depth (ascent turned 90 degrees); the merge must read that
+    /// view along the known ascent.
     #[test]
     fn a_view_with_its_axes_swapped_is_read_along_the_known_ascent() {
         let known = level(Point3::new(1.64, 0.01, 0.37), Vector3::x(), 0.29, 1.46, 506);
@@ -563,7 +545,8 @@ mod tests {
         assert!((m.depth_m() - 0.29).abs() < 1e-9, "depth {} (the known 0.29 m)", m.depth_m());
         assert!((m.width_m() - 1.46).abs() < 1e-9, "width {}", m.width_m());
         assert!((m.center() - known.center()).norm() < 1e-9);
-        // ci suite case 16: the swapped view is the fuller one; the known ascent still holds.
+        // Regression `top-tread-alone-axes-swapped`: the swapped view is the fuller one; the
+        // known ascent still holds.
         let whole = level(Point3::new(1.64, 0.01, 0.37), Vector3::y(), 1.46, 0.27, 520);
         let merged = merge(std::slice::from_ref(&known), vec![whole], &StepMapParams::default());
         let m = &merged[0];
@@ -576,8 +559,8 @@ mod tests {
         );
     }
 
-    /// ci suite case 15: 8 voxels of a tread must not cut its back edge (the merged tread
-    /// came out 0.21 m deep, and the plan was refused).
+    /// Regression `sparse-view-cut-a-tread-short`: 8 voxels of a tread must not cut its
+    /// back edge (the merged tread came out 0.21 m deep, and the plan was refused).
     #[test]
     fn a_sparse_view_does_not_cut_a_tread() {
         let known = level(Point3::new(1.505, 0.0, 0.51), Vector3::x(), 0.30, 0.94, 417);
@@ -600,7 +583,8 @@ mod tests {
         assert!((front - 1.9035).abs() < 1e-9 && (back - 2.196).abs() < 1e-9, "{front} {back}");
     }
 
-    /// ci suite case 60: a sparse view of a landing must not move its plane.
+    /// Regression `tilted-tread-and-sunk-landing`: a sparse view of a landing must not move
+    /// its plane.
     #[test]
     fn a_sparse_view_does_not_move_a_step_height() {
         let landing = level(Point3::new(4.06, 0.36, 1.004), Vector3::x(), 1.35, 1.42, 3671);
@@ -627,8 +611,9 @@ mod tests {
         assert!(same_step(&a, &inside, &p) && same_step(&inside, &a, &p));
     }
 
-    /// ci suite case 7: a view of half a tread (the legs hide the rest) came out turned 12
-    /// degrees; the merged step must keep the fuller view's direction of ascent.
+    /// Regression `partial-view-turned-a-step`: a view of half a tread (the legs hide the
+    /// rest) came out turned 12 degrees; the merged step must keep the fuller view's
+    /// direction of ascent.
     #[test]
     fn a_partial_view_does_not_turn_a_step() {
         let full = level(Point3::new(2.9, -0.36, 1.02), Vector3::x(), 0.36, 0.98, 1123);
@@ -655,12 +640,13 @@ mod tests {
         assert!((merged[0].along() - full.along()).norm() < 1e-9);
     }
 
-    /// Smoke suite, `noisy-20mm` (20 mm of range noise), view 3: perception found step 1
-    /// as a 25-voxel piece at one side and step 2 as 84 voxels; the flight's axis, taken
-    /// from those two near-square pieces, came out 40 degrees off and step 2's rectangle
-    /// 0.78 m by 0.65 m. Its edges, projected on the known ascent, brought step 2's front
-    /// 5 cm toward the robot, and a foot was planned off step 1's back. A view turned that
-    /// far from the known step gives it no edges; one turned a little still does.
+    /// Regression `near-square-pieces-turned-the-view` (20 mm of range noise), view 3:
+    /// perception found step 1 as a 25-voxel piece at one side and step 2 as 84 voxels; the
+    /// flight's axis, taken from those two near-square pieces, came out 40 degrees off and
+    /// step 2's rectangle 0.78 m by 0.65 m. Its edges, projected on the known ascent,
+    /// brought step 2's front 5 cm toward the robot, and a foot was planned off step 1's
+    /// back. A view turned that far from the known step gives it no edges; one turned a
+    /// little still does.
     #[test]
     fn a_view_turned_far_from_the_known_step_gives_it_no_edges() {
         let p = StepMapParams::default();
@@ -695,8 +681,9 @@ mod tests {
             2,
             "the next step is planned as it is"
         );
-        // ci suite case 103: the partly seen step is no longer the top once a higher one is
-        // seen (also in part); it still waits, with the steps above it.
+        // Regression `deferred-step-planned-below-a-higher-one`: the partly seen step is no
+        // longer the top once a higher one is seen (also in part); it still waits, with the
+        // steps above it.
         let two_partial = vec![step(1.3, 0.6, 0.15), step(0.735, 0.2, 0.27), step(1.005, 0.4, 0.21)];
         let next = without_partial_top(two_partial, 0.22);
         assert_eq!(next.ahead.len(), 1);

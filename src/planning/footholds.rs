@@ -94,23 +94,18 @@ pub struct GaitParams {
     pub landing_foothold_m: f64,
     /// Floor footholds before the first step keep the toes this far behind its riser as
     /// perceived. Under range noise the first step's front edge comes back onto the tread
-    /// (its nose's normals mix with the riser's): from the start view of 115 generated
-    /// staircases (ci and wide suites), at most 13 mm at 5-15 mm of noise, 27 mm at 15-20 mm,
-    /// 43 mm at 20-25 mm (the paper's Exp. 1 at 20 mm: 31 mm). At 3 cm, the toes of wide
-    /// case 14 (21 mm of noise, the edge 25 mm on) ended at the true riser and the swinging
-    /// foot struck it. Farther back, the feet are farther apart for the first step up, and
-    /// HRP-4's 24 cm step (§6.3) is refused from 6 cm on (the leading knee would fold past
-    /// its limit). 5 cm keeps the toes 2 cm off the riser up to 20 mm of noise. Those
-    /// figures are on the paper's k = 10 normals at any noise; with k grown with the measured
-    /// noise (`PerceptionParams::reference_noise_m`), from the start view of 249 generated
-    /// staircases (every climbable case of the ci and wide suites): at most 12 mm at 5-20 mm
-    /// of noise, 13 mm at 20-25 mm, so 3 cm would again keep the toes off the riser (not
-    /// changed yet: the suites were run at 5 cm).
+    /// (its nose's normals mix with the riser's), by up to about 3 cm at 20 mm of noise on
+    /// the paper's k = 10 normals; at 3 cm the toes reached the true riser and the swinging
+    /// foot struck it (regression `noisy-views-in-pieces-and-turned`). Farther back, the
+    /// feet are farther apart for the first step up, and HRP-4's 24 cm step (§6.3) is
+    /// refused from 6 cm on (the leading knee would fold past its limit). 5 cm keeps the
+    /// toes off the riser up to 20 mm of noise.
     pub toe_gap_m: f64,
     /// On a tread with a step above it, the toes stay at least this far behind that step's
     /// front edge as perceived: on a tread shorter than the sole plus twice this, the foot
-    /// moves back from the middle, its heel toward the nose (the envelope's 0.24 m treads:
-    /// the foot centred on a usable 0.249 m put the toe 1 mm past the true riser).
+    /// moves back from the middle, its heel toward the nose (centred on a tread barely
+    /// longer than the sole, the toe meets the next riser, which perception places within a
+    /// few millimetres).
     pub toe_clearance_m: f64,
     /// How far the heel may overhang a tread's front edge as perceived when the toes keep
     /// `toe_clearance_m`; a tread that needs more is refused as short.
@@ -150,24 +145,24 @@ pub struct GaitParams {
     /// them, off the perceived steps' own surfaces: a step perception did not take for one,
     /// a box, a parcel left on a tread. Fewer are the scatter of a riser ahead of the toes:
     /// under 20 mm of range noise the first riser's voxels stray several centimetres toward
-    /// the robot along the rays, and two of them stood under the last floor stance's toes
-    /// (wide suite case 0). A 3 cm voxel grid holds about 34 points under HRP-4's sole; 6
-    /// are a strip of it 4 cm deep.
+    /// the robot along the rays, and a few stand under the last floor stance's toes
+    /// (regression `riser-strays-under-the-floor-toes`). A 3 cm voxel grid holds about 34
+    /// points under HRP-4's sole; 6 are a strip of it 4 cm deep.
     pub floor_obstruction_returns: usize,
     /// The same on a tread or a landing: a stance there is refused where at least this many
     /// points stand in a sole's way. Higher than on the floor: between two steps the next
     /// riser stands just past the toes, and under 20-25 mm of range noise its voxels stray
     /// past the 6 cm band that keeps a perceived step's own surfaces out (`floor_band_m`),
-    /// or belong to a step not yet perceived: 7 to 16 of them stood in a sole's way on
-    /// flights under 21-25 mm of noise. A thing that leaves no room for a sole shows more: a
-    /// shoe's top alone is 30 x 12 cm, 40 voxels of 3 cm (the parcel on Exp. 1:
-    /// 43 points). 20 is half a shoe's top.
+    /// or belong to a step not yet perceived: up to about 16 of them stand in a sole's way
+    /// under 21-25 mm of noise. A thing that leaves no room for a sole shows more: a shoe's
+    /// top alone is 30 x 12 cm, 40 voxels of 3 cm (regression
+    /// `parcel-in-a-lane-on-step-2`). 20 is half a shoe's top.
     pub tread_obstruction_returns: usize,
     /// The surroundings' points within this of a perceived step's solid are that step's own
     /// surfaces (its tread, its riser, its nose), not something standing in a sole's way,
     /// metres: as `IkParams::leg_surface_band_m`, three standard deviations of 25 mm of range
     /// noise plus half a voxel (at `floor_band_m`'s 6 cm, over 20 strays of the next riser
-    /// stood in a sole's way under 24.5 mm of noise). A thing lower than this on a tread is
+    /// stand in a sole's way under 25 mm of noise). A thing lower than this on a tread is
     /// not told from the tread's own noise.
     pub step_band_m: f64,
     /// How far past a sole's outline, on every side, the obstruction test of a stance
@@ -224,8 +219,9 @@ impl Default for GaitParams {
 /// How far inside the legs' longest stride ([`Legs::max_stride_m`]) the footholds keep a
 /// step up, metres: the gait's knee check measures between the ankles, about 9 cm above the
 /// soles; a measured start stance tilted a degree (the footholds' own are level,
-/// [`Layout::stance_on`]) moves that by up to 4.5 mm, and at the limit itself rounding alone
-/// refused the envelope's 0.26 x 0.40. Beyond the limit itself the footholds refuse.
+/// [`Layout::stance_on`]) moves that by up to 4.5 mm, and at the limit itself rounding
+/// alone refuses (regression `high-rise-on-a-deep-tread`). Beyond the limit itself the
+/// footholds refuse.
 const KNEE_STRIDE_SLACK_M: f64 = 0.005;
 
 /// The stances after `start`, ending with both feet on the highest rectangle, or the reason
@@ -243,9 +239,9 @@ pub fn footholds(
 }
 
 /// [`footholds`] on the `below` lowest rectangles of `rects` only, a higher one left to be
-/// judged from nearer; the next one still bounds the last's usable depth (envelope 0.10 x
-/// 0.22: with the partly seen step 3 left out, step 2 was judged as the top, open behind,
-/// the foot centred on it, and the toe struck step 3's riser).
+/// judged from nearer; the next one still bounds the last's usable depth (were the last
+/// judged as the top, open behind, its foot would go in its middle and the toe against the
+/// next riser: regression `step-2-planned-as-the-top`).
 pub fn footholds_below(
     start: &Stance,
     rects: &[PlaneSegment],
@@ -276,9 +272,9 @@ pub fn footholds_below(
     let mut prev_along = lay.start_along;
     for (i, s) in steps.iter().enumerate() {
         // The rise before the depth: a depth may grow from nearer (a step seen in part), a
-        // rise does not, and a refusal for the depth sends the loop nearer to look again
-        // (ci suite case 83: a 6 cm strip seen 1.03 m above the top tread, refused as
-        // short, was walked toward off the tread's back edge).
+        // rise does not, and a refusal for the depth sends the loop nearer to look again (a
+        // strip seen high above the top tread, refused as short, was walked toward:
+        // regression `wall-strip-taken-for-a-step`).
         if let Some(usual_m) = usual.filter(|&u| rises[i] >= p.missing_step_ratio * u) {
             return Err(PlanError::MissingStep { step: i, rise_m: rises[i], usual_m });
         }
@@ -296,10 +292,9 @@ pub fn footholds_below(
             return Err(as_seen);
         }
         // How far along the foot may go: within the gait's stride of the stance before, and
-        // within the legs' for this rise of its trailing foot (a high rise with the feet far
-        // apart folds the leading knee past its limit: the envelope's 0.24-0.26 m rises on
-        // 0.32-0.40 m treads were refused for it); the nearest it may go keeps the heel on
-        // the tread.
+        // within the legs' for this rise of its trailing foot (a high rise with the feet
+        // far apart folds the leading knee past its limit: regression
+        // `high-rise-on-a-deep-tread`); the nearest it may go keeps the heel on the tread.
         let knee_m = legs.max_stride_m(rises[i]);
         let reach = |prev: f64, trail: f64| (prev + p.max_stride_m).min(trail + knee_m - KNEE_STRIDE_SLACK_M);
         let nearest_m = along.min(front + p.sole_length_m / 2.0 + p.edge_margin_m);
@@ -333,9 +328,9 @@ pub fn footholds_below(
             prev_along = prev_along.max(across);
             trail_along = prev_along;
         }
-        // A tread deeper than the reach (ci suite case 6: 0.368 m treads, the middles 0.402
-        // m apart as seen): the foot goes back from the middle toward the front edge as far
-        // as the reach needs, the whole sole staying on the tread.
+        // A tread deeper than the reach (regression `treads-deeper-than-the-stride`): the
+        // foot goes back from the middle toward the front edge as far as the reach needs,
+        // the whole sole staying on the tread.
         let far_m = reach(prev_along, trail_along);
         let along = if along > far_m { far_m.max(nearest_m).min(along) } else { along };
         if along - trail_along > knee_m {
@@ -507,9 +502,9 @@ fn clear_of_steps(foot: &Isometry3<f64>, steps: &[&PlaneSegment], p: &GaitParams
 }
 
 /// The flight's usual rise, against which a rise far above it means a step not seen: the
-/// median of three or more rises; the lower of two (wide suite case 55: step 1 never
-/// perceived under 23 mm of noise, the rises 0.263 m up to step 2 and 0.132 m to step 3; the
-/// median of two is no guide, and the floor walk went onto step 1). None for one rise.
+/// median of three or more rises; the lower of two (with step 1 unseen, the rise up to step
+/// 2 is two rises, within the legs' reach, and the median of two is no guide: regression
+/// `step-1-never-perceived`). None for one rise.
 fn usual_rise_m(rises: &[f64]) -> Option<f64> {
     match rises {
         [] | [_] => None,
@@ -668,18 +663,18 @@ struct Layout {
 impl Layout {
     /// `steps` sorted by height, at least one.
     fn new(start: &Stance, steps: &[&PlaneSegment], seen: &[Point3<f64>], p: &GaitParams) -> Self {
-        // A rectangle gives its tread's axis; which way along it is up comes from the flight:
-        // from the lowest step toward the highest (ci suite case 159: a 1 m landing seen alone
-        // from afar came back with its ascent reversed, and the flight was refused as turned
-        // 177 degrees). A lone step keeps its own.
+        // A rectangle gives its tread's axis; which way along it is up comes from the
+        // flight: from the lowest step toward the highest (a landing seen alone from afar
+        // comes back with its ascent reversed: regression
+        // `landing-seen-alone-ascent-reversed`). A lone step keeps its own.
         let rise = steps[steps.len() - 1].center() - steps[0].center();
         let rise = Vector3::new(rise.x, rise.y, 0.0);
         let up = |s: &PlaneSegment| if s.along().dot(&rise) < 0.0 { -s.along() } else { s.along() };
-        // The staircase's axis: the steps' directions of ascent weighed by their voxels. The
-        // step map keeps each step's direction from its fuller view, so steps come from
+        // The staircase's axis: the steps' directions of ascent weighed by their voxels.
+        // The step map keeps each step's direction from its fuller view, so steps come from
         // different scans and differ by a degree or two; one step's direction, carried a
-        // metre up a flight, put the landing's centre 3 cm sideways (smoke suite case 8,
-        // refused "would overhang its side").
+        // metre up a flight, puts the landing's centre centimetres sideways (regression
+        // `landing-sideways-on-one-steps-axis`).
         let u = steps
             .iter()
             .map(|s| up(s) * s.voxel_count().max(1) as f64)
@@ -714,15 +709,16 @@ impl Layout {
         front - p.sole_length_m / 2.0 - p.toe_gap_m
     }
 
-    /// Step `i`'s front edge, its foothold along the ascent, and its usable depth (up to the
-    /// next step's nose, at most its own). The foot goes in the middle of that depth: a
-    /// tread's back edge is its view's least sure (the next nose hides it from afar, and its
-    /// voxels reach past the riser), and the toes must stay off the next riser (ci suite: a
-    /// tread seen 2 cm deep past it put the toes against it). Where the next front was
-    /// placed on its riser (perception's `riser`, within millimetres of the nose), the foot
-    /// goes back from the middle as far as the toes need to stay `toe_clearance_m` behind
-    /// it; a front from voxels errs by centimetres either way, and the middle is the best
-    /// guess (the paper's own rectangles: Exp. 1's step 1 0.222 m deep up to step 2).
+    /// Step `i`'s front edge, its foothold along the ascent, and its usable depth (up to
+    /// the next step's nose, at most its own). The foot goes in the middle of that depth: a
+    /// tread's back edge is its view's least sure (the next nose hides it from afar, and
+    /// its voxels reach past the riser), and the toes must stay off the next riser (a tread
+    /// seen past it puts them against it: regression `toe-struck-the-next-riser`). Where
+    /// the next front was placed on its riser (perception's `riser`, within millimetres of
+    /// the nose), the foot goes back from the middle as far as the toes need to stay
+    /// `toe_clearance_m` behind it; a front from voxels errs by centimetres either way, and
+    /// the middle is the best guess (the paper's own rectangles: Exp. 1's step 1 0.222 m
+    /// deep up to step 2).
     fn foothold_along(&self, steps: &[&PlaneSegment], i: usize, p: &GaitParams) -> (f64, f64, f64) {
         let front = |s: &PlaneSegment| (s.center() - self.frame.o).dot(&self.frame.u) - s.depth_m() / 2.0;
         let s = steps[i];
@@ -739,11 +735,11 @@ impl Layout {
     /// frame level (its rotation the identity), and a building code's treads are level
     /// (within 1:48); the fitted normal is not a measure of a tread's tilt under range
     /// noise: the voxels' plane leans away from the sensor as a range error moves a point
-    /// down and away together (the wide suite's case 45, 25 mm of noise, a level flight:
-    /// its treads 1-6 degrees off level, step 1's 5.7 degrees put the foot on its edge, the
-    /// robot fell), and a maximum-likelihood fit along the rays, tried, over-corrected the
-    /// far treads by up to 2 degrees and left a near one anywhere in -4..+3 degrees. The
-    /// rectangle's height is its voxels' mean, which that noise leaves alone.
+    /// down and away together (under 25 mm of noise, level treads come out degrees off
+    /// level, and a foot planned on that tilt lands on its edge: regression
+    /// `noise-tilted-the-treads`), and a maximum-likelihood fit along the rays
+    /// over-corrects the far treads and leaves the near ones degrees off. The rectangle's
+    /// height is its voxels' mean, which that noise leaves alone.
     fn stance_on(&self, lanes: [f64; 2], along: f64, height_m: f64, step: Option<usize>) -> Stance {
         let Frame { o, u, w } = self.frame;
         let foot = |lane: f64| {
@@ -911,11 +907,11 @@ mod tests {
     const LEGS: Legs =
         Legs { reach_m: 0.95 * 0.706, fold_m: 0.326, knee_max_rad: 125.0 * std::f64::consts::PI / 180.0 };
 
-    /// The smoke suite's case 8: a 0.5 m flight yawed 15.5 degrees, the robot off its centre
-    /// line; the step map's steps carry directions 13.8, 14.5 and 15.5 degrees (each from its
-    /// fuller view). Planned along step 1's direction, the landing 1 m up came out 3 cm
-    /// sideways and the right foot "would overhang its side"; along the steps' weighed
-    /// direction every foot is on its tread.
+    /// Regression `landing-sideways-on-one-steps-axis`: a 0.5 m flight yawed 15.5 degrees,
+    /// the robot off its centre line; the step map's steps carry directions 13.8, 14.5 and
+    /// 15.5 degrees (each from its fuller view). Planned along step 1's direction, the
+    /// landing 1 m up came out 3 cm sideways and the right foot "would overhang its side";
+    /// along the steps' weighed direction every foot is on its tread.
     #[test]
     fn the_axis_is_the_steps_weighed_direction_not_the_first_steps() {
         let dir = |deg: f64| Vector3::new(deg.to_radians().cos(), deg.to_radians().sin(), 0.0);
@@ -955,10 +951,10 @@ mod tests {
         }
     }
 
-    /// Wide suite case 55: step 1 was never perceived, and the walk on the floor to step 2
-    /// put a sole on step 1's tread, which the lidar saw (the robot fell). A floor stance
-    /// where the lidar saw a surface standing on the floor (a box here) is refused; the
-    /// floor itself, noisy, and two strays (wide case 0) are no obstruction.
+    /// Regression `step-1-never-perceived`: the walk on the floor to step 2 put a sole on
+    /// step 1's tread, which the lidar saw. A floor stance where the lidar saw a surface
+    /// standing on the floor (a box here) is refused; the floor itself, noisy, and two
+    /// strays (regression `riser-strays-under-the-floor-toes`) are no obstruction.
     #[test]
     fn a_floor_stance_on_a_surface_the_lidar_saw_is_refused() {
         let p = GaitParams::default();
@@ -998,11 +994,11 @@ mod tests {
         }
     }
 
-    /// The parcel (0.32 x 0.20 x 0.12 m) on step 2, in the right foot's lane: the
-    /// loop set the sole on it, the knee and then the swinging foot struck it, and the robot
-    /// fell. A stance on a tread where the lidar saw something standing in a sole's way is
-    /// refused; the treads' and risers' own voxels, noisy, are no obstruction, nor is the
-    /// parcel beside the lane.
+    /// Regression `parcel-in-a-lane-on-step-2`: a parcel (0.32 x 0.20 x 0.12 m) on step 2,
+    /// in the right foot's lane: the loop set the sole on it, the knee and then the
+    /// swinging foot struck it, and the robot fell. A stance on a tread where the lidar saw
+    /// something standing in a sole's way is refused; the treads' and risers' own voxels,
+    /// noisy, are no obstruction, nor is the parcel beside the lane.
     #[test]
     fn a_tread_stance_where_the_lidar_saw_an_object_is_refused() {
         let p = GaitParams::default();
@@ -1051,10 +1047,10 @@ mod tests {
         assert_eq!(footholds(&stance, &rects, &beside, &LEGS, &p).expect("a parcel beside the lane"), clear);
     }
 
-    /// Wide suite case 55: step 1 was never perceived (23 mm of noise), the flight seen as
-    /// 0.263 m up to step 2 and 0.132 m to step 3. With two rises the median said nothing,
-    /// 0.263 m is within the legs' 0.28 m, and the walk went onto step 1. The lower of two
-    /// rises is the usual one: a step is missing.
+    /// Regression `step-1-never-perceived`: step 1 unseen, the flight seen as 0.263 m up to
+    /// step 2 and 0.132 m to step 3. With two rises the median says nothing, 0.263 m is
+    /// within the legs' 0.28 m, and the walk went onto step 1. The lower of two rises is
+    /// the usual one: a step is missing.
     #[test]
     fn a_rise_twice_the_other_of_two_is_a_missing_step() {
         let step = |along: f64, z: f64| {
@@ -1104,9 +1100,10 @@ mod tests {
         stances.iter().map(|s| (s.right.translation.y + s.left.translation.y) / 2.0).collect()
     }
 
-    /// The ci suite's case 186: a stairwell 0.9 m wide, the robot 15 cm off its middle. In
-    /// its lanes, the left shoulder met the wall as the CoM went over the left foot; the
-    /// lanes now move to keep the body's half width off the wall, on the floor first.
+    /// Regression `stairwell-shoulder-met-the-wall`: a stairwell 0.9 m wide, the robot
+    /// 15 cm off its middle. In its lanes, the left shoulder met the wall as the CoM went
+    /// over the left foot; the lanes move to keep the body's half width off the wall, on
+    /// the floor first.
     #[test]
     fn lanes_move_off_a_wall_beside_the_flight_and_stay_without_one() {
         let p = GaitParams::default();
@@ -1133,9 +1130,9 @@ mod tests {
         assert!((lanes_of(&pinched).last().expect("stances") - 0.075).abs() < 1e-9);
     }
 
-    /// The ci suite's case 159: the top landing, seen alone from afar, came back with its
-    /// ascent reversed; a rectangle is the same whichever way its axis points, and the
-    /// flight's rise says which way is up.
+    /// Regression `landing-seen-alone-ascent-reversed`: the top landing, seen alone from
+    /// afar, came back with its ascent reversed; a rectangle is the same whichever way its
+    /// axis points, and the flight's rise says which way is up.
     #[test]
     fn a_step_returned_with_its_ascent_reversed_is_read_up_the_flight() {
         let (mut rects, stance) = flight_and_stance(0.0);
@@ -1164,7 +1161,7 @@ mod tests {
 
     /// A tread's back edge seen 2 cm past the next riser (voxels reach past it): the foot goes
     /// in the middle of the tread up to the next nose, so the toes stay as far from the next
-    /// riser as the heel from the nose (the smoke suite's case 3: the toe struck the riser).
+    /// riser as the heel from the nose (regression `toe-struck-the-next-riser`).
     #[test]
     fn a_foot_is_centred_between_the_nose_and_the_next_nose() {
         let rects = [tread(0.5, 0.17, 0.29), tread(0.77, 0.34, 0.27)];
@@ -1183,10 +1180,10 @@ mod tests {
         assert!((on_step_2.right.translation.x - 0.905).abs() < 1e-9, "the top step: its own middle");
     }
 
-    /// The ci suite's case 83: from the top tread (0.461 m), a strip 6 cm deep seen 1.03 m
-    /// above the feet (on the room's far wall). Its rise is judged before its depth: refused
-    /// as too high, which a closer look cannot undo, not as a short tread, which sent the
-    /// loop walking toward it.
+    /// Regression `wall-strip-taken-for-a-step`: from the top tread (0.461 m), a strip 6 cm
+    /// deep seen 1.03 m above the feet (on the room's far wall). Its rise is judged before
+    /// its depth: refused as too high, which a closer look cannot undo, not as a short
+    /// tread, which sent the loop walking toward it.
     #[test]
     fn a_rise_is_judged_before_the_depth() {
         let sole = |y: f64| Isometry3::translation(0.3, y, 0.461);
@@ -1197,10 +1194,11 @@ mod tests {
         }
     }
 
-    /// The ci suite's case 188: a view split a tread in two pieces at one height, one 4 mm
-    /// past the other; the first left no depth up to the second's front, its foothold went on
-    /// the nose and the robot fell. A tread is as deep as the foot can use, up to the next
-    /// step's front edge: one too shallow that way is refused like a short tread.
+    /// Regression `tread-split-in-two-under-20mm`: a view split a tread in two pieces at
+    /// one height, one 4 mm past the other; the first left no depth up to the second's
+    /// front, its foothold went on the nose and the robot fell. A tread is as deep as the
+    /// foot can use, up to the next step's front edge: one too shallow that way is refused
+    /// like a short tread.
     #[test]
     fn a_tread_hidden_by_the_next_step_is_refused_as_short() {
         let sole = |y: f64| Isometry3::translation(0.3, y, 0.0);
@@ -1216,10 +1214,11 @@ mod tests {
         assert!(footholds(&start, &whole, &[], &LEGS, &p).is_ok());
     }
 
-    /// Treads deeper than the stride: the ci suite's case 6 (0.368 m treads, their middles
-    /// 0.402 m apart as seen) was refused for a stride of 0.402 m over 0.400. The foot goes
-    /// back toward the nose by what the stride needs, the sole wholly on its tread; a tread
-    /// whose whole sole would not then fit within the stride is still refused.
+    /// Treads deeper than the stride (regression `treads-deeper-than-the-stride`: 0.368 m
+    /// treads, their middles 0.402 m apart as seen) were refused for a stride of 0.402 m
+    /// over 0.400. The foot goes back toward the nose by what the stride needs, the sole
+    /// wholly on its tread; a tread whose whole sole would not then fit within the stride
+    /// is still refused.
     #[test]
     fn a_tread_deeper_than_the_stride_takes_the_foot_back_toward_its_nose() {
         let p = GaitParams::default();
@@ -1269,11 +1268,12 @@ mod tests {
         assert!(stances.iter().filter(|s| s.step == Some(1)).count() >= 4, "{xs:?}");
     }
 
-    /// High rises on deep treads (the envelope's 0.26 m x 0.40 m): the feet a tread's depth
-    /// apart fold the leading knee past its limit, and the climb was refused for it. Each
-    /// step up keeps the feet within the stride the legs allow for its rise: the foot goes
-    /// toward the nose, and where even that is too far the feet first walk across the tread
-    /// below to its back; every sole stays on its tread, the toes off the next riser.
+    /// High rises on deep treads (regression `high-rise-on-a-deep-tread`): the feet a
+    /// tread's depth apart fold the leading knee past its limit, and the climb was refused
+    /// for it. Each step up keeps the feet within the stride the legs allow for its rise:
+    /// the foot goes toward the nose, and where even that is too far the feet first walk
+    /// across the tread below to its back; every sole stays on its tread, the toes off the
+    /// next riser.
     #[test]
     fn a_high_rise_on_a_deep_tread_keeps_the_feet_within_the_knees_stride() {
         let p = GaitParams::default();
@@ -1332,11 +1332,11 @@ mod tests {
         assert_eq!(free.iter().filter(|s| s.step.is_some()).count(), 3);
     }
 
-    /// A tread barely longer than the sole between two steps (the envelope's 0.24 m
-    /// column: the foot centred on it put its toe on the next riser and the swing struck
-    /// it): the toes keep `toe_clearance_m` behind the next front edge, the heel
-    /// overhanging the nose by `heel_overhang_m` at most; a tread that would need more is
-    /// refused as short, but not the top one, whose back edge is open.
+    /// A tread barely longer than the sole between two steps (the foot centred on it puts
+    /// its toe on the next riser, and the swing strikes it): the toes keep
+    /// `toe_clearance_m` behind the next front edge, the heel overhanging the nose by
+    /// `heel_overhang_m` at most; a tread that would need more is refused as short, but not
+    /// the top one, whose back edge is open.
     #[test]
     fn on_a_short_tread_the_toes_keep_off_the_next_riser() {
         let p = GaitParams::default();
@@ -1381,13 +1381,14 @@ mod tests {
         assert!((first.right.translation.x - 0.62).abs() < 1e-9);
     }
 
-    /// The view: set down 0.28 m from the first riser of the paper's Exp. 1 (the
-    /// feet's middle to the riser), the robot sees step 1 only from where its lidar's sight
-    /// begins: 0.209 m of its 0.27 m tread, from 0.341 m, the front not on the riser, no
-    /// floor seen before it. The walk toward that front, one stride, put the toes `toe_gap_m`
-    /// behind it, 11 mm past the riser: the right foot struck it. That riser is out of sight,
-    /// and the feet walk back instead, to where the front is `approach_blind_m` ahead; a front
-    /// on its riser, or floor seen in a lane before it, is in sight.
+    /// Regression `set-down-near-the-first-riser`: set down 0.28 m from the first riser of
+    /// the paper's Exp. 1 (the feet's middle to the riser), the robot sees step 1 only from
+    /// where its lidar's sight begins: 0.209 m of its 0.27 m tread, from 0.341 m, the front
+    /// not on the riser, no floor seen before it. The walk toward that front, one stride,
+    /// put the toes `toe_gap_m` behind it, 11 mm past the riser: the right foot struck it.
+    /// That riser is out of sight, and the feet walk back instead, to where the front is
+    /// `approach_blind_m` ahead; a front on its riser, or floor seen in a lane before it,
+    /// is in sight.
     #[test]
     fn a_first_riser_out_of_sight_is_walked_away_from_not_toward() {
         let p = GaitParams::default();
@@ -1473,8 +1474,7 @@ mod tests {
     }
 
     /// The lowest steps planned alone, a higher one left for a closer look: the next one's
-    /// front still bounds the last planned tread (envelope 0.10 x 0.22 planned step 2 as
-    /// the top, open behind, and the toe struck step 3's riser).
+    /// front still bounds the last planned tread (regression `step-2-planned-as-the-top`).
     #[test]
     fn a_step_left_for_later_still_bounds_the_tread_below_it() {
         let p = GaitParams::default();

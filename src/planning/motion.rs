@@ -83,9 +83,9 @@ pub struct IkParams {
     /// start, are the steps' and the floor's own surfaces, which the legs are not kept off
     /// by `body_clearance_m` (their feet stand on them; `leg_clearance_m` keeps the legs off
     /// the steps), metres: three standard deviations of the suites' highest range noise,
-    /// 25 mm (the wide suite), plus half a 3 cm voxel: a riser's or a tread's voxels stray
-    /// that far (at 3 sigma of 20 mm, the legs were kept off strays of treads under 21-25 mm
-    /// of noise, and the IK could find no solution).
+    /// 25 mm (the `wide` suite's), plus half a 3 cm voxel: a riser's or a tread's voxels
+    /// stray that far (at 3 sigma of 20 mm, strays of treads under 21-25 mm of noise keep
+    /// the legs off and leave the IK no solution).
     pub leg_surface_band_m: f64,
 }
 
@@ -567,11 +567,10 @@ impl<'m> Tracker<'m> {
 
 /// The mean heading of the feet `targets` hold and move (radians about z), `None` without
 /// a foot: the base faces where the feet point. Held at its starting heading instead, a
-/// robot that started turned from the flight climbed with its pelvis turned, the hips
-/// twisted to point the feet up the steps (wide suite case 38: 17 deg; stepping onto the
-/// first step in a stairwell, the plan's pelvis rolled the chest to within the body's 3 cm
-/// clearance of a wall, the IK then yawed it 18 deg within half a second, and the robot
-/// fell).
+/// robot that starts turned from the flight climbs with its pelvis turned, the hips twisted
+/// to point the feet up the steps, and the plan's pelvis can roll the chest to within the
+/// body's clearance of a wall, which the IK answers with a sudden yaw (regression
+/// `pelvis-held-turned-from-the-flight`).
 fn feet_heading(targets: &Targets) -> Option<f64> {
     let poses = targets.support.iter().map(|(_, p)| p).chain(targets.swing.iter().map(|(_, p, _)| p));
     let sum: nalgebra::Vector2<f64> = poses

@@ -3,11 +3,11 @@
 //! over the trailing ankle, the distance to the leading ankle taken along the ascent); the
 //! IK, holding the CoM over the trailing ankle while the leading leg reaches forward, puts
 //! the hip 6-7 cm behind it and 11-13 cm to the side of the leading ankle, so the leading
-//! leg landed all but straight (the envelope's 0.10 x 0.36: the knee at 2-5 deg, the hip
-//! 0.705 m from the ankle where the model allowed 0.671 m). A straight leg is a strut: the
-//! touchdown's impact runs along it and the sole slid at the first tick (41 N normal with
-//! 33 N tangential). [`touchdown_drops_m`] measures how far each touchdown's waypoint must
-//! come down for the leg to land within its reach; the planner lowers it and tracks again.
+//! leg lands all but straight, farther from its hip than the model allows, on low rises
+//! with deep treads (regression `leading-leg-landed-straight`). A straight leg is a strut:
+//! the touchdown's impact runs along it and the sole slides at the first tick.
+//! [`touchdown_drops_m`] measures how far each touchdown's waypoint must come down for the
+//! leg to land within its reach; the planner lowers it and tracks again.
 
 use super::gait::{Phase, Segment};
 use super::motion::JointTrajectory;

@@ -2,7 +2,8 @@
 //! stream seeded by (suite seed, `i`) alone, so a case is the same whatever the suite's size
 //! or the shard that runs it. A draw the world cannot hold (the flight out of the room or
 //! through the ceiling, the robot starting in a step or a box, a box beside the flight that
-//! cuts into it) is drawn again from the same stream; the suite counts these redraws.
+//! cuts into it) is drawn again from the same stream; the suite counts these redraws. A case
+//! from a scenario file is read as it stands.
 
 use super::expect::expect;
 use super::suite::{fnv1a, Default as FieldDefault, Dist, Field, Kind, Suite, Val, FIELDS};
@@ -38,12 +39,23 @@ pub struct Case {
 
 /// Why a suite's cases could not be generated.
 #[derive(Debug, thiserror::Error)]
-#[error("{id}: no buildable draw in {MAX_TRIES} tries; the last was refused because {reason}")]
-pub struct GenerateError {
-    /// The case.
-    pub id: String,
-    /// Why the last draw was refused.
-    pub reason: String,
+pub enum GenerateError {
+    /// No draw of the case's fields made a world.
+    #[error("{id}: no buildable draw in {MAX_TRIES} tries; the last was refused because {reason}")]
+    NoDraw {
+        /// The case.
+        id: String,
+        /// Why the last draw was refused.
+        reason: String,
+    },
+    /// The case's scenario file could not be read.
+    #[error("{id}: {error}")]
+    Scenario {
+        /// The case.
+        id: String,
+        /// What is wrong with the file.
+        error: String,
+    },
 }
 
 /// The robot the expectations are for: the planner's gait limits and where its feet stand.
@@ -79,21 +91,72 @@ pub fn cases(suite: &Suite, robot: &Robot) -> Result<Vec<Case>, GenerateError> {
         name: Some(c.name.clone()),
         fixed: c.fields.clone(),
         by_hand: c.expect.clone(),
+        file: c.scenario.clone(),
     });
     drawn
         .chain(grid)
         .chain(explicit)
         .enumerate()
-        .map(|(index, plan)| one(suite, robot, index, &plan))
+        .map(|(index, plan)| match &plan.file {
+            Some(file) => from_file(suite, robot, index, &plan, file),
+            None => one(suite, robot, index, &plan),
+        })
         .collect()
 }
 
-/// What a case starts from: its name, the fields it fixes, an expectation set by hand.
+/// What a case starts from: its name, the fields it fixes (or the scenario file that is
+/// the case), an expectation set by hand.
 #[derive(Debug, Clone, Default)]
 struct Plan {
     name: Option<String>,
     fixed: BTreeMap<String, Dist>,
     by_hand: Option<(crate::scenario::ExpectedOutcome, String)>,
+    file: Option<std::path::PathBuf>,
+}
+
+/// The expectation set by the suite's hand.
+fn by_hand_spec((outcome, why): &(crate::scenario::ExpectedOutcome, String)) -> ExpectSpec {
+    ExpectSpec { outcome: *outcome, reason: format!("set by the suite: {why}"), before_step: None }
+}
+
+/// A case that is a scenario file as it stands, its own seed noise draw 0's; its
+/// expectation the suite's, else the file's, else the one the ground truth gives.
+fn from_file(
+    suite: &Suite,
+    robot: &Robot,
+    index: usize,
+    plan: &Plan,
+    file: &std::path::Path,
+) -> Result<Case, GenerateError> {
+    let id = format!("{}-{index:04}", suite.name);
+    let mut scenario =
+        Scenario::load(file).map_err(|e| GenerateError::Scenario { id: id.clone(), error: e.to_string() })?;
+    let expected = match (&plan.by_hand, scenario.expect.take()) {
+        (Some(hand), _) => by_hand_spec(hand),
+        (None, Some(own)) => own,
+        (None, None) => expect(&scenario, &robot.gait, robot.feet_half_spacing_m),
+    };
+    scenario.expect = Some(expected);
+    scenario.description = format!(
+        "suite {} (seed {}, hash {}), case {index}{}: {}",
+        suite.name,
+        suite.seed,
+        suite.hash,
+        plan.name.as_deref().map(|n| format!(" `{n}`")).unwrap_or_default(),
+        file.display()
+    );
+    // The suite fields a file states plainly, for the maps and the reports.
+    let st = &scenario.staircase;
+    let values = BTreeMap::from([
+        ("steps".to_string(), Val::Int(i64::from(st.steps))),
+        ("rise_m".to_string(), Val::Float(st.rise_m)),
+        ("tread_m".to_string(), Val::Float(st.tread_m)),
+        ("width_m".to_string(), Val::Float(st.width_m)),
+        ("yaw_deg".to_string(), Val::Float(st.yaw_deg)),
+        ("noise_mm".to_string(), Val::Float(scenario.lidar.noise_sigma_m * 1e3)),
+        ("nosing_m".to_string(), Val::Float(st.nosing_m)),
+    ]);
+    Ok(Case { id, index, name: plan.name.clone(), values, redraws: 0, scenario })
 }
 
 /// Every combination of the grid's values, the first key varying slowest.
@@ -115,7 +178,7 @@ fn grid_combinations(grid: &[(String, Vec<Val>)]) -> Vec<Vec<(String, Val)>> {
 }
 
 fn one(suite: &Suite, robot: &Robot, index: usize, plan: &Plan) -> Result<Case, GenerateError> {
-    let Plan { name, fixed, by_hand } = plan;
+    let Plan { name, fixed, by_hand, .. } = plan;
     let id = format!("{}-{index:04}", suite.name);
     let mut rng = stream(suite.seed, index, 0);
     let mut reason = String::new();
@@ -135,11 +198,7 @@ fn one(suite: &Suite, robot: &Robot, index: usize, plan: &Plan) -> Result<Case, 
             Ok(mut scenario) => {
                 scenario.seed = noise_seed(suite.seed, index, 0);
                 let expected = match by_hand {
-                    Some((outcome, why)) => ExpectSpec {
-                        outcome: *outcome,
-                        reason: format!("set by the suite: {why}"),
-                        before_step: None,
-                    },
+                    Some(hand) => by_hand_spec(hand),
                     None => expect(&scenario, &robot.gait, robot.feet_half_spacing_m),
                 };
                 scenario.expect = Some(expected);
@@ -155,7 +214,7 @@ fn one(suite: &Suite, robot: &Robot, index: usize, plan: &Plan) -> Result<Case, 
             Err(why) => reason = why,
         }
     }
-    Err(GenerateError { id, reason })
+    Err(GenerateError::NoDraw { id, reason })
 }
 
 /// A value of `f` from `dist` (its default when the suite leaves it out).
@@ -478,8 +537,13 @@ mod tests {
         // 2 x rise + tread = 2.5 m is far beyond any step the default fields draw.
         let s = parse("cases = 1\n[draw]\nblondel_m = 2.5\n", "s", "x").expect("valid");
         let e = cases(&s, &robot()).expect_err("never buildable");
-        assert_eq!(e.id, "x-0000");
-        assert!(e.reason.contains("blondel"), "{e}");
+        let GenerateError::NoDraw { id, reason } = &e else { panic!("{e}") };
+        assert_eq!(id, "x-0000");
+        assert!(reason.contains("blondel"), "{e}");
+        // A case from a scenario file that is not there: an error naming the case and file.
+        let s = parse("[[case]]\nname = \"gone\"\nscenario = \"no/such.toml\"\n", "s", "x").expect("valid");
+        let e = cases(&s, &robot()).expect_err("no file").to_string();
+        assert!(e.contains("x-0000") && e.contains("no/such.toml"), "{e}");
     }
 
     #[test]

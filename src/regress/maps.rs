@@ -69,10 +69,11 @@ fn plot(
         let pad = ((hi - lo) * 0.08).max(1e-3);
         (lo - pad)..(hi + pad)
     };
+    crate::plot_font::register()?;
     let root = BitMapBackend::new(path, (900, 720)).into_drawing_area();
     root.fill(&WHITE)?;
     let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 20))
+        .caption(title, (crate::plot_font::FAMILY, 20))
         .margin(14)
         .x_label_area_size(45)
         .y_label_area_size(60)

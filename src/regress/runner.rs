@@ -184,7 +184,12 @@ fn reproduce(opt: &Options, case: &Case, seed_index: usize, seed: u64) -> String
 /// One run: the climb under its time limit, its verdict, its recording kept if it failed.
 fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
     let case = &job.case;
-    let seed = noise_seed(info.seed, case.index, job.seed_index);
+    // Draw 0 is the case's own seed (a generated case's is noise_seed(.., 0); a scenario
+    // file's, its own), the others drawn.
+    let seed = match job.seed_index {
+        0 => case.scenario.seed,
+        k => noise_seed(info.seed, case.index, k),
+    };
     let mut scenario = case.scenario.clone();
     scenario.seed = seed;
     let (expect, before_step) =

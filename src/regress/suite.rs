@@ -3,6 +3,8 @@
 //! its listed values) and explicit `[[case]]`s. Every key of `[draw]`, a grid or a case is
 //! one of [`FIELDS`], given as a value (`rise_m = 0.18`), a list to draw from
 //! (`landing_m = [0.0, 1.0]`) or a range (`rise_m = { min = 0.102, max = 0.178 }`).
+//! A `[[case]]` may instead be a scenario file whole (`scenario = "dir/name.toml"`, beside
+//! the suite; its noise seed is the case's draw 0): an incident kept as it ran.
 //! Unknown keys, wrong types, negative sizes and a min above its max are errors naming the
 //! field and its line.
 
@@ -178,6 +180,9 @@ pub struct CaseSpec {
     pub fields: BTreeMap<String, Dist>,
     /// An expectation set by hand (`climb`, `refuse`, `either`), with its reason.
     pub expect: Option<(crate::scenario::ExpectedOutcome, String)>,
+    /// A scenario file that is the case whole, its noise seed included (a regression kept
+    /// as it happened), instead of fields; relative to the suite file's folder.
+    pub scenario: Option<std::path::PathBuf>,
 }
 
 /// A parsed, checked suite.
@@ -294,7 +299,19 @@ pub fn load(path: &Path) -> Result<Suite, SuiteError> {
     let text =
         std::fs::read_to_string(path).map_err(|source| SuiteError::Read { path: origin.clone(), source })?;
     let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    parse(&text, &origin, &stem)
+    let mut suite = parse(&text, &origin, &stem)?;
+    // Scenario files are read from beside the suite, and are part of what its hash covers.
+    let mut hashed = text.into_bytes();
+    for case in &mut suite.explicit {
+        if let Some(file) = &mut case.scenario {
+            *file = path.parent().unwrap_or(Path::new(".")).join(&*file);
+            let body = std::fs::read(&*file)
+                .map_err(|source| SuiteError::Read { path: file.display().to_string(), source })?;
+            hashed.extend_from_slice(&body);
+        }
+    }
+    suite.hash = format!("{:016x}", fnv1a(&hashed));
+    Ok(suite)
 }
 
 fn line_of(text: &str, offset: usize) -> usize {
@@ -453,10 +470,12 @@ impl Parser<'_> {
         let mut name = format!("case{i}");
         let mut expect = None;
         let mut reason = String::new();
+        let mut scenario = None;
         let mut rest = toml_edit::Table::new();
         for (k, v) in t.iter() {
             match k {
                 "name" => name = self.string(&format!("{at}.name"), v)?,
+                "scenario" => scenario = Some((self.string(&format!("{at}.scenario"), v)?, v.span())),
                 "expect" => {
                     let w = self.string(&format!("{at}.expect"), v)?;
                     let outcome: crate::scenario::ExpectedOutcome =
@@ -471,8 +490,20 @@ impl Parser<'_> {
                 }
             }
         }
+        if let (Some((_, span)), false) = (&scenario, rest.is_empty()) {
+            let keys: Vec<&str> = rest.iter().map(|(k, _)| k).collect();
+            return Err(self.error(
+                &format!("{at}.scenario"),
+                span.clone(),
+                format!(
+                    "a case from a scenario file takes name, expect and expect_reason only, not {}",
+                    keys.join(", ")
+                ),
+            ));
+        }
         let fields = self.fields(&at, &Item::Table(rest))?;
-        Ok(CaseSpec { name, fields, expect: expect.map(|e| (e, reason)) })
+        let scenario = scenario.map(|(path, _)| std::path::PathBuf::from(path));
+        Ok(CaseSpec { name, fields, expect: expect.map(|e| (e, reason)), scenario })
     }
 }
 
@@ -519,6 +550,12 @@ mod tests {
         let e = err("[grid]\nrise_m = { min = 0.1, max = 0.2 }\n");
         assert!(e.contains("grid.rise_m") && e.contains("lists"), "{e}");
         assert!(err("seed = 1\n").contains("no case"));
+        // A case from a scenario file is that file whole: no fields beside it.
+        let e = err("[[case]]\nname = \"x\"\nscenario = \"a.toml\"\nrise_m = 0.2\n");
+        assert!(e.contains("case[0].scenario") && e.contains("rise_m") && e.contains(":3"), "{e}");
+        let s = parse("[[case]]\nname = \"x\"\nscenario = \"a.toml\"\nexpect = \"climb\"\n", "s.toml", "s")
+            .unwrap();
+        assert_eq!(s.explicit[0].scenario.as_deref(), Some(Path::new("a.toml")));
         assert!(err("cases = [").contains("s.toml:1"));
     }
 

@@ -28,7 +28,7 @@ pub struct BenchArgs {
     /// Also write the table into this Markdown file, replacing its previous section.
     #[arg(long)]
     write: Option<PathBuf>,
-    /// Perception: where to draw the Fig. 5 plot (PNG). Default: `fig5-perception.png`
+    /// Perception: where to draw the Fig. 5 plot (PNG). Default: `docs/fig5-perception.png`
     /// beside the `--write` file, or no plot without `--write`.
     #[arg(long)]
     plot: Option<PathBuf>,
@@ -86,9 +86,14 @@ pub fn run(a: BenchArgs) -> Result<ExitCode> {
             ("fuzz", table)
         }
         BenchWhat::Perceive => {
-            let plot =
-                a.plot.clone().or_else(|| a.write.as_ref().map(|w| w.with_file_name("fig5-perception.png")));
-            ("perceive", perceive::run(repeat, plot.as_deref(), a.pcl.as_deref())?)
+            const FIG5: &str = "docs/fig5-perception.png";
+            let plot = match (&a.plot, &a.write) {
+                (Some(p), _) => Some((p.clone(), p.display().to_string())),
+                (None, Some(w)) => Some((w.with_file_name(FIG5), FIG5.to_string())),
+                (None, None) => None,
+            };
+            let plot = plot.as_ref().map(|(p, link)| (p.as_path(), link.as_str()));
+            ("perceive", perceive::run(repeat, plot, a.pcl.as_deref())?)
         }
     };
     print!("{table}");

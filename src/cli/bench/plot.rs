@@ -19,6 +19,7 @@ type Series = [(String, Vec<SweepPoint>)];
 type Value = fn(&SweepPoint) -> f64;
 
 fn draw(path: &Path, series: &Series) -> Result<(), Box<dyn std::error::Error>> {
+    stairbench::plot_font::register()?;
     let root = BitMapBackend::new(path, (1400, 560)).into_drawing_area();
     root.fill(&WHITE)?;
     let (left, right) = root.split_horizontally(700);
@@ -59,7 +60,7 @@ fn panel(
     let (kmin, kmax) = ks.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), k| (a.min(k), b.max(k)));
     let ymax = series.iter().flat_map(|(_, p)| line(p, main)).map(|(_, v)| v).fold(1.0f64, f64::max);
     let mut chart = ChartBuilder::on(area)
-        .caption(caption, ("sans-serif", 18))
+        .caption(caption, (stairbench::plot_font::FAMILY, 18))
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(55)

@@ -48,8 +48,9 @@ impl Pty {
     /// Raw mode on the slave: no echo, no line editing, no output processing.
     fn make_raw(&self) -> io::Result<()> {
         let fd = self.slave.as_raw_fd();
-        // SAFETY: termios is plain data; tcgetattr fills it from a valid fd, or fails.
+        // SAFETY: termios is plain data, all zeroes a valid value.
         let mut t: libc::termios = unsafe { std::mem::zeroed() };
+        // SAFETY: tcgetattr fills the struct from a valid fd, or fails.
         if unsafe { libc::tcgetattr(fd, &mut t) } != 0 {
             return Err(io::Error::last_os_error());
         }
@@ -66,8 +67,9 @@ impl Pty {
     /// (a driver may set any rate, as `serialport` does with `BOTHER`).
     pub fn baud(&self) -> Option<u32> {
         let fd = self.slave.as_raw_fd();
-        // SAFETY: termios2 is plain data; the ioctl fills it from a valid tty fd, or fails.
+        // SAFETY: termios2 is plain data, all zeroes a valid value.
         let mut t: libc::termios2 = unsafe { std::mem::zeroed() };
+        // SAFETY: the ioctl fills the struct from a valid tty fd, or fails.
         if unsafe { libc::ioctl(fd, libc::TCGETS2, &mut t) } != 0 {
             return None;
         }
