@@ -329,7 +329,9 @@ fn the_regressions_suite_passes_every_incident_on_its_own_seed() {
     let results = read(&out.join("results.jsonl")).unwrap();
     let suite = stairbench::regress::suite::load(Path::new("scenarios/suites/regressions.toml")).unwrap();
     assert_eq!(results.len(), suite.explicit.len(), "a verdict for every incident");
-    for (r, case) in results.iter().zip(&suite.explicit) {
+    for r in &results {
+        // Results come in the order the runs ended; a case's index is its place in the suite.
+        let case = &suite.explicit[r.index];
         let file =
             Scenario::load(case.scenario.as_ref().expect("every incident is a scenario file")).unwrap();
         assert_eq!(r.noise_seed, file.seed, "{}: replayed on its own seed", r.id);
