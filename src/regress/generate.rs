@@ -114,6 +114,12 @@ struct Plan {
     file: Option<std::path::PathBuf>,
 }
 
+/// A case's description: its suite, seed and hash, its index and name, and where it came from.
+fn description(suite: &Suite, index: usize, name: Option<&str>, from: &str) -> String {
+    let name = name.map(|n| format!(" `{n}`")).unwrap_or_default();
+    format!("suite {} (seed {}, hash {}), case {index}{name}: {from}", suite.name, suite.seed, suite.hash)
+}
+
 /// The expectation set by the suite's hand.
 fn by_hand_spec((outcome, why): &(crate::scenario::ExpectedOutcome, String)) -> ExpectSpec {
     ExpectSpec { outcome: *outcome, reason: format!("set by the suite: {why}"), before_step: None }
@@ -137,14 +143,7 @@ fn from_file(
         (None, None) => expect(&scenario, &robot.gait, robot.feet_half_spacing_m),
     };
     scenario.expect = Some(expected);
-    scenario.description = format!(
-        "suite {} (seed {}, hash {}), case {index}{}: {}",
-        suite.name,
-        suite.seed,
-        suite.hash,
-        plan.name.as_deref().map(|n| format!(" `{n}`")).unwrap_or_default(),
-        file.display()
-    );
+    scenario.description = description(suite, index, plan.name.as_deref(), &file.display().to_string());
     // The suite fields a file states plainly, for the maps and the reports.
     let st = &scenario.staircase;
     let values = BTreeMap::from([
@@ -202,13 +201,8 @@ fn one(suite: &Suite, robot: &Robot, index: usize, plan: &Plan) -> Result<Case, 
                     None => expect(&scenario, &robot.gait, robot.feet_half_spacing_m),
                 };
                 scenario.expect = Some(expected);
-                scenario.description = format!(
-                    "suite {} (seed {}, hash {}), case {index}{}: drawn after {redraws} redraws",
-                    suite.name,
-                    suite.seed,
-                    suite.hash,
-                    name.as_deref().map(|n| format!(" `{n}`")).unwrap_or_default()
-                );
+                scenario.description =
+                    description(suite, index, name.as_deref(), &format!("drawn after {redraws} redraws"));
                 return Ok(Case { id, index, name: name.clone(), values, redraws, scenario });
             }
             Err(why) => reason = why,
