@@ -171,7 +171,8 @@ fn riser_along(s: &PlaneSegment, points: &[Point3<f32>], band: [f64; 2], p: &Ris
     // window about it: the riser's returns are a dense peak, the treads' strays a thin spread
     // on either side. Not the upper half: a nosing's face (as deep as the tread's thickness,
     // 25-40 mm) stands there a nosing's depth before the riser, and from near the flight it
-    // shadows the riser's top; mixed in, its returns pulled the riser out by 5-13 mm.
+    // shadows the riser's top; mixed in, its returns pull the riser out toward the nose
+    // (regression `nosing-face-pulled-the-riser-out`).
     let mid = (band[0] + band[1]) / 2.0;
     let lower: Vec<f64> = near.iter().filter(|r| r.1 < mid).map(|r| r.0).collect();
     let mut at = median(lower.iter().copied())?;
@@ -179,7 +180,8 @@ fn riser_along(s: &PlaneSegment, points: &[Point3<f32>], band: [f64; 2], p: &Ris
         at = median(lower.iter().copied().filter(|t| (t - at).abs() < w))?;
     }
     // Seen whole: returns about it in the band's lower half, and in its upper half either
-    // its own or a nosing's face before it (which shadows the riser's top from near).
+    // its own or a nosing's face before it (which shadows the riser's top from near:
+    // regression `riser-under-a-nosing-not-believed`).
     let at_riser = |t: f64| (t - at).abs() < p.half_window_m / 4.0;
     let lower = near.iter().filter(|r| r.1 < mid && at_riser(r.0)).count();
     let upper = near.iter().filter(|r| r.1 >= mid && (at_riser(r.0) || r.0 > at)).count();
