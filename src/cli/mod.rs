@@ -154,7 +154,8 @@ pub fn hardware_sweep(
     quiet: bool,
     mut recorder: Option<&mut stairbench::record::Recorder>,
 ) -> Result<(stairbench::sensor::hardware::HardwareConfig, stairbench::sensor::Sweep)> {
-    use stairbench::sensor::hardware::{standing_head_pose, HardwareConfig, HardwareSource};
+    use stairbench::robot::hrp4::standing_head_pose;
+    use stairbench::sensor::hardware::{HardwareConfig, HardwareSource};
     use stairbench::sensor::{SensorError, Source};
     let cfg = HardwareConfig::load(path)?;
     let cancel = stairbench::cancel::Cancel::new();
@@ -169,6 +170,9 @@ pub fn hardware_sweep(
         bar.set_position(done as u64);
     });
     bar.finish_and_clear();
+    if let Some(n) = source.last_stats().map(|s| s.servo_corrupt_replies).filter(|&n| n > 0) {
+        eprintln!("servo: {n} replies came garbled (checksum failed) and were asked for again");
+    }
     match result {
         Ok(sweep) => {
             if let Some(rec) = recorder.as_deref_mut() {

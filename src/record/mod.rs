@@ -303,7 +303,12 @@ impl Recorder {
         self.log(
             "/tf",
             stamp_s,
-            &FrameTransform::new(stamp_s, "world", "lidar_mount", &sweep.mount_to_world),
+            &FrameTransform::new(
+                stamp_s,
+                "world",
+                "lidar_mount",
+                &crate::sensor::assemble::mount_in_cloud(&sweep.rows, &sweep.mount_to_world),
+            ),
         );
         self.flush();
     }

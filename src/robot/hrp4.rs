@@ -108,3 +108,14 @@ pub fn standing_config(
     q[0..3].copy_from_slice(t.as_slice());
     Ok(q)
 }
+
+/// Where the lidar's head is when the robot stands in half-sitting with its feet's middle at
+/// the origin, facing +x (the frame the hardware path perceives in): the robot model's head
+/// frame by forward kinematics.
+pub fn standing_head_pose() -> Result<Isometry3<f64>, RobotError> {
+    let model = model()?;
+    let q = half_sitting_at(&model, &Isometry3::identity())?;
+    let mut kin = Kinematics::new(&model);
+    kin.update(&q).map_err(|e| RobotError::Invalid(e.to_string()))?;
+    Ok(kin.frame_pose(model.frame_id(LIDAR_MOUNT)?))
+}

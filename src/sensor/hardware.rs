@@ -6,8 +6,9 @@
 //! same clock (the lidar's stamps related to the host's by its `TM` exchanges). Assembly then
 //! fits each beam's tilt from the rows' readings, as for simulated rows.
 //!
-//! Gravity comes from the configuration (the robot standing still, §4.1), the mount's pose
-//! from the robot standing in half-sitting with its feet at the origin.
+//! Gravity comes from the configuration (an IMU's reading, the robot standing still, §4.1);
+//! the head's pose from the caller (the robot model standing in half-sitting, a tripod's):
+//! assembly levels the cloud by the gravity, so a pose known roughly still gives a level one.
 
 use super::clock;
 use super::dynamixel::{Servo, ServoConfig};
@@ -180,6 +181,8 @@ pub struct SweepStats {
     pub servo_cpu_s: f64,
     /// CPU time of the thread reading the lidar, seconds.
     pub lidar_cpu_s: f64,
+    /// Servo replies whose checksum failed, each asked for again.
+    pub servo_corrupt_replies: usize,
 }
 
 /// A servo reading: host time and tilt, seconds and radians.
@@ -194,17 +197,6 @@ pub fn tilt_at(readings: &[Reading], t_s: f64) -> Option<f64> {
     let (a, b) = (readings[k - 1], readings[k]);
     let f = if b.0 > a.0 { (t_s - a.0) / (b.0 - a.0) } else { 0.0 };
     Some(a.1 + (b.1 - a.1) * f)
-}
-
-/// Where the lidar's head is when the robot stands in half-sitting with its feet's middle at
-/// the origin, facing +x (the frame the hardware path perceives in): the robot model's head
-/// frame by forward kinematics.
-pub fn standing_head_pose() -> Result<Isometry3<f64>, crate::robot::RobotError> {
-    let model = crate::robot::hrp4::model()?;
-    let q = crate::robot::hrp4::half_sitting_at(&model, &Isometry3::identity())?;
-    let mut kin = crate::robot::Kinematics::new(&model);
-    kin.update(&q).map_err(|e| crate::robot::RobotError::Invalid(e.to_string()))?;
-    Ok(kin.frame_pose(model.frame_id(crate::robot::hrp4::LIDAR_MOUNT)?))
 }
 
 impl HardwareSource {
@@ -357,6 +349,7 @@ impl Source for HardwareSource {
         let tick = std::f64::consts::TAU / f64::from(self.cfg.servo.ticks_per_rev);
         let readings: Mutex<Vec<Reading>> = Mutex::new(Vec::new());
         let done = AtomicBool::new(false);
+        let corrupt_before = self.servo.as_ref().map_or(0, Servo::corrupt_replies);
         let mut servo = self.servo.take();
         let mut lidar = self.lidar.take();
         let model = self.model.clone();
@@ -433,6 +426,7 @@ impl Source for HardwareSource {
             streaming_s,
             servo_cpu_s,
             lidar_cpu_s,
+            servo_corrupt_replies: self.servo.as_ref().map_or(0, Servo::corrupt_replies) - corrupt_before,
         });
         let rows = self.rows(&scans, &readings);
         let why = match (servo_result, lidar_failure) {

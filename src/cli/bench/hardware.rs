@@ -7,9 +7,10 @@
 //! thread and of the whole process.
 
 use anyhow::{bail, Context, Result};
+use stairbench::robot::hrp4::standing_head_pose;
 use stairbench::sensor::dynamixel::packet::{self, Protocol};
 use stairbench::sensor::dynamixel::Table;
-use stairbench::sensor::hardware::{standing_head_pose, HardwareConfig, HardwareSource, SweepStats};
+use stairbench::sensor::hardware::{HardwareConfig, HardwareSource, SweepStats};
 use stairbench::sensor::Source;
 use stairbench::sim::emulator::ServoSpec;
 use std::fmt::Write as _;

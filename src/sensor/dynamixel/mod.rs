@@ -146,6 +146,9 @@ pub struct ServoConfig {
     pub direction: i8,
     /// Longest wait for a status packet, seconds.
     pub reply_timeout_s: f64,
+    /// Times a request is sent again after a reply whose checksum failed (a noisy bus garbles
+    /// a packet now and then); one more garbled reply is an error naming the bytes.
+    pub corrupt_retries: u32,
 }
 
 impl Default for ServoConfig {
@@ -159,6 +162,7 @@ impl Default for ServoConfig {
             ticks_per_rev: 4096,
             direction: 1,
             reply_timeout_s: 0.1,
+            corrupt_retries: 3,
         }
     }
 }
@@ -220,6 +224,22 @@ pub enum ServoError {
         /// The configured protocol.
         protocol: Protocol,
     },
+    /// Every reply to a request, sent again, came garbled.
+    #[error(
+        "servo {id} on {link} answered {what} {tries} times in a row with a packet whose checksum failed (last: {last})"
+    )]
+    Corrupt {
+        /// Its id.
+        id: u8,
+        /// The port.
+        link: String,
+        /// The request.
+        what: String,
+        /// Replies received, all garbled.
+        tries: u32,
+        /// The last garbled packet, in hex.
+        last: String,
+    },
     /// A reply of the wrong size.
     #[error("servo {id} answered {what} with {got} bytes, {expected} expected")]
     Short {
@@ -241,6 +261,8 @@ pub struct Servo {
     table: Table,
     reader: StatusReader,
     buf: Vec<u8>,
+    /// Replies whose checksum failed (each asked again) since the connection was made.
+    corrupt_replies: usize,
     /// The firmware's model number.
     pub model: u16,
 }
@@ -261,6 +283,7 @@ impl Servo {
             table: Table::mx64(cfg.protocol),
             reader: StatusReader::new(cfg.protocol),
             buf: vec![0; 512],
+            corrupt_replies: 0,
             model: 0,
         };
         s.transact(instruction::PING, &[], "a ping")?;
@@ -278,15 +301,33 @@ impl Servo {
         Ok(s)
     }
 
-    /// Sends an instruction and returns its status packet (errors in it are errors, named).
+    /// Replies whose checksum failed (each asked again) since the connection was made.
+    pub fn corrupt_replies(&self) -> usize {
+        self.corrupt_replies
+    }
+
+    /// Sends an instruction and returns its status packet (errors in it are errors, named). A
+    /// reply whose checksum failed is asked for again, up to `corrupt_retries` times.
     fn transact(&mut self, inst: u8, params: &[u8], what: &str) -> Result<Status, ServoError> {
         let request = packet::instruction(self.cfg.protocol, self.cfg.id, inst, params);
-        self.reader.clear();
-        self.reader.expect_echo(&request);
         let link = self.link.describe();
-        self.link.send(&request).map_err(|source| ServoError::Io { link: link.clone(), source })?;
-        let deadline = Instant::now() + Duration::from_secs_f64(self.cfg.reply_timeout_s.max(0.001));
+        let mut garbled = 0;
+        let mut deadline = self.send(&request, &link)?;
         loop {
+            if let Some(bad) = self.reader.take_corrupt() {
+                garbled += 1;
+                self.corrupt_replies += 1;
+                if garbled > self.cfg.corrupt_retries {
+                    return Err(ServoError::Corrupt {
+                        id: self.cfg.id,
+                        link,
+                        what: what.into(),
+                        tries: garbled,
+                        last: bad.iter().map(|b| format!("{b:02x}")).collect::<Vec<_>>().join(" "),
+                    });
+                }
+                deadline = self.send(&request, &link)?;
+            }
             if let Some(st) = self.reader.next_status() {
                 if st.id != self.cfg.id {
                     continue;
@@ -320,6 +361,14 @@ impl Servo {
                 Err(source) => return Err(ServoError::Io { link, source }),
             }
         }
+    }
+
+    /// Sends `request` with the reader cleared for its reply; the reply's deadline.
+    fn send(&mut self, request: &[u8], link: &str) -> Result<Instant, ServoError> {
+        self.reader.clear();
+        self.reader.expect_echo(request);
+        self.link.send(request).map_err(|source| ServoError::Io { link: link.into(), source })?;
+        Ok(Instant::now() + Duration::from_secs_f64(self.cfg.reply_timeout_s.max(0.001)))
     }
 
     /// A Protocol 2.0 alert names the hardware errors behind it (the register read once).

@@ -170,6 +170,9 @@ enum Found {
     Packet(Packet, usize),
     /// Not a packet here: drop a byte.
     Skip,
+    /// A packet framed whole (header, id, length) whose checksum failed: its `n` bytes are
+    /// noted, and a byte dropped (its length may be what was garbled).
+    Corrupt(usize),
     /// Need more bytes.
     More,
 }
@@ -183,12 +186,15 @@ pub struct PacketReader {
     echo: Option<Vec<u8>>,
     /// Bytes dropped as not a packet since the last call to [`PacketReader::take_dropped`].
     dropped: usize,
+    /// The last packet framed whole whose checksum failed, since the last call to
+    /// [`PacketReader::take_corrupt`].
+    corrupt: Option<Vec<u8>>,
 }
 
 impl PacketReader {
     /// A reader for `protocol`.
     pub fn new(protocol: Protocol) -> Self {
-        Self { protocol, buf: Vec::new(), echo: None, dropped: 0 }
+        Self { protocol, buf: Vec::new(), echo: None, dropped: 0, corrupt: None }
     }
 
     /// Takes bytes as they arrive.
@@ -200,6 +206,7 @@ impl PacketReader {
     pub fn clear(&mut self) {
         self.buf.clear();
         self.echo = None;
+        self.corrupt = None;
     }
 
     /// The request just sent: if the bus hands it back, it is skipped (a Protocol 1.0 ping
@@ -212,6 +219,12 @@ impl PacketReader {
     /// baud rate or protocol show here).
     pub fn take_dropped(&mut self) -> usize {
         std::mem::take(&mut self.dropped)
+    }
+
+    /// The last packet framed whole whose checksum (Protocol 1.0) or CRC (2.0) failed since
+    /// last asked: a reply garbled on the bus, worth asking again.
+    pub fn take_corrupt(&mut self) -> Option<Vec<u8>> {
+        self.corrupt.take()
     }
 
     /// The next valid packet in the stream, or `None` when more bytes are needed. Each call
@@ -239,6 +252,11 @@ impl PacketReader {
                     break Some(p);
                 }
                 Found::Skip => {
+                    at += 1;
+                    self.dropped += 1;
+                }
+                Found::Corrupt(n) => {
+                    self.corrupt = Some(self.buf[at..at + n].to_vec());
                     at += 1;
                     self.dropped += 1;
                 }
@@ -280,6 +298,11 @@ impl StatusReader {
     /// See [`PacketReader::take_dropped`].
     pub fn take_dropped(&mut self) -> usize {
         self.packets.take_dropped()
+    }
+
+    /// See [`PacketReader::take_corrupt`].
+    pub fn take_corrupt(&mut self) -> Option<Vec<u8>> {
+        self.packets.take_corrupt()
     }
 
     /// The next status packet in the stream, or `None` when more bytes are needed
@@ -326,7 +349,7 @@ fn find1(buf: &[u8]) -> Found {
         return Found::More;
     }
     if checksum1(&buf[2..n - 1]) != buf[n - 1] {
-        return Found::Skip;
+        return Found::Corrupt(n);
     }
     Found::Packet(Packet { id, instruction: buf[4], params: buf[5..n - 1].to_vec() }, n)
 }
@@ -354,7 +377,7 @@ fn find2(buf: &[u8]) -> Found {
     }
     let crc = u16::from_le_bytes([buf[n - 2], buf[n - 1]]);
     if crc16(&buf[..n - 2]) != crc {
-        return Found::Skip;
+        return Found::Corrupt(n);
     }
     let body = unstuff(&buf[7..n - 2]);
     match body.split_first() {
@@ -437,6 +460,8 @@ mod tests {
             r.push(&[*b]);
         }
         assert_eq!(r.next_status(), Some(Status { id: 1, error: 0x80, params: vec![7] }));
+        assert_eq!(r.take_corrupt(), Some(bad), "the garbled status is noted whole");
+        assert_eq!(r.take_corrupt(), None);
         assert!(r.take_dropped() > 0);
         assert_eq!(r.next_status(), None);
     }

@@ -15,6 +15,7 @@ use super::world::World;
 use crate::scenario::Scenario;
 use crate::scene::mjcf::HEAD_SITE;
 use crate::scene::Scene;
+use nalgebra::Isometry3;
 use pty::{read_timeout, Pty};
 use servo::{Motion, SharedMotion};
 use std::io::Write;
@@ -49,6 +50,9 @@ pub struct EmulatorConfig {
     pub start_tilt_deg: f64,
     /// Seed of the lidar's noise.
     pub seed: u64,
+    /// Where the sensor head is: its frame in the world (a tripod's, a bench's); `None`, on
+    /// the robot standing at the scenario's start. The robot's body is never seen.
+    pub head_to_world: Option<Isometry3<f64>>,
 }
 
 impl Default for EmulatorConfig {
@@ -60,6 +64,7 @@ impl Default for EmulatorConfig {
             lidar_faults: LidarFaults::default(),
             start_tilt_deg: 0.0,
             seed: 1,
+            head_to_world: None,
         }
     }
 }
@@ -83,6 +88,8 @@ pub struct Emulator {
     pub lidar_pty: Option<String>,
     /// The servo's pseudo-terminal.
     pub servo_pty: String,
+    /// Where the sensor head is (its frame in the world).
+    pub head_to_world: Isometry3<f64>,
     stop: Arc<AtomicBool>,
     threads: Vec<JoinHandle<()>>,
 }
@@ -135,8 +142,9 @@ fn converse<S: std::io::Read + Write + AsRawFd, C: crate::sensor::RayCaster>(
 }
 
 impl Emulator {
-    /// Starts the emulator on `scenario`'s world (the robot standing at its start, the lidar
-    /// on its head as the scenario's `[lidar]` mounts it).
+    /// Starts the emulator on `scenario`'s world (the lidar on the head as the scenario's
+    /// `[lidar]` mounts it, the head where `cfg` puts it or on the robot standing at its
+    /// start).
     pub fn start(scenario: &Scenario, cfg: EmulatorConfig) -> Result<Self, EmulatorError> {
         let stop = Arc::new(AtomicBool::new(false));
         let started = Instant::now();
@@ -159,13 +167,14 @@ impl Emulator {
                 (None, Some(p.path.clone()), Err(p))
             }
         };
-        let (ready_tx, ready_rx) = mpsc::channel::<Result<(), String>>();
+        let (ready_tx, ready_rx) = mpsc::channel::<Result<Isometry3<f64>, String>>();
         let (scene, spec) = (
             Scene::from_scenario(scenario).map_err(|e| EmulatorError::World(e.to_string()))?,
             scenario.lidar.clone(),
         );
         let stop_l = stop.clone();
-        let (clock, faults, seed) = (cfg.clock, cfg.lidar_faults.clone(), cfg.seed);
+        let (clock, faults, seed, placed) =
+            (cfg.clock, cfg.lidar_faults.clone(), cfg.seed, cfg.head_to_world);
         threads.push(std::thread::spawn(move || {
             let world = match World::for_scene(&scene) {
                 Ok(w) => w,
@@ -174,14 +183,15 @@ impl Emulator {
                     return;
                 }
             };
-            let head = match world.site_id(HEAD_SITE) {
-                Ok(id) => world.site_pose(id),
-                Err(e) => {
+            let head = match (placed, world.site_id(HEAD_SITE)) {
+                (Some(h), _) => h,
+                (None, Ok(id)) => world.site_pose(id),
+                (None, Err(e)) => {
                     let _ = ready_tx.send(Err(e.to_string()));
                     return;
                 }
             };
-            let _ = ready_tx.send(Ok(()));
+            let _ = ready_tx.send(Ok(head));
             let device = || {
                 lidar::Device::new(&world, &spec, &head, motion.clone(), clock, started, faults.clone(), seed)
             };
@@ -209,12 +219,19 @@ impl Emulator {
                 }
             }
         }));
-        match ready_rx.recv() {
-            Ok(Ok(())) => {}
+        let head_to_world = match ready_rx.recv() {
+            Ok(Ok(head)) => head,
             Ok(Err(e)) => return Err(EmulatorError::World(e)),
             Err(_) => return Err(EmulatorError::World("the lidar thread ended".into())),
-        }
-        Ok(Self { lidar_address, lidar_pty, servo_pty: servo_path, stop, threads })
+        };
+        Ok(Self { lidar_address, lidar_pty, servo_pty: servo_path, head_to_world, stop, threads })
+    }
+
+    /// What an IMU on the servo base reads at rest: gravity's unit direction in that frame,
+    /// for the lidar of `spec` on this head.
+    pub fn gravity_mount(&self, spec: &crate::scenario::LidarSpec) -> nalgebra::Vector3<f64> {
+        let mount = self.head_to_world * crate::sensor::LidarModel::from_spec(spec).mount_in_head;
+        mount.rotation.inverse() * -nalgebra::Vector3::z()
     }
 
     /// Stops every thread.

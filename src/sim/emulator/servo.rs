@@ -20,6 +20,9 @@ pub struct ServoFaults {
     /// From this many seconds after the emulator starts, it reports an overload (and drops its
     /// torque, as the MX-64's shutdown does).
     pub overload_after_s: Option<f64>,
+    /// Every this many replies, one goes out with its checksum (CRC) wrong, as a noisy bus
+    /// garbles a packet now and then (1: every reply).
+    pub garble_every: Option<usize>,
 }
 
 /// The emulated servo's settings.
@@ -118,6 +121,7 @@ pub fn serve(mut pty: Pty, spec: ServoSpec, motion: SharedMotion, stop: Arc<Atom
     let mut reader = PacketReader::new(spec.protocol);
     let mut buf = [0u8; 512];
     let mut rng_state = 0x2545_f491_4f6c_dd1d_u64;
+    let mut replies = 0usize;
     while !stop.load(Ordering::Relaxed) {
         let n = match pty.read_timeout(&mut buf, 20) {
             Ok(n) => n,
@@ -152,6 +156,12 @@ pub fn serve(mut pty: Pty, spec: ServoSpec, motion: SharedMotion, stop: Arc<Atom
             std::thread::sleep(Duration::from_secs_f64(
                 spec.return_delay_s + bytes as f64 * 10.0 / f64::from(spec.baud),
             ));
+            replies += 1;
+            if let (Some(every), Some(last)) = (spec.faults.garble_every, reply.last_mut()) {
+                if replies.is_multiple_of(every.max(1)) {
+                    *last ^= 0x5a;
+                }
+            }
             if wrong_baud {
                 for b in &mut reply {
                     rng_state ^= rng_state << 13;
