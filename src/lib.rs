@@ -14,6 +14,7 @@ pub mod cancel;
 pub mod climb;
 pub mod cloud;
 pub mod control;
+pub mod estimate;
 pub mod geom2d;
 pub mod geom3d;
 pub mod params;

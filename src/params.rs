@@ -1,10 +1,11 @@
 //! Every parameter of a climb, as a parameters file holds them (`run --params`, the MCAP
 //! attachment `params.toml`): perception (§4, Table 1), the step map, planning (§6), the
-//! simulated robot's servos and the checks that judge the execution, and the loop's own
-//! settings. Fields left out keep their defaults; unknown fields are refused.
+//! simulated robot's servos and the checks that judge the execution, the robot's own
+//! estimate of its pose, and the loop's own settings. Fields left out keep their defaults; unknown fields are refused.
 
 use crate::climb::{LoopParams, RunParams};
 use crate::control::StabilizerParams;
+use crate::estimate::EstimateParams;
 use crate::perception::step_map::StepMapParams;
 use crate::perception::surroundings::SurroundingsParams;
 use crate::perception::PerceptionParams;
@@ -33,6 +34,8 @@ pub struct ClimbParams {
     pub stabilizer: StabilizerParams,
     /// The checks.
     pub checks: CheckParams,
+    /// The robot's own estimate of its pose (the loop's frame when enabled).
+    pub estimate: EstimateParams,
     /// Loop settings.
     pub run: RunParams,
 }

@@ -107,9 +107,25 @@ pub trait Executor {
     /// The robot's clock, seconds.
     fn now_s(&self) -> f64;
 
-    /// The measured configuration, in the kinematics' layout (base position, quaternion
-    /// w x y z, joints).
+    /// The configuration as the robot knows it, in the kinematics' layout (base position,
+    /// quaternion w x y z, joints): its own estimate where it keeps one, what the loop plans
+    /// from and assembles its views with.
     fn configuration(&self) -> Vec<f64>;
+
+    /// The true configuration where it is known (a simulator's), for the report only: the
+    /// steps climbed and the estimate's error. `None` (a real robot): the report reads
+    /// [`Executor::configuration`].
+    fn true_configuration(&self) -> Option<Vec<f64>> {
+        None
+    }
+
+    /// Moves the robot's own estimate of its pose by `offset` (in the estimate's frame: the
+    /// step map's registration of a view says where the view's frame lies against the known
+    /// steps). `false`, and nothing moved, for a robot that keeps no estimate to correct (its
+    /// pose is the simulator's truth, or a real robot's own business).
+    fn correct(&mut self, _offset: &nalgebra::Isometry3<f64>) -> bool {
+        false
+    }
 
     /// Holds the current posture for at least `seconds` (the servos settle before a scan;
     /// the simulated robot stands on until it is still).

@@ -18,6 +18,7 @@ pub use outcome::{Check, CheckKind, SimWarning, StopReason, Violation};
 pub use report::{ClimbReport, CycleReport, Footing, StageTimes};
 
 use crate::cancel::Cancel;
+use crate::estimate::EstimateError;
 use crate::perception::step_map::{NextInput, StepMap, StepMapParams};
 use crate::perception::surroundings::{Surroundings, SurroundingsParams};
 use crate::perception::PlaneSegment;
@@ -26,6 +27,7 @@ use crate::planning::clearance::{body_capsules, SeenPoints};
 use crate::planning::footholds::riser_in_sight;
 use crate::planning::plan::stance_at;
 use crate::planning::{plan_approach, plan_below, plan_in_sight, plan_retreat, Plan, PlanParams, Refusal};
+use crate::robot::hrp4;
 use crate::robot::model::RobotModel;
 use crate::robot::Kinematics;
 use crate::scene::Scene;
@@ -144,11 +146,11 @@ pub fn run<E: Executor>(
     for cycle in 1..=p.run.max_cycles {
         last_cycle = cycle;
         robot.settle(p.run.settle_s).map_err(failed)?;
-        let q = robot.configuration();
+        let mut q = robot.configuration();
         let start_floor_z_m = *start_floor.get_or_insert_with(|| feet_height_m(model, &q));
         let t = Instant::now();
         let stamp_s = robot.now_s();
-        let sweep = match source.sweep(cancel, &mut |_, _| {}) {
+        let mut sweep = match source.sweep(cancel, &mut |_, _| {}) {
             Ok(s) => s,
             Err(SensorError::Cancelled { .. }) => {
                 report.stop = Some(StopReason::StoppedByUser { cycle });
@@ -159,7 +161,20 @@ pub fn run<E: Executor>(
                 break;
             }
         };
-        let cloud = match sweep.assemble(&AssembleParams::default()) {
+        // The view is put together where the robot believes its head is (levelled by the
+        // gravity its rows measured).
+        match head_pose(model, &q) {
+            Some(head) => sweep.mount_to_world = head * sweep.lidar.mount_in_head,
+            None => {
+                report.stop = Some(StopReason::SensorFailed {
+                    cycle,
+                    error: "the robot's configuration gives no head pose".into(),
+                });
+                break;
+            }
+        }
+        let estimate_error = robot.true_configuration().and_then(|truth| EstimateError::of(&q, &truth));
+        let mut cloud = match sweep.assemble(&AssembleParams::default()) {
             Ok(c) => c,
             Err(e) => {
                 report.stop = Some(StopReason::SensorFailed { cycle, error: e.to_string() });
@@ -187,6 +202,22 @@ pub fn run<E: Executor>(
                     }
                 }
             }
+        };
+        // A view under the estimate's drift is moved onto the known steps, and the estimate
+        // with it (the robot's own; a robot that keeps none is not moved, nor is its view).
+        let (mut correction_m, mut correction_yaw_rad) = (None, None);
+        let seen = match map.register(&seen, p.step_map) {
+            Some(offset) if robot.correct(&offset) => {
+                q = robot.configuration();
+                sweep.mount_to_world = offset * sweep.mount_to_world;
+                if let Ok(c) = sweep.assemble(&AssembleParams::default()) {
+                    cloud = c;
+                }
+                correction_m = Some(offset.translation.vector.into());
+                correction_yaw_rad = Some(offset.rotation.euler_angles().2);
+                seen.into_iter().map(|s| s.transformed(&offset)).collect()
+            }
+            _ => seen,
         };
         add_view(&mut around, &cloud, model, &q, p.surroundings);
         let feet_z = feet_height_m(model, &q);
@@ -232,6 +263,9 @@ pub fn run<E: Executor>(
             perceive_s,
             plan_s,
             execute_s,
+            estimate_error,
+            correction_m,
+            correction_yaw_rad,
             execution,
         };
         observer.event(&Event::Cycle { stamp_s: robot.now_s(), report: &c });
@@ -250,7 +284,7 @@ pub fn run<E: Executor>(
             break;
         }
     }
-    let q = robot.configuration();
+    let q = robot.true_configuration().unwrap_or_else(|| robot.configuration());
     report.steps_climbed = climbed(truth, model, &q);
     if report.stop.is_none() && last_cycle == p.run.max_cycles && report.steps_climbed < report.steps_total {
         report.stop = Some(StopReason::CyclesExhausted { cycles: last_cycle });
@@ -356,6 +390,15 @@ pub fn add_view(
         Err(_) => Vec::new(),
     };
     around.add(cloud, &body, p);
+}
+
+/// The lidar's head frame (the robot model's [`hrp4::LIDAR_MOUNT`]) at configuration `q`
+/// (`None` if `q` is unusable).
+pub fn head_pose(model: &RobotModel, q: &[f64]) -> Option<nalgebra::Isometry3<f64>> {
+    let frame = model.frame_id(hrp4::LIDAR_MOUNT).ok()?;
+    let mut kin = Kinematics::new(model);
+    kin.update(q).ok()?;
+    Some(kin.frame_pose(frame))
 }
 
 /// The higher sole's height at configuration `q`, metres (`-inf` if `q` is unusable).

@@ -7,6 +7,7 @@
 
 use super::executor::Execution;
 use super::outcome::{StopReason, Violation};
+use crate::estimate::EstimateError;
 use crate::planning::Refusal;
 use serde::{Serialize, Serializer};
 use std::fmt;
@@ -61,6 +62,17 @@ pub struct CycleReport {
     pub plan_s: f64,
     /// Wall time of the execution with its checks, seconds.
     pub execute_s: f64,
+    /// How far the robot's estimate of its base was from the truth when the cycle's sweep
+    /// was taken (`None` where no truth is known, as on a real robot).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub estimate_error: Option<EstimateError>,
+    /// The offset the step map's registration moved the robot's estimate by this cycle,
+    /// metres (x, y, z), when it did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub correction_m: Option<[f64; 3]>,
+    /// And turned it by about the vertical, radians.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub correction_yaw_rad: Option<f64>,
     /// What the execution found (flattened into the JSON: `min_margin_m`,
     /// `max_torque_ratio`, `torque_joint`, `touchdowns`, `violations`, `sim_s`, ...).
     #[serde(flatten)]
@@ -150,6 +162,15 @@ impl ClimbReport {
     /// The largest friction ratio a loaded foot used over every cycle.
     pub fn max_friction_ratio(&self) -> f64 {
         self.cycles.iter().map(|c| c.execution.max_friction_ratio).fold(0.0, f64::max)
+    }
+
+    /// The largest errors of the robot's estimate at a sweep over every cycle: its base's
+    /// position, metres, and yaw (absolute), radians (`None` when no cycle knew the truth).
+    pub fn max_estimate_error(&self) -> Option<(f64, f64)> {
+        self.cycles.iter().filter_map(|c| c.estimate_error).fold(None, |acc, e| {
+            let (p, y) = acc.unwrap_or((0.0, 0.0));
+            Some((p.max(e.position_m), y.max(e.yaw_rad.abs())))
+        })
     }
 
     /// Why the climb failed, in one line: the first violated check, else why the loop

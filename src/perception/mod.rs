@@ -397,6 +397,21 @@ impl PlaneSegment {
         .expect("valid rectangle")
     }
 
+    /// The same rectangle moved by `offset` (a view's frame corrected).
+    pub fn moved(self, offset: &Vector3<f64>) -> Self {
+        self.transformed(&nalgebra::Translation3::from(*offset).into())
+    }
+
+    /// The same rectangle moved rigidly by `pose` (a view's frame corrected).
+    pub fn transformed(mut self, pose: &nalgebra::Isometry3<f64>) -> Self {
+        for c in &mut self.corners {
+            *c = pose * *c;
+        }
+        self.normal = pose.rotation * self.normal;
+        self.height_m = self.corners.iter().map(|c| c.z).sum::<f64>() / 4.0;
+        self
+    }
+
     /// The same rectangle, its front edge marked as placed on the riser (or not).
     pub fn with_front_on_riser(mut self, on: bool) -> Self {
         self.front_on_riser = on;

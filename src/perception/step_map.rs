@@ -5,7 +5,19 @@
 //! `replay` and the tests all call it.
 
 use super::PlaneSegment;
+use nalgebra::{Isometry3, Vector3};
 use serde::{Deserialize, Serialize};
+
+/// The median of `values` (0 without any).
+fn median(values: impl Iterator<Item = f64>) -> f64 {
+    let mut v: Vec<f64> = values.collect();
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => 0.0,
+        n if n % 2 == 1 => v[n / 2],
+        n => (v[n / 2 - 1] + v[n / 2]) / 2.0,
+    }
+}
 
 /// Parameters of the step map.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -35,6 +47,17 @@ pub struct StepMapParams {
     /// step: a flight's treads overlap by their nosings only (IRC R311.7.5.3: at most
     /// 32 mm), and perception's edges err by about 2 cm each. Metres.
     pub max_overlap_m: f64,
+    /// A registration's correction (see [`StepMap::register`]) under this, along the ascent
+    /// or in height, is left alone: a view's fronts on their risers err by about a
+    /// centimetre under noise, and a correction from them would move a true estimate. Metres.
+    pub register_min_m: f64,
+    /// A registration's correction over this is no drift but a mismatch (another step taken
+    /// for a known one), and nothing is corrected. Metres.
+    pub register_max_m: f64,
+    /// A registration's turn about the vertical under this is left alone: the flight's axis
+    /// from the fronts of a view's treads on their risers; radians. 0.3 degrees: under a
+    /// centimetre across a 2 m flight.
+    pub register_min_rad: f64,
 }
 
 impl Default for StepMapParams {
@@ -45,6 +68,9 @@ impl Default for StepMapParams {
             max_view_turn_rad: 20f64.to_radians(),
             min_width_m: crate::robot::hrp4::SOLE_SIZE_M[1],
             max_overlap_m: 0.08,
+            register_min_m: 0.02,
+            register_max_m: 0.12,
+            register_min_rad: 0.3f64.to_radians(),
         }
     }
 }
@@ -80,6 +106,74 @@ impl StepMap {
             })
             .collect();
         self.known = merge(&self.known, seen, p);
+    }
+
+    /// Where a new view lies against the known steps: the rigid motion that moves the view's
+    /// rectangles onto the known ones, when the robot's estimate of its pose (the view's
+    /// frame) has drifted. Each of the view's steps is matched to the known step nearest in
+    /// height whose front is within `register_max_m` of its own (along the known ascent).
+    /// Then, each the median over the matched steps:
+    /// - the turn about the vertical, from the treads' axes, of the steps whose fronts both
+    ///   views placed on their risers (a riser is a long straight edge), about the view's
+    ///   matched steps' middle;
+    /// - along the ascent, from those fronts (where the flight is);
+    /// - across it, from the treads' middles, of the steps both views saw as wide (within
+    ///   `register_min_m`; a view's side is the side it saw, not the tread's, otherwise);
+    /// - in height, from the treads' heights.
+    ///
+    /// A turn under `register_min_rad` and a shift under `register_min_m` are left at zero;
+    /// a view that matches nothing, asks for a turn over 10 times `register_min_rad` or a
+    /// shift over `register_max_m`, gives `None` (a mismatch, not drift).
+    pub fn register(&self, seen: &[PlaneSegment], p: &StepMapParams) -> Option<Isometry3<f64>> {
+        let along = self.known.iter().max_by_key(|k| k.voxel_count())?.along();
+        let front = |r: &PlaneSegment| (r.center() - r.along() * (r.depth_m() / 2.0)).coords.dot(&along);
+        let pairs: Vec<(&PlaneSegment, PlaneSegment)> = seen
+            .iter()
+            .filter_map(|s| {
+                let s = axis_nearest(s, &along);
+                let k = self
+                    .known
+                    .iter()
+                    .filter(|k| (front(k) - front(&s)).abs() < p.register_max_m)
+                    .min_by(|a, b| {
+                        (a.height_m() - s.height_m()).abs().total_cmp(&(b.height_m() - s.height_m()).abs())
+                    })?;
+                ((k.height_m() - s.height_m()).abs() < p.register_max_m).then_some((k, s))
+            })
+            .collect();
+        if pairs.is_empty() {
+            return None;
+        }
+        let on_risers = |(k, s): &&(&PlaneSegment, PlaneSegment)| k.front_on_riser() && s.front_on_riser();
+        let turn = median(pairs.iter().filter(on_risers).map(|(k, s)| {
+            let k = axis_nearest(k, &along).along();
+            s.along().cross(&k).z.atan2(s.along().dot(&k))
+        }));
+        let turn = if turn.abs() < p.register_min_rad { 0.0 } else { turn };
+        if turn.abs() > 10.0 * p.register_min_rad {
+            return None;
+        }
+        let middle = pairs.iter().map(|(_, s)| s.center().coords).sum::<Vector3<f64>>() / pairs.len() as f64;
+        let pivot = nalgebra::Translation3::from(middle);
+        let turned: Isometry3<f64> =
+            pivot * nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn) * pivot.inverse();
+        let pairs: Vec<(&PlaneSegment, PlaneSegment)> =
+            pairs.into_iter().map(|(k, s)| (k, s.transformed(&turned))).collect();
+        let across = Vector3::z().cross(&along);
+        let keep = |d: f64| if d.abs() < p.register_min_m { 0.0 } else { d };
+        let dz = keep(median(pairs.iter().map(|(k, s)| k.height_m() - s.height_m())));
+        let d_along = keep(median(pairs.iter().filter(on_risers).map(|(k, s)| front(k) - front(s))));
+        let d_across = keep(median(
+            pairs
+                .iter()
+                .filter(|(k, s)| (k.width_m() - s.width_m()).abs() < p.register_min_m)
+                .map(|(k, s)| (k.center() - s.center()).dot(&across)),
+        ));
+        let shift = along * d_along + across * d_across + Vector3::z() * dz;
+        if [d_along, d_across, dz].iter().any(|d| d.abs() > p.register_max_m) {
+            return None;
+        }
+        (turn != 0.0 || shift != Vector3::zeros()).then(|| nalgebra::Translation3::from(shift) * turned)
     }
 
     /// The steps higher than `feet_z` plus `margin_m` (the ones still to climb).
@@ -337,6 +431,38 @@ mod tests {
 
     fn step(x: f64, z: f64, depth_m: f64) -> PlaneSegment {
         level(Point3::new(x, 0.0, z), Vector3::x(), depth_m, 0.5, 10)
+    }
+
+    /// A view taken under odometry drift (the robot believes itself 4 cm farther up the
+    /// flight and 2.5 cm higher than it is) is registered on the known steps before it is
+    /// merged: merged as it came, each step would stretch 4 cm toward the robot (the nearer
+    /// of two fronts on their risers is kept), a heel planned there over the nose below.
+    #[test]
+    fn a_view_under_odometry_drift_is_registered_before_it_is_merged() {
+        let p = StepMapParams::default();
+        let truth = [(0.735, 0.2), (1.005, 0.4), (1.275, 0.6)];
+        let known: Vec<PlaneSegment> =
+            truth.iter().map(|&(x, z)| step(x, z, 0.27).with_front_on_riser(true)).collect();
+        let map = StepMap { known: known.clone() };
+        let drift = Vector3::new(0.04, 0.0, 0.025);
+        let seen: Vec<PlaneSegment> = known.iter().map(|k| k.clone().moved(&drift)).collect();
+        let naive = merge(&known, seen.clone(), &p);
+        assert!(naive.iter().all(|r| (r.depth_m() - 0.31).abs() < 1e-9), "merged as it came: 4 cm deeper");
+        let correction = map.register(&seen, &p).expect("a correction");
+        assert!((correction.translation.vector + drift).norm() < 1e-9, "{correction:?}");
+        let registered: Vec<PlaneSegment> = seen.into_iter().map(|s| s.transformed(&correction)).collect();
+        let merged = merge(&known, registered, &p);
+        for (r, (x, z)) in merged.iter().zip(truth) {
+            assert!((r.center().x - x).abs() < 1e-9 && (r.height_m() - z).abs() < 1e-9, "{r:?}");
+            assert!((r.depth_m() - 0.27).abs() < 1e-9);
+        }
+        // Under a centimetre (a view's own error), or a step away (a mismatch): nothing.
+        let small: Vec<PlaneSegment> =
+            known.iter().map(|k| k.clone().moved(&Vector3::new(0.01, 0.0, 0.005))).collect();
+        assert_eq!(map.register(&small, &p), None);
+        let far: Vec<PlaneSegment> =
+            known.iter().map(|k| k.clone().moved(&Vector3::new(0.27, 0.0, 0.0))).collect();
+        assert_eq!(map.register(&far, &p), None, "a step's depth away is not drift");
     }
 
     #[test]

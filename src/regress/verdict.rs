@@ -154,6 +154,9 @@ mod tests {
                     perceive_s: 0.0,
                     plan_s: 0.0,
                     execute_s: 0.0,
+                    estimate_error: None,
+                    correction_m: None,
+                    correction_yaw_rad: None,
                     execution,
                 }
             })

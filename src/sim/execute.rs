@@ -8,8 +8,9 @@ use super::checks::{Ids, Monitor};
 use super::sensors::SimSensors;
 use super::world::{SimError, World};
 use crate::cancel::Cancel;
-use crate::climb::{ControlCost, Event, Execution, Executor, Observer, RobotState};
+use crate::climb::{ControlCost, Event, Execution, Executor, Observer, RobotState, Watch};
 use crate::control::Stabilizer;
+use crate::estimate::Odometry;
 use crate::params::ClimbParams;
 use crate::planning::gait::Swing;
 use crate::planning::Plan;
@@ -319,18 +320,27 @@ pub struct SimRobot<'a> {
     model: &'a RobotModel,
     scene: &'a Scene,
     params: ClimbParams,
+    /// The robot's own estimate of its pose, when `params.estimate` enables it.
+    odometry: Option<Odometry<'a>>,
 }
 
 impl<'a> SimRobot<'a> {
     /// The robot of `world` (built from `scene`, the ground truth the checks judge against),
-    /// its servos, sensors, stabilizer and checks from `params`.
+    /// its servos, sensors, stabilizer and checks from `params`; with `params.estimate` on,
+    /// it knows its pose by odometry from where it stands now.
     pub fn new(
         world: &'a RefCell<World>,
         model: &'a RobotModel,
         scene: &'a Scene,
         params: &ClimbParams,
-    ) -> Self {
-        Self { world, model, scene, params: params.clone() }
+    ) -> Result<Self, SimError> {
+        let odometry = match params.estimate.enabled {
+            true => {
+                Some(Odometry::new(model, &world.borrow().data().qpos()[..model.nq()], &params.estimate)?)
+            }
+            false => None,
+        };
+        Ok(Self { world, model, scene, params: params.clone(), odometry })
     }
 }
 
@@ -342,7 +352,27 @@ impl Executor for SimRobot<'_> {
     }
 
     fn configuration(&self) -> Vec<f64> {
-        self.world.borrow().data().qpos()[..self.model.nq()].to_vec()
+        let truth = self.world.borrow().data().qpos()[..self.model.nq()].to_vec();
+        match &self.odometry {
+            // The encoders read the joints; the base is the odometry's (it cannot fail on a
+            // configuration of the model's own size).
+            Some(odo) => odo.configuration(&truth[Q_JOINTS..]).unwrap_or(truth),
+            None => truth,
+        }
+    }
+
+    fn correct(&mut self, offset: &nalgebra::Isometry3<f64>) -> bool {
+        match self.odometry.as_mut() {
+            Some(odo) => {
+                odo.correct(offset);
+                true
+            }
+            None => false,
+        }
+    }
+
+    fn true_configuration(&self) -> Option<Vec<f64>> {
+        Some(self.world.borrow().data().qpos()[..self.model.nq()].to_vec())
     }
 
     /// At least `seconds`, then on until the base is still ([`RunParams::still_speed_m_s`],
@@ -365,7 +395,25 @@ impl Executor for SimRobot<'_> {
         cancel: &Cancel,
     ) -> Result<Execution, SimError> {
         let mut world = self.world.borrow_mut();
-        execute(&mut world, self.model, self.scene, plan, &self.params, observer, cancel)
+        let Some(odo) = self.odometry.as_mut() else {
+            return execute(&mut world, self.model, self.scene, plan, &self.params, observer, cancel);
+        };
+        // The odometry follows every physics step: the encoders and the feet's loads.
+        let mut lost = None;
+        let mut odometry = Watch(|e: &Event| {
+            if let Event::State { state, .. } = e {
+                let loads = state.foot_forces_n.map(|f| f.z);
+                if let Err(error) = odo.update(&state.q[Q_JOINTS..], loads) {
+                    lost.get_or_insert(error);
+                }
+            }
+            observer.event(e);
+        });
+        let ex = execute(&mut world, self.model, self.scene, plan, &self.params, &mut odometry, cancel)?;
+        match lost {
+            Some(error) => Err(error.into()),
+            None => Ok(ex),
+        }
     }
 }
 

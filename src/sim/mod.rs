@@ -54,7 +54,7 @@ pub fn climb_scenario(
     let model = crate::robot::hrp4::model()?;
     let world = RefCell::new(World::for_scene(&scene)?);
     let mut source = SimSource::new(&world, &scenario.lidar, scenario.seed)?;
-    let mut robot = SimRobot::new(&world, &model, &scene, p);
+    let mut robot = SimRobot::new(&world, &model, &scene, p)?;
     let bench = Bench { source: &mut source, robot: &mut robot, model: &model, truth: &scene };
     Ok(climb::run(bench, p.loop_params(), observer, cancel)?)
 }
