@@ -4,7 +4,7 @@
 Usage: scripts/by-feature.py out/regress/real/results.jsonl [--write BENCHMARKS.md]
 
 With --write, the table replaces the section between `<!-- real-by-feature -->` and
-`<!-- /real-by-feature -->` in that file (with the command that made it), as the bench's own
+`<!-- /real-by-feature -->` in that file (with the command that made it: `--seeds N` when the results hold N draws), as the bench's own
 `--write` does.
 
 A run counts under every feature its case has (nosing, open risers, uneven rises or treads,
@@ -59,14 +59,15 @@ def table(path):
     return "\n".join(out) + "\n"
 
 
-def write(md, text):
+def write(md, text, seeds):
     begin, end = "<!-- real-by-feature -->", "<!-- /real-by-feature -->"
     doc = open(md).read()
     if begin not in doc or end not in doc:
         sys.exit(f"{md} has no {begin} ... {end} section to replace")
     head, rest = doc.split(begin, 1)
     _, tail = rest.split(end, 1)
-    cmd = ("Command: `./target/release/stairbench regress real --out DIR --jobs 2`, then "
+    draws = f" --seeds {seeds}" if seeds > 1 else ""
+    cmd = (f"Command: `./target/release/stairbench regress real{draws} --out DIR --jobs 2`, then "
            "`scripts/by-feature.py DIR/results.jsonl --write BENCHMARKS.md`\n\n")
     open(md, "w").write(head + begin + "\n" + cmd + text + end + tail)
 
@@ -74,7 +75,8 @@ def write(md, text):
 if __name__ == "__main__":
     args = sys.argv[1:]
     if len(args) == 3 and args[1] == "--write":
-        write(args[2], table(args[0]))
+        seeds = max((json.loads(l).get("seeds", 1) for l in open(args[0])), default=1)
+        write(args[2], table(args[0]), seeds)
     elif len(args) == 1:
         sys.stdout.write(table(args[0]))
     else:

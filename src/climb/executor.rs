@@ -112,9 +112,10 @@ pub trait Executor {
     /// from and assembles its views with.
     fn configuration(&self) -> Vec<f64>;
 
-    /// The true configuration where it is known (a simulator's), for the report only: the
-    /// steps climbed and the estimate's error. `None` (a real robot): the report reads
-    /// [`Executor::configuration`].
+    /// The true configuration where the robot's own differs from it and the truth is known
+    /// (a simulator's, under the robot's estimate), for the report only: the steps climbed
+    /// and the estimate's error. `None` where [`Executor::configuration`] is the truth, or
+    /// no truth is known (a real robot): the report reads that.
     fn true_configuration(&self) -> Option<Vec<f64>> {
         None
     }

@@ -15,7 +15,7 @@
 //! would feed it the same.
 
 use crate::robot::hrp4;
-use crate::robot::model::{RobotError, RobotModel, Q_JOINTS};
+use crate::robot::model::{base_pose, RobotError, RobotModel, Q_JOINTS};
 use crate::robot::Kinematics;
 use nalgebra::{Isometry3, UnitQuaternion};
 
@@ -155,14 +155,10 @@ impl EstimateError {
         if estimate.len() < 7 || truth.len() < 7 {
             return None;
         }
-        let quat = |q: &[f64]| {
-            UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[3], q[4], q[5], q[6]))
-                .euler_angles()
-                .2
-        };
+        let heading = |q: &[f64]| base_pose(q).rotation.euler_angles().2;
         let d =
             nalgebra::Vector3::new(estimate[0] - truth[0], estimate[1] - truth[1], estimate[2] - truth[2]);
-        let yaw = quat(estimate) - quat(truth);
+        let yaw = heading(estimate) - heading(truth);
         let yaw_rad = (yaw + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
         Some(Self { position_m: d.norm(), height_m: d.z, yaw_rad })
     }

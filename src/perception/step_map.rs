@@ -55,8 +55,9 @@ pub struct StepMapParams {
     /// for a known one), and nothing is corrected. Metres.
     pub register_max_m: f64,
     /// A registration's turn about the vertical under this is left alone: the flight's axis
-    /// from the fronts of a view's treads on their risers; radians. 0.3 degrees: under a
-    /// centimetre across a 2 m flight.
+    /// read from a view's treads errs by a degree or two under 10 mm of range noise (turns of
+    /// 1-2.3 degrees read from views whose frame was within 0.2 degree of the truth), more
+    /// than odometry drifts in a flight; a turn beyond is a slip the view can tell. Radians.
     pub register_min_rad: f64,
 }
 
@@ -70,7 +71,7 @@ impl Default for StepMapParams {
             max_overlap_m: 0.08,
             register_min_m: 0.02,
             register_max_m: 0.12,
-            register_min_rad: 0.3f64.to_radians(),
+            register_min_rad: 3f64.to_radians(),
         }
     }
 }

@@ -56,6 +56,11 @@ pub struct CaseResult {
     pub torque_joint: String,
     /// Largest friction ratio a loaded foot used.
     pub max_friction_ratio: f64,
+    /// Largest error of the robot's own estimate of its base at a sweep, metres: position,
+    /// then yaw in radians (`None` when the loop read the true pose; absent from results
+    /// written before the estimate).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_estimate_error: Option<(f64, f64)>,
     /// Steps climbed.
     pub steps_climbed: usize,
     /// Steps of the flight.
@@ -90,6 +95,7 @@ impl CaseResult {
         self.max_torque_ratio = torque;
         self.torque_joint = joint.to_string();
         self.max_friction_ratio = r.max_friction_ratio();
+        self.max_estimate_error = r.max_estimate_error();
         self.steps_climbed = r.steps_climbed;
         self.steps_total = r.steps_total;
         self.cycles = r.cycles.len();

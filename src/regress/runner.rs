@@ -216,6 +216,7 @@ fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
         max_torque_ratio: 0.0,
         torque_joint: String::new(),
         max_friction_ratio: 0.0,
+        max_estimate_error: None,
         steps_climbed: 0,
         steps_total: scenario.staircase.steps as usize - scenario.staircase.missing_steps.len(),
         cycles: 0,

@@ -109,6 +109,13 @@ pub const Q_JOINTS: usize = 7;
 /// Index of the first joint rate in v (after the free-flyer's 6).
 pub const V_JOINTS: usize = 6;
 
+/// The floating base's pose in configuration `q` (position, then quaternion w x y z; at least
+/// 7 values).
+pub fn base_pose(q: &[f64]) -> Isometry3<f64> {
+    let rotation = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[3], q[4], q[5], q[6]));
+    Isometry3::from_parts(Translation3::new(q[0], q[1], q[2]), rotation)
+}
+
 /// A floating-base kinematic tree. Valid once built: links in depth-first order (a parent
 /// before its children), one root, positive masses, unit axes, finite figures.
 #[derive(Debug, Clone)]

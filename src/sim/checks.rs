@@ -377,6 +377,12 @@ pub struct Monitor<'a> {
     /// Where each sole in contact came down (world), `None` while it is in the air.
     landed: [Option<Vector3<f64>>; 2],
     warnings_seen: [i32; 7],
+    /// Where the plan's frame (the robot's estimate when the plan began) lies in the true
+    /// world: a touchdown is judged against its target carried there, so it measures how the
+    /// body followed the plan, not how far the estimate had drifted (where the foot ended on
+    /// the true treads is the overhang's and the collisions' to judge). Identity when the
+    /// loop read the true pose.
+    pub plan_to_world: Isometry3<f64>,
     /// What was found so far.
     pub ex: Execution,
 }
@@ -409,6 +415,7 @@ impl<'a> Monitor<'a> {
             last_report: Vec::new(),
             landed: [None, None],
             warnings_seen,
+            plan_to_world: Isometry3::identity(),
             ex: Execution::empty(),
         }
     }
@@ -570,7 +577,8 @@ impl<'a> Monitor<'a> {
     /// Records a touchdown of `sw`'s foot and checks it against its target and its step.
     pub fn touchdown(&mut self, now: f64, sw: &Swing, soles: &[Isometry3<f64>; 2]) {
         let sole = &soles[sw.foot.index()];
-        let (touchdown, check) = touchdown_check(sw.foot, sole, &sw.path[sw.path.len() - 1], self.p);
+        let target = self.plan_to_world * sw.path[sw.path.len() - 1];
+        let (touchdown, check) = touchdown_check(sw.foot, sole, &target, self.p);
         self.ex.touchdowns.push(touchdown);
         if let Some(check) = check {
             self.report(now, check);

@@ -15,8 +15,9 @@ use crate::params::ClimbParams;
 use crate::planning::gait::Swing;
 use crate::planning::Plan;
 use crate::robot::hrp4;
-use crate::robot::model::{RobotModel, Q_JOINTS, V_JOINTS};
+use crate::robot::model::{base_pose, RobotModel, Q_JOINTS, V_JOINTS};
 use crate::scene::Scene;
+use nalgebra::Isometry3;
 use std::cell::RefCell;
 
 /// How the servos track q(t).
@@ -95,6 +96,23 @@ pub fn execute(
     observer: &mut dyn Observer,
     cancel: &Cancel,
 ) -> Result<Execution, SimError> {
+    execute_from(world, model, scene, plan, &Isometry3::identity(), params, observer, cancel)
+}
+
+/// [`execute`] of a plan made in a frame that lies at `plan_to_world` in the true world (the
+/// robot's own estimate when the plan began): the touchdowns are judged against their
+/// targets carried into the world ([`Monitor::plan_to_world`]).
+#[allow(clippy::too_many_arguments)]
+pub fn execute_from(
+    world: &mut World,
+    model: &RobotModel,
+    scene: &Scene,
+    plan: &Plan,
+    plan_to_world: &Isometry3<f64>,
+    params: &ClimbParams,
+    observer: &mut dyn Observer,
+    cancel: &Cancel,
+) -> Result<Execution, SimError> {
     let (servo, p) = (&params.servo, &params.checks);
     let dt = world.model().opt().timestep;
     let t_start = world.data().time();
@@ -109,6 +127,7 @@ pub fn execute(
         root_body: world.body_id(&model.root().name)?,
     };
     let mut mon = Monitor::new(world, ids, scene, hrp4::sole_half_m(model)?, p, &params.plan.step);
+    mon.plan_to_world = *plan_to_world;
     let joints = &model.joints()[..servos.kp.len().min(model.joints().len())];
     // Segment end times, for the touchdowns.
     let ends: Vec<f64> = plan
@@ -372,7 +391,7 @@ impl Executor for SimRobot<'_> {
     }
 
     fn true_configuration(&self) -> Option<Vec<f64>> {
-        Some(self.world.borrow().data().qpos()[..self.model.nq()].to_vec())
+        self.odometry.as_ref().map(|_| self.world.borrow().data().qpos()[..self.model.nq()].to_vec())
     }
 
     /// At least `seconds`, then on until the base is still ([`RunParams::still_speed_m_s`],
@@ -398,6 +417,10 @@ impl Executor for SimRobot<'_> {
         let Some(odo) = self.odometry.as_mut() else {
             return execute(&mut world, self.model, self.scene, plan, &self.params, observer, cancel);
         };
+        // The plan's frame in the world: the true base against the estimated one, now.
+        let truth = &world.data().qpos()[..self.model.nq()];
+        let estimate = odo.configuration(&truth[Q_JOINTS..])?;
+        let plan_to_world = base_pose(truth) * base_pose(&estimate).inverse();
         // The odometry follows every physics step: the encoders and the feet's loads.
         let mut lost = None;
         let mut odometry = Watch(|e: &Event| {
@@ -409,7 +432,16 @@ impl Executor for SimRobot<'_> {
             }
             observer.event(e);
         });
-        let ex = execute(&mut world, self.model, self.scene, plan, &self.params, &mut odometry, cancel)?;
+        let ex = execute_from(
+            &mut world,
+            self.model,
+            self.scene,
+            plan,
+            &plan_to_world,
+            &self.params,
+            &mut odometry,
+            cancel,
+        )?;
         match lost {
             Some(error) => Err(error.into()),
             None => Ok(ex),
