@@ -309,7 +309,8 @@ fn exp1_is_climbed_on_the_robots_own_estimate_and_a_slip_is_registered_away() {
     let s = Scenario::default();
     let r = climb(&s, &p);
     assert_climbed(&r, &s, &p.checks);
-    let (pos_m, yaw_rad) = r.max_estimate_error().expect("the truth is known in simulation");
+    let pos_m = r.max_estimate_error_m().expect("the truth is known in simulation");
+    let yaw_rad = r.max_estimate_yaw_rad().expect("and the yaw");
     println!("estimate at most {:.1} mm, {:.2} deg off", pos_m * 1e3, yaw_rad.to_degrees());
     assert!(r.cycles.iter().all(|c| c.estimate_error.is_some()));
     assert!(pos_m < 0.01 && yaw_rad < 1f64.to_radians());

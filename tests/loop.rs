@@ -1,6 +1,7 @@
 //! The closed loop as a library (issue 15): it knows its sensor only as a `Source` and its
-//! robot only as an `Executor`. Here neither is MuJoCo: the rows come from a fixture cast by
-//! the tests' own ray caster (slab method on the scene's boxes), and a fake robot lands
+//! robot only as an `Executor`. Here neither is MuJoCo: the rows are cast by the tests' own
+//! ray caster (slab method on the scene's boxes) from where the fake robot's head is (the loop
+//! assembles each view where the robot's configuration puts its head), and a fake robot lands
 //! exactly where each plan ends. The loop must still perceive, keep its step map, plan every
 //! stance to the top and report it as typed data.
 
@@ -81,7 +82,7 @@ impl Executor for Teleport {
     }
 }
 
-/// The fixture: Exp. 1 without noise, swept from the robot's start by the analytic caster.
+/// Exp. 1 without noise, swept by the analytic caster from the head of configuration `q0`.
 fn fixture(scene: &Scene, scenario: &Scenario, model: &RobotModel, q0: &[f64]) -> Sweep {
     let mut kin = Kinematics::new(model);
     kin.update(q0).expect("a valid configuration");
@@ -93,14 +94,14 @@ fn fixture(scene: &Scene, scenario: &Scenario, model: &RobotModel, q0: &[f64]) -
 }
 
 #[test]
-fn a_fixture_source_and_a_fake_robot_drive_the_loop_to_the_top() {
+fn a_cast_source_and_a_fake_robot_drive_the_loop_to_the_top() {
     let mut scenario = Scenario::default();
     scenario.lidar.noise_sigma_m = 0.0;
     let scene = common::scene_of(&scenario);
     let model = hrp4::model().unwrap();
-    let q0 = hrp4::half_sitting_at(&model, &scene.robot_start()).unwrap();
-    let mut source = Fixture { sweep: fixture(&scene, &scenario, &model, &q0), given: 0 };
-    let mut robot = Teleport { q: q0, t_s: 0.0 };
+    let q = Rc::new(RefCell::new(hrp4::half_sitting_at(&model, &scene.robot_start()).unwrap()));
+    let mut source = Live { scene: &scene, scenario: &scenario, model: &model, q: q.clone(), given: 0 };
+    let mut robot = Follow { q, t_s: 0.0 };
     let p = ClimbParams::default();
     let mut plans: Vec<(usize, Vec<f64>)> = Vec::new();
     let mut watch = climb::Watch(|e: &Event| {
@@ -162,12 +163,14 @@ fn an_empty_sweep_is_no_staircase_not_a_crash() {
     assert!(r.cycles.is_empty() && sweeps == 1, "one look, nothing moved");
 }
 
-/// A source sweeping, at every call, from where the robot stands now (the analytic caster).
+/// A source sweeping, at every call, from where the robot stands now (the analytic caster),
+/// counting the calls.
 struct Live<'a> {
     scene: &'a Scene,
     scenario: &'a Scenario,
     model: &'a RobotModel,
     q: Rc<RefCell<Vec<f64>>>,
+    given: usize,
 }
 
 impl Source for Live<'_> {
@@ -179,6 +182,7 @@ impl Source for Live<'_> {
         if cancel.is_cancelled() {
             return Err(SensorError::Cancelled { rows: 0 });
         }
+        self.given += 1;
         Ok(fixture(self.scene, self.scenario, self.model, &self.q.borrow()))
     }
 }
@@ -231,7 +235,7 @@ fn a_robot_set_down_near_the_first_riser_never_walks_a_foot_into_it() {
     let scene = common::scene_of(&scenario);
     let model = hrp4::model().unwrap();
     let q = Rc::new(RefCell::new(hrp4::half_sitting_at(&model, &scene.robot_start()).unwrap()));
-    let mut source = Live { scene: &scene, scenario: &scenario, model: &model, q: q.clone() };
+    let mut source = Live { scene: &scene, scenario: &scenario, model: &model, q: q.clone(), given: 0 };
     let mut robot = Follow { q, t_s: 0.0 };
     let sole_m = stairbench::planning::footholds::GaitParams::default().sole_length_m;
     let mut toes: Vec<f64> = Vec::new();

@@ -6,7 +6,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use stairbench::climb::{add_view, feet_height_m, plan_next};
+use stairbench::climb::{add_view, feet_height_m, moved_view, plan_next};
 use stairbench::params::ClimbParams;
 use stairbench::perception::step_map::StepMap;
 use stairbench::perception::surroundings::Surroundings;
@@ -113,7 +113,7 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
     for (i, RecordedSweep { stamp_s, sweep, perception, plan: planned, trajectory, .. }) in
         rec.sweeps.iter().enumerate()
     {
-        let cloud = sweep.assemble(&AssembleParams::default())?;
+        let mut cloud = sweep.assemble(&AssembleParams::default())?;
         let now = perceive(&cloud, &params.perception);
         let found: Vec<[[f64; 3]; 4]> =
             now.as_ref().map(|r| r.segments.iter().map(corners_of).collect()).unwrap_or_default();
@@ -149,11 +149,21 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
             found.len()
         );
         // The loop's next steps: the step map's next input, planned from the recorded pose.
-        let seen = match now {
+        let mut seen = match now {
             Ok(r) => r.segments,
             Err(PerceptionError::NoStaircase(_)) => Vec::new(),
             Err(_) => continue,
         };
+        // On the robot's own estimate the loop registered each view on the step map and moved
+        // it (the robot with it: the recorded plan starts there): so does the replay.
+        if let Some(offset) = params.estimate.enabled.then(|| map.register(&seen, &params.step_map)).flatten()
+        {
+            let (moved, moved_cloud) = moved_view(&offset, seen, &mut sweep.clone());
+            seen = moved;
+            if let Some(c) = moved_cloud {
+                cloud = c;
+            }
+        }
         let Some(then) = planned else {
             // No plan followed this sweep (the top, or a refusal): the view still enters the map.
             map.update(seen, &params.step_map);

@@ -293,7 +293,7 @@ fn print_summary(r: &ClimbReport) {
             .iter()
             .filter_map(|c| c.execution.control)
             .fold((0, 0.0), |(n, s), c| (n + c.ticks, s + c.wall_s));
-        match r.max_estimate_error() {
+        match r.max_estimate_error_m().zip(r.max_estimate_yaw_rad()) {
             Some((pos_m, yaw_rad)) => println!(
                 "estimate: the robot's own (odometry); at a sweep its base was at most {:.1} mm and {:.2} deg off the truth",
                 pos_m * 1e3,

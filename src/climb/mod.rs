@@ -208,14 +208,15 @@ pub fn run<E: Executor>(
         let (mut correction_m, mut correction_yaw_rad) = (None, None);
         let seen = match map.register(&seen, p.step_map) {
             Some(offset) if robot.correct(&offset) => {
+                let before = q[..3].to_vec();
                 q = robot.configuration();
-                sweep.mount_to_world = offset * sweep.mount_to_world;
-                if let Ok(c) = sweep.assemble(&AssembleParams::default()) {
+                correction_m = Some([q[0] - before[0], q[1] - before[1], q[2] - before[2]]);
+                correction_yaw_rad = Some(offset.rotation.euler_angles().2);
+                let (moved, moved_cloud) = moved_view(&offset, seen, &mut sweep);
+                if let Some(c) = moved_cloud {
                     cloud = c;
                 }
-                correction_m = Some(offset.translation.vector.into());
-                correction_yaw_rad = Some(offset.rotation.euler_angles().2);
-                seen.into_iter().map(|s| s.transformed(&offset)).collect()
+                moved
             }
             _ => seen,
         };
@@ -224,7 +225,9 @@ pub fn run<E: Executor>(
         let next = map.next_input(seen, feet_z, p.plan.gait.min_tread_m, p.step_map);
         let ahead = &next.ahead;
         if ahead.is_empty() {
-            if climbed(truth, model, &q) < truth.steps().len() {
+            // The stop's reason is the report's: judged on the true pose where it is known.
+            let true_q = robot.true_configuration().unwrap_or_else(|| q.clone());
+            if climbed(truth, model, &true_q) < truth.steps().len() {
                 report.stop = Some(StopReason::NoStaircaseAhead { cycle, last_view: nothing });
             }
             break;
@@ -240,6 +243,7 @@ pub fn run<E: Executor>(
                 }
             };
         let plan_s = t.elapsed().as_secs_f64();
+        let plan_height_error_m = robot.true_configuration().map_or(0.0, |t| q[2] - t[2]);
         let t = Instant::now();
         observer.event(&Event::Plan { stamp_s: robot.now_s(), steps: ahead, plan: &planned });
         let exec_start_s = robot.now_s();
@@ -249,10 +253,11 @@ pub fn run<E: Executor>(
             v.cycle = cycle;
             observer.event(&Event::Violation { stamp_s: exec_start_s + v.t_s, violation: v });
         }
-        let to = planned
-            .stances
-            .last()
-            .map_or(Footing::Floor, |s| footing(truth, start_floor_z_m, s.right.translation.z));
+        // Where the cycle went, on the true treads (the report's): the stance's height carried
+        // into the world by the estimate's height error when the plan was made.
+        let to = planned.stances.last().map_or(Footing::Floor, |s| {
+            footing(truth, start_floor_z_m, s.right.translation.z - plan_height_error_m)
+        });
         let c = CycleReport {
             cycle,
             to,
@@ -390,6 +395,19 @@ pub fn add_view(
         Err(_) => Vec::new(),
     };
     around.add(cloud, &body, p);
+}
+
+/// A view moved by a registration's `offset` ([`StepMap::register`]): its rectangles, and its
+/// sweep's mount with the cloud assembled anew there (`None` if that fails). The loop and
+/// `replay` move a view alike.
+pub fn moved_view(
+    offset: &nalgebra::Isometry3<f64>,
+    seen: Vec<PlaneSegment>,
+    sweep: &mut crate::sensor::Sweep,
+) -> (Vec<PlaneSegment>, Option<crate::cloud::PointCloud>) {
+    sweep.mount_to_world = offset * sweep.mount_to_world;
+    let cloud = sweep.assemble(&AssembleParams::default()).ok();
+    (seen.into_iter().map(|s| s.transformed(offset)).collect(), cloud)
 }
 
 /// The lidar's head frame (the robot model's [`hrp4::LIDAR_MOUNT`]) at configuration `q`

@@ -164,13 +164,16 @@ impl ClimbReport {
         self.cycles.iter().map(|c| c.execution.max_friction_ratio).fold(0.0, f64::max)
     }
 
-    /// The largest errors of the robot's estimate at a sweep over every cycle: its base's
-    /// position, metres, and yaw (absolute), radians (`None` when no cycle knew the truth).
-    pub fn max_estimate_error(&self) -> Option<(f64, f64)> {
-        self.cycles.iter().filter_map(|c| c.estimate_error).fold(None, |acc, e| {
-            let (p, y) = acc.unwrap_or((0.0, 0.0));
-            Some((p.max(e.position_m), y.max(e.yaw_rad.abs())))
-        })
+    /// The largest error of the robot's estimate of its base's position at a sweep over every
+    /// cycle, metres (`None` when no cycle knew the truth beside an estimate).
+    pub fn max_estimate_error_m(&self) -> Option<f64> {
+        self.cycles.iter().filter_map(|c| c.estimate_error).map(|e| e.position_m).reduce(f64::max)
+    }
+
+    /// The largest error of the robot's estimate of its yaw at a sweep, radians (absolute;
+    /// `None` as for [`ClimbReport::max_estimate_error_m`]).
+    pub fn max_estimate_yaw_rad(&self) -> Option<f64> {
+        self.cycles.iter().filter_map(|c| c.estimate_error).map(|e| e.yaw_rad.abs()).reduce(f64::max)
     }
 
     /// Why the climb failed, in one line: the first violated check, else why the loop

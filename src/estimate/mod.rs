@@ -26,8 +26,8 @@ pub struct EstimateParams {
     /// The loop plans from the robot's own estimate (this odometry) instead of the
     /// simulator's true pose. The checks and the report keep judging in the true world.
     pub enabled: bool,
-    /// Share of the feet's summed normal load above which a foot becomes the anchor (0.5 to
-    /// 1): 0.6 switches once the new foot clearly carries the robot, after the weight's
+    /// Share of the feet's summed normal load above which a foot becomes the anchor (over 0.5,
+    /// at most 1; at 0.5 equal loads would swap the anchor at every step): 0.6 switches once the new foot clearly carries the robot, after the weight's
     /// transfer has begun and before the old foot lifts.
     pub switch_load_fraction: f64,
     /// Summed normal load under which the feet are not trusted to say which one stands (in
@@ -44,9 +44,9 @@ impl Default for EstimateParams {
 impl EstimateParams {
     /// Refuses settings that cannot work, naming the field.
     pub fn validate(&self) -> Result<(), String> {
-        if !(0.5..=1.0).contains(&self.switch_load_fraction) {
+        if !(self.switch_load_fraction > 0.5 && self.switch_load_fraction <= 1.0) {
             return Err(format!(
-                "estimate.switch_load_fraction must be within 0.5 and 1, got {}",
+                "estimate.switch_load_fraction must be over 0.5 and at most 1, got {}",
                 self.switch_load_fraction
             ));
         }
@@ -79,7 +79,7 @@ impl<'m> Odometry<'m> {
         Ok(Self { model, soles, anchor_foot: 0, anchor: kin.frame_pose(soles[0]), p: p.clone(), switches: 0 })
     }
 
-    /// The anchor's pose in the base frame at joint angles `joints`.
+    /// The sole of `foot` (0 right, 1 left) in the base frame at joint angles `joints`.
     fn sole_in_base(&self, foot: usize, joints: &[f64]) -> Result<Isometry3<f64>, RobotError> {
         let mut q = vec![0.0; self.model.nq()];
         q[3] = 1.0;
@@ -191,9 +191,8 @@ mod tests {
         assert_eq!(odo.switches(), 0, "neither foot carries 60 %");
     }
 
-    /// The anchor moves to the foot that takes the load, where the legs put it; a robot whose
-    /// body moved while its feet stayed is estimated where it truly is, and a correction
-    /// moves the estimate by what it says.
+    /// The anchor moves to the foot that takes the load, where the legs put it (laid flat),
+    /// and a correction moves the estimate by what it says.
     #[test]
     fn the_anchor_follows_the_loaded_foot_and_a_correction_moves_it() {
         let (model, q) = standing(0.0, 0.0);
@@ -213,8 +212,9 @@ mod tests {
         odo.correct(&delta);
         let e = EstimateError::of(&odo.configuration(&joints).expect("q"), &q).expect("error");
         assert!((e.yaw_rad - before.yaw_rad - 0.01).abs() < 1e-3 && e.position_m > 0.015, "{e:?}");
-        assert!(EstimateParams { switch_load_fraction: 0.3, ..EstimateParams::default() }
-            .validate()
-            .is_err());
+        for bad in [0.3, 0.5, 1.2, f64::NAN] {
+            let p = EstimateParams { switch_load_fraction: bad, ..EstimateParams::default() };
+            assert!(p.validate().is_err(), "{bad}");
+        }
     }
 }

@@ -55,8 +55,7 @@ pub struct StepMapParams {
     /// for a known one), and nothing is corrected. Metres.
     pub register_max_m: f64,
     /// A registration's turn about the vertical under this is left alone: the flight's axis
-    /// read from a view's treads errs by a degree or two under 10 mm of range noise (turns of
-    /// 1-2.3 degrees read from views whose frame was within 0.2 degree of the truth), more
+    /// read from a view's treads errs by a degree or two under 10 mm of range noise, more
     /// than odometry drifts in a flight; a turn beyond is a slip the view can tell. Radians.
     pub register_min_rad: f64,
 }

@@ -56,11 +56,14 @@ pub struct CaseResult {
     pub torque_joint: String,
     /// Largest friction ratio a loaded foot used.
     pub max_friction_ratio: f64,
-    /// Largest error of the robot's own estimate of its base at a sweep, metres: position,
-    /// then yaw in radians (`None` when the loop read the true pose; absent from results
-    /// written before the estimate).
+    /// Largest error of the robot's own estimate of its base's position at a sweep, metres
+    /// (`None` when the loop read the true pose; absent from results written before the
+    /// estimate).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub max_estimate_error: Option<(f64, f64)>,
+    pub max_estimate_error_m: Option<f64>,
+    /// Largest error of its yaw, radians (absolute; `None` likewise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_estimate_yaw_rad: Option<f64>,
     /// Steps climbed.
     pub steps_climbed: usize,
     /// Steps of the flight.
@@ -95,7 +98,8 @@ impl CaseResult {
         self.max_torque_ratio = torque;
         self.torque_joint = joint.to_string();
         self.max_friction_ratio = r.max_friction_ratio();
-        self.max_estimate_error = r.max_estimate_error();
+        self.max_estimate_error_m = r.max_estimate_error_m();
+        self.max_estimate_yaw_rad = r.max_estimate_yaw_rad();
         self.steps_climbed = r.steps_climbed;
         self.steps_total = r.steps_total;
         self.cycles = r.cycles.len();

@@ -333,6 +333,7 @@ impl Source for HardwareSource {
         cancel: &Cancel,
         on_rows: &mut dyn FnMut(usize, usize),
     ) -> Result<Sweep, SensorError> {
+        let corrupt_before = self.servo.as_ref().map_or(0, Servo::corrupt_replies);
         let (start, end) =
             (self.cfg.sweep.tilt_start_deg.to_radians(), self.cfg.sweep.tilt_end_deg.to_radians());
         let speed = self.cfg.sweep.tilt_speed_dps.to_radians();
@@ -349,7 +350,6 @@ impl Source for HardwareSource {
         let tick = std::f64::consts::TAU / f64::from(self.cfg.servo.ticks_per_rev);
         let readings: Mutex<Vec<Reading>> = Mutex::new(Vec::new());
         let done = AtomicBool::new(false);
-        let corrupt_before = self.servo.as_ref().map_or(0, Servo::corrupt_replies);
         let mut servo = self.servo.take();
         let mut lidar = self.lidar.take();
         let model = self.model.clone();
@@ -426,7 +426,11 @@ impl Source for HardwareSource {
             streaming_s,
             servo_cpu_s,
             lidar_cpu_s,
-            servo_corrupt_replies: self.servo.as_ref().map_or(0, Servo::corrupt_replies) - corrupt_before,
+            servo_corrupt_replies: self
+                .servo
+                .as_ref()
+                .map_or(0, Servo::corrupt_replies)
+                .saturating_sub(corrupt_before),
         });
         let rows = self.rows(&scans, &readings);
         let why = match (servo_result, lidar_failure) {

@@ -122,7 +122,9 @@ pub struct Sweep {
     pub rows: Vec<ScanRow>,
     /// The lidar that produced them.
     pub lidar: LidarModel,
-    /// Pose of the servo base (tilt axis frame) in the cloud's frame during the sweep.
+    /// Pose of the servo base (tilt axis frame) in the world during the sweep, as the source
+    /// (or the loop, from the robot's configuration) knows it; the cloud's frame is this
+    /// levelled by the rows' measured gravity ([`assemble::mount_in_cloud`]).
     pub mount_to_world: nalgebra::Isometry3<f64>,
 }
 

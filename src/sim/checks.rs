@@ -470,11 +470,12 @@ impl<'a> Monitor<'a> {
             if let Some((sw, planned)) = swing.filter(|(sw, _)| sw.foot.index() == foot) {
                 let other =
                     if world.geom_group(c.geom1 as usize) == ROBOT_GEOM_GROUP { c.geom2 } else { c.geom1 };
+                // The contact carried into the plan's frame, where the swing was planned.
                 if let Some(check) = strike_check(
                     sw,
                     planned,
-                    &Point3::from(c.pos),
-                    &axis(0),
+                    &self.plan_to_world.inverse_transform_point(&Point3::from(c.pos)),
+                    &self.plan_to_world.inverse_transform_vector(&axis(0)),
                     world.geom_name(other as usize),
                     self.p,
                 ) {

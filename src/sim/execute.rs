@@ -221,7 +221,11 @@ pub fn execute_from(
             max_torque_ratio,
         };
         observer.event(&Event::State { stamp_s: world.data().time(), state: &state });
-        if mon.fell(world, now, planned.q[2].min(base_z0) - p.fall_drop_m, &planned.q) {
+        // The planned base carried into the world, where the fall is judged.
+        let base = mon.plan_to_world * base_pose(&planned.q);
+        let r = base.rotation.quaternion();
+        let planned_base = [base.translation.x, base.translation.y, base.translation.z, r.w, r.i, r.j, r.k];
+        if mon.fell(world, now, planned_base[2].min(base_z0) - p.fall_drop_m, &planned_base) {
             break;
         }
         if cancel.is_cancelled() {
@@ -373,9 +377,9 @@ impl Executor for SimRobot<'_> {
     fn configuration(&self) -> Vec<f64> {
         let truth = self.world.borrow().data().qpos()[..self.model.nq()].to_vec();
         match &self.odometry {
-            // The encoders read the joints; the base is the odometry's (it cannot fail on a
-            // configuration of the model's own size).
-            Some(odo) => odo.configuration(&truth[Q_JOINTS..]).unwrap_or(truth),
+            // The encoders read the joints; the base is the odometry's, whose kinematics cannot
+            // fail on the joints of the model's own world (never the truth in its place).
+            Some(odo) => odo.configuration(&truth[Q_JOINTS..]).expect("the model's own joints"),
             None => truth,
         }
     }
