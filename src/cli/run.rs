@@ -20,7 +20,8 @@ pub struct RunArgs {
     /// The scenario (file or name in scenarios/; default: the paper's Exp. 1).
     scenario: Option<PathBuf>,
     /// Parameters as TOML: sections [perception], [step_map], [plan.gait], [plan.step]
-    /// (with [plan.step.dd]), [plan.ik], [servo], [sensors], [stabilizer], [checks], [run];
+    /// (with [plan.step.dd]), [plan.ik], [servo], [sensors], [stabilizer], [checks],
+    /// [estimate], [run];
     /// fields left out keep their defaults, unknown fields are refused.
     #[arg(long)]
     params: Option<PathBuf>,
