@@ -95,7 +95,7 @@ pub struct StepMap {
 impl StepMap {
     /// Merges a view's rectangles (see [`merge`]).
     pub fn update(&mut self, seen: Vec<PlaneSegment>, p: &StepMapParams) {
-        let ascent = self.known.iter().max_by_key(|k| k.voxel_count()).map(|k| k.along());
+        let ascent = self.ascent();
         let treads: Vec<PlaneSegment> = self.known.iter().chain(&seen).cloned().collect();
         let seen = seen
             .into_iter()
@@ -106,6 +106,11 @@ impl StepMap {
             })
             .collect();
         self.known = merge(&self.known, seen, p);
+    }
+
+    /// The flight's ascent as the known steps give it: the axis of the one on most voxels.
+    fn ascent(&self) -> Option<Vector3<f64>> {
+        self.known.iter().max_by_key(|k| k.voxel_count()).map(|k| k.along())
     }
 
     /// Where a new view lies against the known steps: the rigid motion that moves the view's
@@ -125,7 +130,7 @@ impl StepMap {
     /// a view that matches nothing, asks for a turn over 10 times `register_min_rad` or a
     /// shift over `register_max_m`, gives `None` (a mismatch, not drift).
     pub fn register(&self, seen: &[PlaneSegment], p: &StepMapParams) -> Option<Isometry3<f64>> {
-        let along = self.known.iter().max_by_key(|k| k.voxel_count())?.along();
+        let along = self.ascent()?;
         let front = |r: &PlaneSegment| (r.center() - r.along() * (r.depth_m() / 2.0)).coords.dot(&along);
         let pairs: Vec<(&PlaneSegment, PlaneSegment)> = seen
             .iter()
