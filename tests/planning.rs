@@ -421,20 +421,28 @@ fn the_pelvis_turns_to_face_the_flight() {
 /// The upper body's least distance to `points` over the plan's samples, by brute force over
 /// every capsule and point (the planner's own query goes through a k-d tree), and the
 /// highest y any upper-body capsule reached.
-fn upper_body_reach(plan: &Plan, points: &[Point3<f64>]) -> (f64, f64) {
+fn upper_body_reach(plan: &Plan, points: &[Point3<f64>]) -> (f64, [f64; 2]) {
     let model = hrp4::model().unwrap();
     let mut kin = Kinematics::new(&model);
     let limbs = clearance::upper_limbs(&model, &hrp4::sole_frames(&model).unwrap());
-    let (mut least, mut reach_y) = (f64::INFINITY, f64::NEG_INFINITY);
+    let (mut least, mut reach_y) = (f64::INFINITY, [f64::INFINITY, f64::NEG_INFINITY]);
     for s in &plan.trajectory.samples {
         kin.update(&s.q).unwrap();
         for limb in &limbs {
             let c = limb.capsule(&kin);
-            reach_y = reach_y.max(c.a.y.max(c.b.y) + c.radius_m);
+            reach_y[0] = reach_y[0].min(c.a.y.min(c.b.y) - c.radius_m);
+            reach_y[1] = reach_y[1].max(c.a.y.max(c.b.y) + c.radius_m);
             least = points.iter().map(|p| c.distance_m(p)).fold(least, f64::min);
         }
     }
     (least, reach_y)
+}
+
+/// A wall of seen points across x and z at `y`, metres.
+fn wall_at(y: f64) -> Vec<Point3<f64>> {
+    (0..80)
+        .flat_map(|i| (0..60).map(move |k| Point3::new(-0.5 + 0.03 * i as f64, y, 0.3 + 0.03 * k as f64)))
+        .collect()
 }
 
 /// Issue 19, stairwells: the wrist met a side wall the lidar saw. With the lanes held where
@@ -450,13 +458,8 @@ fn the_ik_keeps_the_body_off_a_wall_the_lidar_saw() {
     let mut p = PlanParams::default();
     p.gait.body_half_width_m = 0.0;
     let blind = plan(&model, &q0, &rects, Some(2), &p).expect("planned without the wall");
-    let (_, reach_y) = upper_body_reach(&blind, &[]);
-    let wall_y = reach_y + 0.02;
-    let wall: Vec<Point3<f64>> = (0..80)
-        .flat_map(|i| {
-            (0..60).map(move |k| Point3::new(-0.5 + 0.03 * i as f64, wall_y, 0.3 + 0.03 * k as f64))
-        })
-        .collect();
+    let (_, [_, reach_y]) = upper_body_reach(&blind, &[]);
+    let wall = wall_at(reach_y + 0.02);
     let (blind_least, _) = upper_body_reach(&blind, &wall);
     assert!(blind_least < p.ik.body_clearance_m - 0.005, "the blind plan comes within {blind_least} m");
     let seen = std::sync::Arc::new(clearance::SeenPoints::new(wall.clone()));
@@ -487,7 +490,7 @@ fn the_ik_keeps_the_body_off_a_wall_the_lidar_saw() {
     assert!(
         matches!(
             e,
-            PlanError::BodyTouchesSurface { .. }
+            PlanError::BodyNearSurface { .. }
                 | PlanError::Ik { .. }
                 | PlanError::ComStrays { .. }
                 | PlanError::FloorObstructed { .. }
@@ -495,6 +498,52 @@ fn the_ik_keeps_the_body_off_a_wall_the_lidar_saw() {
         ),
         "{e}"
     );
+}
+
+/// Issue 39, real-0042 (two handrails 0.82 m apart): the IK holds each capsule off its one
+/// nearest seen point, and between two surfaces it gives way toward the other; the body's
+/// sway about the plan then put the chest on a rail. Walls on both sides, from 1 cm beyond
+/// the blind plan's reach to 11 cm inside it (the arms fold in, the trunk cannot): each plan
+/// is refused (the body too near, or no solution) or keeps `min_body_clearance_m`, never
+/// returned nearer.
+#[test]
+fn a_plan_between_two_walls_keeps_the_sway_or_is_refused() {
+    let model = hrp4::model().unwrap();
+    let scene = common::scene_of(&Scenario::default());
+    let rects = rectangles::from_step_tops(scene.steps());
+    let q0 = start_q(&model, &scene.robot_start());
+    let mut p = PlanParams::default();
+    p.gait.body_half_width_m = 0.0;
+    let blind = plan(&model, &q0, &rects, Some(2), &p).expect("planned without the walls");
+    let (_, [right_y, left_y]) = upper_body_reach(&blind, &[]);
+    let mut refused = 0;
+    for inside_m in [-0.01, 0.02, 0.05, 0.08, 0.11] {
+        let walls: Vec<Point3<f64>> = [wall_at(right_y + inside_m), wall_at(left_y - inside_m)].concat();
+        let seen = std::sync::Arc::new(clearance::SeenPoints::new(walls.clone()));
+        match plan_among(&model, &q0, &rects, seen, Some(2), &p) {
+            Ok(among) => {
+                let (least, _) = upper_body_reach(&among, &walls);
+                assert!(
+                    least >= p.ik.min_body_clearance_m - 1e-6,
+                    "walls {inside_m} m inside the reach: planned with the body {:.1} mm from them",
+                    least * 1e3
+                );
+            }
+            Err(e) => {
+                assert!(
+                    matches!(
+                        e,
+                        PlanError::BodyNearSurface { .. }
+                            | PlanError::Ik { .. }
+                            | PlanError::ComStrays { .. }
+                    ),
+                    "{e}"
+                );
+                refused += 1;
+            }
+        }
+    }
+    assert!(refused > 0, "walls 11 cm inside the body's reach were planned between");
 }
 
 /// The planner's nearest seen point equals the brute-force one (every point, every capsule).

@@ -271,6 +271,7 @@ pub fn run<E: Executor>(
             estimate_error,
             correction_m,
             correction_yaw_rad,
+            plan_nearest_surface: planned.tracking.nearest_body_surface.clone(),
             execution,
         };
         observer.event(&Event::Cycle { stamp_s: robot.now_s(), report: &c });

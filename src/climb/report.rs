@@ -8,7 +8,7 @@
 use super::executor::Execution;
 use super::outcome::{StopReason, Violation};
 use crate::estimate::EstimateError;
-use crate::planning::Refusal;
+use crate::planning::{NearestSurface, Refusal};
 use serde::{Serialize, Serializer};
 use std::fmt;
 
@@ -73,6 +73,10 @@ pub struct CycleReport {
     /// And turned it by about the vertical, radians.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub correction_yaw_rad: Option<f64>,
+    /// Where the plan brought the body (arms, trunk, head) nearest a surface the lidar saw
+    /// (what the plan kept against what the execution touched); `None` when none came
+    /// within the IK's clearance range.
+    pub plan_nearest_surface: Option<NearestSurface>,
     /// What the execution found (flattened into the JSON: `min_margin_m`,
     /// `max_torque_ratio`, `torque_joint`, `touchdowns`, `violations`, `sim_s`, ...).
     #[serde(flatten)]

@@ -16,6 +16,7 @@ pub mod rectangles;
 
 pub use contact::{Contact, ContactSpec};
 pub use footholds::{Foot, Stance};
+pub use motion::NearestSurface;
 pub use plan::{plan, plan_among, plan_approach, plan_below, plan_in_sight, plan_retreat, Plan, PlanParams};
 
 /// Why a climb was refused. Steps are numbered from 1, the lowest, in messages.
@@ -210,8 +211,9 @@ pub enum PlanError {
         /// When, seconds from the plan's start.
         t_s: f64,
     },
-    /// The body (an arm, the trunk, the head, a thigh or a shank) enters a surface the lidar
-    /// saw (for the legs: off the steps and the floor, see `clearance::SeenPoints::off_the_steps`).
+    /// A leg (thigh or shank) enters a surface the lidar saw off the steps and the floor
+    /// (see `clearance::SeenPoints::off_the_steps`); the rest of the body is held farther,
+    /// see [`PlanError::BodyNearSurface`].
     #[error("segment {}: {limb} touches a surface the lidar saw at ({:.3}, {:.3}, {:.3}) m ({:.1} mm deep) at t = {t_s:.2} s", .segment + 1, .point_m[0], .point_m[1], .point_m[2], .depth_m * 1e3)]
     BodyTouchesSurface {
         /// 0-based segment.
@@ -222,6 +224,23 @@ pub enum PlanError {
         point_m: [f64; 3],
         /// How deep, metres.
         depth_m: f64,
+        /// When, seconds from the plan's start.
+        t_s: f64,
+    },
+    /// The body (an arm, the trunk, the head) comes nearer a surface the lidar saw than the
+    /// execution's sway about the plan allows (`motion::IkParams::min_body_clearance_m`).
+    #[error("segment {}: {limb} comes {:.1} mm from a surface the lidar saw at ({:.3}, {:.3}, {:.3}) m at t = {t_s:.2} s, nearer than the {:.0} mm the body's sway needs", .segment + 1, .clearance_m * 1e3, .point_m[0], .point_m[1], .point_m[2], .min_m * 1e3)]
+    BodyNearSurface {
+        /// 0-based segment.
+        segment: usize,
+        /// The limb (its link's name).
+        limb: String,
+        /// The surface's point (a voxel centroid of the surroundings), world frame, metres.
+        point_m: [f64; 3],
+        /// Its distance from the limb's capsule, metres (negative: inside it).
+        clearance_m: f64,
+        /// The least accepted, metres.
+        min_m: f64,
         /// When, seconds from the plan's start.
         t_s: f64,
     },
@@ -294,6 +313,8 @@ pub enum RefusalKind {
     LimbTouchesStep,
     /// [`PlanError::BodyTouchesSurface`].
     BodyTouchesSurface,
+    /// [`PlanError::BodyNearSurface`].
+    BodyNearSurface,
     /// [`PlanError::FootMisses`].
     FootMisses,
     /// [`PlanError::ComStrays`].
@@ -396,6 +417,9 @@ impl PlanError {
             }
             PlanError::BodyTouchesSurface { segment, depth_m, .. } => {
                 (K::BodyTouchesSurface, None, None, Some(*segment), m(*depth_m, 0.0))
+            }
+            PlanError::BodyNearSurface { segment, clearance_m, min_m, .. } => {
+                (K::BodyNearSurface, None, None, Some(*segment), m(*clearance_m, *min_m))
             }
             PlanError::FootMisses { segment, error_m, limit_m, .. } => {
                 (K::FootMisses, None, None, Some(*segment), m(*error_m, *limit_m))

@@ -8,7 +8,7 @@ use super::gait::{Segment, Swing};
 use super::ik::{self, Task};
 use super::PlanError;
 use crate::robot::hrp4;
-use crate::robot::model::{RobotModel, Q_JOINTS};
+use crate::robot::model::RobotModel;
 use crate::robot::Kinematics;
 use crate::scene::SceneBox;
 use nalgebra::{Isometry3, Point3, Translation3, Vector6};
@@ -79,6 +79,13 @@ pub struct IkParams {
     /// (thigh, shank) and every such surface off the steps and the floor
     /// (`leg_surface_band_m`). 3 cm, as the legs from the steps.
     pub body_clearance_m: f64,
+    /// Least distance a plan may bring the rest of the body (arms, trunk, head) to a
+    /// surface the lidar saw, metres, or it is refused: the clearance the IK keeps
+    /// (`body_clearance_m`) holds each capsule off its one nearest point, and between two
+    /// surfaces (a chest between two handrails) or past a noisy one it gives way; the body
+    /// executed sways about its plan, ±20 mm measured on the chest under the stabilizer
+    /// (real-0042's recording), so a plan nearer than that touches. 2 cm.
+    pub min_body_clearance_m: f64,
     /// The surroundings' points within this of a step solid, or of the floor under the
     /// start, are the steps' and the floor's own surfaces, which the legs are not kept off
     /// by `body_clearance_m` (their feet stand on them; `leg_clearance_m` keeps the legs off
@@ -112,6 +119,7 @@ impl Default for IkParams {
             clearance_range_m: 0.08,
             clearance_gain_per_s: 5.0,
             body_clearance_m: 0.03,
+            min_body_clearance_m: 0.02,
             leg_surface_band_m: 0.09,
         }
     }
@@ -347,8 +355,8 @@ pub struct Tracker<'m> {
 }
 
 impl<'m> Tracker<'m> {
-    /// A tracker from configuration `q0` (whose joints are also the posture term's reference;
-    /// the base task holds the base upright, facing where the feet point), keeping the legs `p.leg_clearance_m`
+    /// A tracker from configuration `q0` (the posture term holds the upper body toward
+    /// half-sitting; the base task holds the base upright, facing where the feet point), keeping the legs `p.leg_clearance_m`
     /// off `blocks` and the rest of the body `p.body_clearance_m` off the `seen` surfaces, the
     /// legs as far off those of them off the steps and the floor under the soles at `q0`
     /// ([`SeenPoints::off_the_steps`]).
@@ -389,7 +397,11 @@ impl<'m> Tracker<'m> {
             kin,
             feet,
             q: q0.to_vec(),
-            q_ref: q0[Q_JOINTS..].to_vec(),
+            // §6.1's reference pose, the same for every plan: a reference taken from q0
+            // would keep whatever the last plan left, and the upper body's drift would add up
+            // over the cycles (real-0042: the waist twisted from -0.18 to -0.42 rad between
+            // two handrails, the chest's corner turned onto a rail).
+            q_ref: hrp4::half_sitting_joints(model)?,
             upper,
             limbs,
             blocks: blocks.to_vec(),
@@ -663,12 +675,13 @@ pub fn track(
                         t_s: t,
                     });
                 }
-                if d < 0.0 {
-                    return Err(PlanError::BodyTouchesSurface {
+                if d < p.min_body_clearance_m {
+                    return Err(PlanError::BodyNearSurface {
                         segment: si,
                         limb: tracker.upper_limb_name(limb).to_string(),
                         point_m: [at.x, at.y, at.z],
-                        depth_m: -d,
+                        clearance_m: d,
+                        min_m: p.min_body_clearance_m,
                         t_s: t,
                     });
                 }

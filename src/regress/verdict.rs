@@ -157,6 +157,7 @@ mod tests {
                     estimate_error: None,
                     correction_m: None,
                     correction_yaw_rad: None,
+                    plan_nearest_surface: None,
                     execution,
                 }
             })
