@@ -11,7 +11,7 @@ use crate::perception::surroundings::SurroundingsParams;
 use crate::perception::PerceptionParams;
 use crate::planning::PlanParams;
 use crate::sim::checks::CheckParams;
-use crate::sim::execute::ServoParams;
+use crate::sim::params::{ServoParams, SimParams};
 use crate::sim::sensors::SensorParams;
 
 /// Every parameter of a climb.
@@ -49,6 +49,19 @@ impl ClimbParams {
             surroundings: &self.surroundings,
             plan: &self.plan,
             run: &self.run,
+        }
+    }
+
+    /// The parts the simulated robot uses.
+    pub fn sim(&self) -> SimParams {
+        SimParams {
+            servo: self.servo.clone(),
+            sensors: self.sensors.clone(),
+            stabilizer: self.stabilizer.clone(),
+            checks: self.checks.clone(),
+            estimate: self.estimate.clone(),
+            plan: self.plan.clone(),
+            run: self.run.clone(),
         }
     }
 }

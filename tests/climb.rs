@@ -20,11 +20,11 @@ use stairbench::scenario::Scenario;
 use stairbench::scene::Scene;
 use stairbench::sim::checks::CheckParams;
 use stairbench::sim::execute::execute;
-use stairbench::sim::{climb_scenario, World};
+use stairbench::sim::{climb_scenario, SimParams, World};
 
 /// The closed loop on `s` with `p`, nothing observing.
 fn climb(s: &Scenario, p: &ClimbParams) -> ClimbReport {
-    climb_scenario(s, p, &mut Nobody, &Cancel::never()).expect("the world runs")
+    climb_scenario(s, p.loop_params(), &p.sim(), &mut Nobody, &Cancel::never()).expect("the world runs")
 }
 
 fn print_report(r: &ClimbReport) {
@@ -152,7 +152,7 @@ fn a_floor_stance_executes_in_mujoco_with_the_checks_holding() {
 /// `plan` executed in `world` with the default servos, stabilizer and checks; its
 /// violations printed.
 fn execute_checked(world: &mut World, model: &RobotModel, scene: &Scene, plan: &Plan) -> Execution {
-    let ex = execute(world, model, scene, plan, &ClimbParams::default(), &mut Nobody, &Cancel::never())
+    let ex = execute(world, model, scene, plan, &SimParams::default(), &mut Nobody, &Cancel::never())
         .expect("the world runs");
     for v in &ex.violations {
         println!("t = {:.3} s {}: {}", v.t_s, v.check.kind(), v.check);
@@ -220,12 +220,8 @@ fn a_foot_placed_5_cm_off_its_steps_edge_is_reported() {
 fn the_speed_margin_is_measured_and_its_edge_names_a_check() {
     let params = ClimbParams::default();
     let mut one = |plan: &PlanParams| {
-        climb_scenario(
-            &Scenario::default(),
-            &ClimbParams { plan: plan.clone(), ..params.clone() },
-            &mut Nobody,
-            &Cancel::never(),
-        )
+        let p = ClimbParams { plan: plan.clone(), ..params.clone() };
+        climb_scenario(&Scenario::default(), p.loop_params(), &p.sim(), &mut Nobody, &Cancel::never())
     };
     let m = speed_margin(&params.plan, 8.0, 0.25, &mut one, &mut |t| {
         println!("x {:.2}: {} {:?}", t.factor, t.success, t.why);
@@ -320,7 +316,7 @@ fn exp1_is_climbed_on_the_robots_own_estimate_and_a_slip_is_registered_away() {
     let world = std::cell::RefCell::new(World::for_scene(&scene).unwrap());
     let mut source = stairbench::sim::SimSource::new(&world, &s.lidar, s.seed).unwrap();
     let slip = nalgebra::Isometry3::translation(0.05, 0.0, 0.0);
-    let robot = stairbench::sim::SimRobot::new(&world, &model, &scene, &p).unwrap();
+    let robot = stairbench::sim::SimRobot::new(&world, &model, &scene, &p.sim()).unwrap();
     let mut slipping = Slipping { robot, slip, after: 3, executions: 0 };
     let bench = Bench { source: &mut source, robot: &mut slipping, model: &model, truth: &scene };
     let r = climb::run(bench, p.loop_params(), &mut Nobody, &Cancel::never()).unwrap();

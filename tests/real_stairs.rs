@@ -22,8 +22,14 @@ const SOLE_HALF_M: [f64; 2] = [0.12, 0.065];
 const FEET_HALF_SPACING_M: f64 = 0.1013;
 
 fn climb(s: &Scenario) -> ClimbReport {
-    let r =
-        climb_scenario(s, &ClimbParams::default(), &mut Nobody, &Cancel::never()).expect("the world runs");
+    let r = climb_scenario(
+        s,
+        ClimbParams::default().loop_params(),
+        &ClimbParams::default().sim(),
+        &mut Nobody,
+        &Cancel::never(),
+    )
+    .expect("the world runs");
     for c in &r.cycles {
         println!(
             "cycle {} to {}: pass {}, margin {:.1} mm, friction {:.2}, violations {:?}",

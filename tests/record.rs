@@ -29,7 +29,8 @@ fn record_one_cycle(name: &str) -> (PathBuf, u64) {
     let model = hrp4::model().unwrap();
     let mut rec = Recorder::create(&path, &model).unwrap();
     rec.attach("params.toml", "application/toml", toml::to_string(&p).unwrap().as_bytes());
-    let r = climb_scenario(&Scenario::default(), &p, &mut rec, &Cancel::never()).unwrap();
+    let r =
+        climb_scenario(&Scenario::default(), p.loop_params(), &p.sim(), &mut rec, &Cancel::never()).unwrap();
     assert_eq!(r.cycles.len(), 1);
     let n = rec.finish().unwrap();
     (path, n)
@@ -190,7 +191,7 @@ fn replay_of_a_run_that_left_a_partly_seen_top_step_for_later_is_equal() {
     let model = hrp4::model().unwrap();
     let mut rec = Recorder::create(&path, &model).unwrap();
     rec.attach("params.toml", "application/toml", toml::to_string(&p).unwrap().as_bytes());
-    let r = climb_scenario(&s, &p, &mut rec, &Cancel::never()).unwrap();
+    let r = climb_scenario(&s, p.loop_params(), &p.sim(), &mut rec, &Cancel::never()).unwrap();
     rec.finish().unwrap();
     assert_eq!(r.cycles.len(), 5, "{:?}", r.stop);
     let out = Command::new(env!("CARGO_BIN_EXE_stairbench"))

@@ -261,7 +261,7 @@ fn exp1_climb(stabilizer: bool, seed: u64) -> stairbench::climb::ClimbReport {
     let mut p = ClimbParams::default();
     p.stabilizer.enabled = stabilizer;
     let s = Scenario { seed, ..Scenario::default() };
-    climb_scenario(&s, &p, &mut Nobody, &Cancel::never()).unwrap()
+    climb_scenario(&s, p.loop_params(), &p.sim(), &mut Nobody, &Cancel::never()).unwrap()
 }
 
 /// With the stabilizer, every loaded foot of Exp. 1 stays within half the friction cone on
@@ -293,7 +293,7 @@ fn with_perceived_height_off_by(error_m: f64, stabilizer: bool) -> Execution {
     assert_eq!(planned.stances.last().unwrap().step, Some(0), "the third stance is on step 1");
     let mut p = ClimbParams::default();
     p.stabilizer.enabled = stabilizer;
-    let ex = execute(&mut world, &model, &scene, &planned, &p, &mut Nobody, &Cancel::never()).unwrap();
+    let ex = execute(&mut world, &model, &scene, &planned, &p.sim(), &mut Nobody, &Cancel::never()).unwrap();
     for v in &ex.violations {
         println!("stabilizer {stabilizer}: t = {:.3} s {}: {}", v.t_s, v.check.kind(), v.check);
     }
@@ -368,7 +368,7 @@ fn a_landed_foot_stays_on_the_ground_until_its_weight_comes() {
             ticks.push((*stamp_s, (*tick).clone()));
         }
     });
-    let ex = execute(&mut world, &model, &scene, &planned, &p, &mut watch, &Cancel::never()).unwrap();
+    let ex = execute(&mut world, &model, &scene, &planned, &p.sim(), &mut watch, &Cancel::never()).unwrap();
     assert!(ex.pass(), "{:?}", ex.violations);
     let light = time_light_after_touchdown_s(
         &ticks,

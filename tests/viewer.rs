@@ -19,7 +19,8 @@ fn a_saved_rrd_of_a_run_verifies_with_rerun_and_holds_every_stage() {
     let mut p = ClimbParams::default();
     p.run.max_cycles = 1;
     let mut viewer = RerunLogger::new(&Sink::Save(path.clone()), &model).unwrap();
-    let r = climb_scenario(&Scenario::default(), &p, &mut viewer, &Cancel::never()).unwrap();
+    let r = climb_scenario(&Scenario::default(), p.loop_params(), &p.sim(), &mut viewer, &Cancel::never())
+        .unwrap();
     assert_eq!(r.cycles.len(), 1);
     viewer.finish().unwrap();
     let size = std::fs::metadata(&path).unwrap().len();

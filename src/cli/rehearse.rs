@@ -14,7 +14,7 @@ use stairbench::perception::step_map::StepMap;
 use stairbench::perception::surroundings::Surroundings;
 use stairbench::planning::clearance::SeenPoints;
 use stairbench::planning::plan_below;
-use stairbench::scene::Scene;
+use stairbench::scene::{PerceivedTop, Scene};
 use stairbench::sensor::AssembleParams;
 use stairbench::sim::execute::{execute, settle};
 use stairbench::sim::World;
@@ -81,7 +81,9 @@ pub fn run(
         );
     }
     // The world of what was perceived, the robot standing at the origin.
-    let scene = Scene::rehearsal("hardware rehearsal", &steps, params.run.rehearsal_friction);
+    let tops: Vec<PerceivedTop> =
+        steps.iter().map(|s| PerceivedTop { corners: *s.corners(), height_m: s.height_m() }).collect();
+    let scene = Scene::rehearsal("hardware rehearsal", &tops, params.run.rehearsal_friction);
     let model = stairbench::robot::hrp4::model()?;
     let mut world = World::for_scene(&scene)?;
     settle(&mut world, params.run.settle_s);
@@ -131,7 +133,7 @@ pub fn run(
         Some(r) => r,
         None => &mut Nobody,
     };
-    let ex = execute(&mut world, &model, &scene, &planned, params, observer, &Cancel::never())?;
+    let ex = execute(&mut world, &model, &scene, &planned, &params.sim(), observer, &Cancel::never())?;
     for v in &ex.violations {
         println!("  t = {:.3} s  {}: {}", v.t_s, v.check.kind(), v.check);
     }

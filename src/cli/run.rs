@@ -175,7 +175,8 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
     if let Some(v) = viewer.as_mut() {
         observers.push(v);
     }
-    let report = climb_scenario(&scenario, &params, &mut Each(observers), &cancel)?;
+    let report =
+        climb_scenario(&scenario, params.loop_params(), &params.sim(), &mut Each(observers), &cancel)?;
     if let (Some(rec), Some(path)) = (recorder, &a.record) {
         let n = rec.finish().with_context(|| format!("recording {} failed", path.display()))?;
         println!("recorded {n} messages to {}", path.display());
@@ -217,7 +218,7 @@ fn run_speed_margin(scenario: &Scenario, params: &ClimbParams, a: &RunArgs) -> R
     let never = Cancel::never();
     let mut climb = |plan: &stairbench::planning::PlanParams| {
         let p = ClimbParams { plan: plan.clone(), ..params.clone() };
-        climb_scenario(scenario, &p, &mut stairbench::climb::Nobody, &never)
+        climb_scenario(scenario, p.loop_params(), &p.sim(), &mut stairbench::climb::Nobody, &never)
     };
     let m = speed_margin(&params.plan, a.max_speedup, 0.1, &mut climb, &mut |t| {
         println!(

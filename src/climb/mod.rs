@@ -7,13 +7,15 @@
 //! outcomes are typed ([`outcome`]).
 
 pub mod event;
+pub mod execution;
 pub mod executor;
 pub mod outcome;
 pub mod report;
 pub mod speed_margin;
 
 pub use event::{Each, Event, Nobody, Observer, RobotState, Watch};
-pub use executor::{ControlCost, Execution, Executor, Touchdown};
+pub use execution::{ControlCost, Execution, Touchdown};
+pub use executor::Executor;
 pub use outcome::{Check, CheckKind, SimWarning, StopReason, Violation};
 pub use report::{ClimbReport, CycleReport, Footing, StageTimes};
 

@@ -5,7 +5,7 @@
 //! `cycles[].violations`) and adds the typed ones (`stop`, `first_violation`, the summary
 //! figures).
 
-use super::executor::Execution;
+use super::execution::Execution;
 use super::outcome::{StopReason, Violation};
 use crate::estimate::EstimateError;
 use crate::planning::{NearestSurface, Refusal};

@@ -13,52 +13,10 @@
 //! [`PlanError::TreadObstructed`]): the lanes do not move around it.
 
 use super::gait::Legs;
+use super::stance::{Foot, Stance};
 use super::PlanError;
 use crate::perception::PlaneSegment;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-
-/// Which foot.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum Foot {
-    /// The right foot (it leads each step, §6.1).
-    Right,
-    /// The left foot.
-    Left,
-}
-
-impl Foot {
-    /// Both feet, in `[right, left]` order.
-    pub const BOTH: [Foot; 2] = [Foot::Right, Foot::Left];
-
-    /// 0 for the right foot, 1 for the left: the index into every `[right, left]` pair.
-    pub fn index(self) -> usize {
-        match self {
-            Foot::Right => 0,
-            Foot::Left => 1,
-        }
-    }
-}
-
-/// Both feet's sole poses in one double-support stance.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Stance {
-    /// Right sole centre (z = sole normal).
-    pub right: Isometry3<f64>,
-    /// Left sole centre.
-    pub left: Isometry3<f64>,
-    /// Index of the step stood on (in ascending order), `None` on the floor.
-    pub step: Option<usize>,
-}
-
-impl Stance {
-    /// The pose of one foot.
-    pub fn foot(&self, f: Foot) -> &Isometry3<f64> {
-        match f {
-            Foot::Right => &self.right,
-            Foot::Left => &self.left,
-        }
-    }
-}
 
 /// What the feet can use (§6.1, §6.4). Lengths in metres.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -256,6 +214,12 @@ pub fn footholds_below(
         return Err(PlanError::NoSteps);
     }
     let lay = Layout::new(start, steps, seen, p);
+    // Between two handrails (or walls) nearer each other than the body's lane, the IK holds
+    // each capsule off its one nearest point and gives way toward the other side: the
+    // chest went onto a rail (regression `chest-between-two-rails`).
+    if lay.room_m < 2.0 * p.body_half_width_m {
+        return Err(PlanError::NarrowFlight { room_m: lay.room_m, needs_m: 2.0 * p.body_half_width_m });
+    }
     let u = lay.frame.u;
     let limit_rad = 10f64.to_radians();
     for (i, s) in steps.iter().enumerate() {
@@ -653,6 +617,9 @@ struct Layout {
     yaw: UnitQuaternion<f64>,
     start_lanes: [f64; 2],
     shift: f64,
+    /// The room across the flight between what the lidar saw beside it at the body's height,
+    /// metres (see `Frame::lane_shift`).
+    room_m: f64,
     start_along: f64,
     /// Where the start's left foot stands along the ascent (the gait's first step up
     /// trails it).
@@ -689,9 +656,9 @@ impl Layout {
         let start_along = ((r0 + l0) / 2.0 - o.coords).dot(&u);
         let start_left_along = (l0 - o.coords).dot(&u);
         let frame = Frame { o, u, w };
-        let shift = frame.lane_shift(steps, seen, start_lanes, start_along, floor_z, p);
+        let (shift, room_m) = frame.lane_shift(steps, seen, start_lanes, start_along, floor_z, p);
         let yaw = UnitQuaternion::from_euler_angles(0.0, 0.0, u.y.atan2(u.x));
-        Self { frame, rise, yaw, start_lanes, shift, start_along, start_left_along, floor_z }
+        Self { frame, rise, yaw, start_lanes, shift, room_m, start_along, start_left_along, floor_z }
     }
 
     /// A step's direction of ascent, pointing up the flight.
@@ -846,8 +813,9 @@ impl Frame {
     /// How far both lanes move across (along `w`, metres) so that no surface in `seen`
     /// beside the feet, at the body's height over the tread below it and along the climb,
     /// is nearer their midline than `p.body_half_width_m`: 0 when none is; between two
-    /// surfaces nearer each other than twice that, the middle (the IK's body clearance then
-    /// judges whether it fits).
+    /// surfaces nearer each other than twice that, the middle. And the room between the
+    /// nearest such surfaces on either side, metres (infinite without two sides): a climb
+    /// is refused where it is narrower than the body's lane ([`footholds_below`]).
     fn lane_shift(
         &self,
         steps: &[&PlaneSegment],
@@ -856,8 +824,8 @@ impl Frame {
         start_along: f64,
         floor_z: f64,
         p: &GaitParams,
-    ) -> f64 {
-        let Some(top) = steps.last() else { return 0.0 };
+    ) -> (f64, f64) {
+        let Some(top) = steps.last() else { return (0.0, f64::INFINITY) };
         let front = |s: &PlaneSegment| (s.center() - self.o).dot(&self.u) - s.depth_m() / 2.0;
         // From behind the start to past the top foothold, by the body's half depth.
         let reach_m = 0.3;
@@ -888,12 +856,13 @@ impl Frame {
             }
         }
         let half = p.body_half_width_m;
-        if left - right < 2.0 * half {
+        let shift = if left - right < 2.0 * half {
             (left + right) / 2.0
         } else {
             // The least move that fits (right + half <= left - half here).
             0.0_f64.max(right + half).min(left - half)
-        }
+        };
+        (shift, left - right)
     }
 }
 
@@ -1123,11 +1092,37 @@ mod tests {
             let half_gap = (s.left.translation.y - s.right.translation.y) / 2.0;
             assert!((half_gap - 0.095).abs() < 1e-9, "the feet keep their spacing");
         }
-        // Walls on both sides closer than the body's width: the middle.
+        // Walls on both sides with room for the body's lane: the lanes go where it fits.
+        let mut both = wall(0.45);
+        both.extend(wall(-0.30));
+        let between = footholds(&stance, &rects, &both, &LEGS, &p).expect("planned");
+        let last = *lanes_of(&between).last().expect("stances");
+        assert!(
+            last - p.body_half_width_m >= -0.30 - 1e-9 && last + p.body_half_width_m <= 0.45 + 1e-9,
+            "{last}"
+        );
+    }
+
+    /// Regression `chest-between-two-rails`: handrails on both sides of a 0.82 m flight. The
+    /// lanes went to the middle and the IK was left to keep the body off both rails; holding
+    /// each capsule off its one nearest point, it let the chest come to 7 mm of a rail and
+    /// the robot fell. Walls on both sides nearer each other than the body's lane: refused,
+    /// from the floor.
+    #[test]
+    fn a_flight_narrower_than_the_bodys_lane_is_refused() {
+        let p = GaitParams::default();
+        let (rects, stance) = flight_and_stance(0.15);
         let mut both = wall(0.35);
         both.extend(wall(-0.2));
-        let pinched = footholds(&stance, &rects, &both, &LEGS, &p).expect("planned");
-        assert!((lanes_of(&pinched).last().expect("stances") - 0.075).abs() < 1e-9);
+        match footholds(&stance, &rects, &both, &LEGS, &p) {
+            Err(PlanError::NarrowFlight { room_m, needs_m }) => {
+                assert!(
+                    (room_m - 0.55).abs() < 1e-9 && (needs_m - 2.0 * p.body_half_width_m).abs() < 1e-12,
+                    "{room_m}"
+                )
+            }
+            other => panic!("expected the flight refused as narrow, got {other:?}"),
+        }
     }
 
     /// Regression `landing-seen-alone-ascent-reversed`: the top landing, seen alone from

@@ -6,8 +6,8 @@
 
 use super::contact::Contact;
 use super::dd::DdParams;
-use super::footholds::{Foot, Stance};
 use super::polygon::{by_double_description, margin};
+use super::stance::{Foot, Stance};
 use super::PlanError;
 use crate::geom2d::{self, P2};
 use crate::robot::Kinematics;

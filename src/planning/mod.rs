@@ -13,11 +13,12 @@ pub mod plan;
 pub mod polygon;
 pub mod reach;
 pub mod rectangles;
+pub mod stance;
 
 pub use contact::{Contact, ContactSpec};
-pub use footholds::{Foot, Stance};
 pub use motion::NearestSurface;
 pub use plan::{plan, plan_among, plan_approach, plan_below, plan_in_sight, plan_retreat, Plan, PlanParams};
+pub use stance::{Foot, Stance};
 
 /// Why a climb was refused. Steps are numbered from 1, the lowest, in messages.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
@@ -244,6 +245,15 @@ pub enum PlanError {
         /// When, seconds from the plan's start.
         t_s: f64,
     },
+    /// What the lidar saw beside the flight at the body's height (handrails, walls) leaves
+    /// less room across than the body's lane (twice `GaitParams::body_half_width_m`).
+    #[error("the flight leaves {room_m:.2} m between what stands beside it at the body's height, less than the {needs_m:.2} m the body sweeps")]
+    NarrowFlight {
+        /// The room between the nearest surfaces on either side, metres.
+        room_m: f64,
+        /// The body's lane, metres.
+        needs_m: f64,
+    },
     /// The IK's swing foot ends too far from its target.
     #[error("segment {}: {foot:?} foot misses its target by {:.1} mm", .segment + 1, .error_m * 1e3)]
     FootMisses {
@@ -315,6 +325,8 @@ pub enum RefusalKind {
     BodyTouchesSurface,
     /// [`PlanError::BodyNearSurface`].
     BodyNearSurface,
+    /// [`PlanError::NarrowFlight`].
+    NarrowFlight,
     /// [`PlanError::FootMisses`].
     FootMisses,
     /// [`PlanError::ComStrays`].
@@ -417,6 +429,9 @@ impl PlanError {
             }
             PlanError::BodyTouchesSurface { segment, depth_m, .. } => {
                 (K::BodyTouchesSurface, None, None, Some(*segment), m(*depth_m, 0.0))
+            }
+            PlanError::NarrowFlight { room_m, needs_m } => {
+                (K::NarrowFlight, None, None, None, m(*room_m, *needs_m))
             }
             PlanError::BodyNearSurface { segment, clearance_m, min_m, .. } => {
                 (K::BodyNearSurface, None, None, Some(*segment), m(*clearance_m, *min_m))

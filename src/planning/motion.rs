@@ -3,9 +3,9 @@
 //! what it reached (CoM, feet) and how closely it tracked.
 
 use super::clearance::{self, Limb, Nearest, ProbeCache, SeenPoints};
-use super::footholds::Foot;
 use super::gait::{Segment, Swing};
 use super::ik::{self, Task};
+use super::stance::Foot;
 use super::PlanError;
 use crate::robot::hrp4;
 use crate::robot::model::RobotModel;

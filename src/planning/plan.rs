@@ -2,9 +2,10 @@
 //! gait's segments with their polygons and margins, and the joint trajectory out (§6).
 
 use super::clearance::{step_blocks, SeenPoints};
-use super::footholds::{approach, footholds_below, retreat, riser_in_sight, GaitParams, Stance};
+use super::footholds::{approach, footholds_below, retreat, riser_in_sight, GaitParams};
 use super::gait::{segments, Body, Legs, Segment, StepParams};
 use super::motion::{track, IkParams, JointTrajectory, Tracking};
+use super::stance::Stance;
 use super::{reach, PlanError};
 use crate::perception::PlaneSegment;
 use crate::robot::hrp4;

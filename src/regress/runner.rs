@@ -318,7 +318,8 @@ fn climb(
         None => &mut Nobody,
     };
     let report =
-        crate::sim::climb_scenario(scenario, &opt.params, observer, cancel).map_err(|e| e.to_string());
+        crate::sim::climb_scenario(scenario, opt.params.loop_params(), &opt.params.sim(), observer, cancel)
+            .map_err(|e| e.to_string());
     if let Some(r) = recorder {
         r.finish().map_err(|e| e.to_string())?;
     }

@@ -122,11 +122,11 @@ impl Scene {
     /// turned with it; the robot at the origin facing +x (the frame the hardware path
     /// perceives in). The rectangles are the ground truth the checks judge by. No walls, no
     /// ceiling: only what perception saw stands there.
-    pub fn rehearsal(name: &str, steps: &[crate::perception::PlaneSegment], friction: f64) -> Self {
+    pub fn rehearsal(name: &str, steps: &[PerceivedTop], friction: f64) -> Self {
         let mut boxes = Vec::new();
         let extent = steps
             .iter()
-            .flat_map(|s| s.corners().iter().map(|c| c.x.abs().max(c.y.abs())))
+            .flat_map(|s| s.corners.iter().map(|c| c.x.abs().max(c.y.abs())))
             .fold(3.0_f64, f64::max)
             + 2.0;
         boxes.push(SceneBox::new(
@@ -138,10 +138,10 @@ impl Scene {
             0.8,
         ));
         let mut tops = Vec::new();
-        let mut by_height: Vec<&crate::perception::PlaneSegment> = steps.iter().collect();
-        by_height.sort_by(|a, b| a.height_m().total_cmp(&b.height_m()));
+        let mut by_height: Vec<&PerceivedTop> = steps.iter().collect();
+        by_height.sort_by(|a, b| a.height_m.total_cmp(&b.height_m));
         for (i, r) in by_height.iter().enumerate() {
-            let (c, along, h) = (r.center(), r.along(), r.height_m().max(0.005));
+            let (c, along, h) = (r.center(), r.along(), r.height_m.max(0.005));
             let b = SceneBox::new(
                 &format!("step_{}", i + 1),
                 SurfaceRole::Step(i),
@@ -191,6 +191,35 @@ impl Scene {
     /// Distance from `p` to the nearest box surface (negative when inside a box), metres.
     pub fn signed_distance(&self, p: &Point3<f64>) -> f64 {
         self.boxes.iter().map(|b| b.signed_distance(p)).fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// A perceived step's top rectangle, as [`Scene::rehearsal`] builds a box under it: its
+/// corners (front edge first, corners 0 to 1 along the ascent, 0 to 3 across, as perception
+/// gives them) and its height, metres.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PerceivedTop {
+    /// The rectangle's corners.
+    pub corners: [Point3<f64>; 4],
+    /// Its height above the floor.
+    pub height_m: f64,
+}
+
+impl PerceivedTop {
+    fn center(&self) -> Point3<f64> {
+        Point3::from(self.corners.iter().map(|c| c.coords).sum::<Vector3<f64>>() / 4.0)
+    }
+
+    fn along(&self) -> Vector3<f64> {
+        (self.corners[1] - self.corners[0]).normalize()
+    }
+
+    fn depth_m(&self) -> f64 {
+        (self.corners[1] - self.corners[0]).norm()
+    }
+
+    fn width_m(&self) -> f64 {
+        (self.corners[3] - self.corners[0]).norm()
     }
 }
 

@@ -14,9 +14,9 @@ use crate::climb::{Check, CheckKind, Execution, SimWarning, Touchdown, Violation
 use crate::geom2d::P2;
 use crate::planning::contact::Contact;
 use crate::planning::dd::DdParams;
-use crate::planning::footholds::Foot;
 use crate::planning::gait::Swing;
 use crate::planning::polygon::{by_double_description, margin};
+use crate::planning::Foot;
 use crate::robot::model::Joint;
 use crate::scene::mjcf::ROBOT_GEOM_GROUP;
 use crate::scene::Scene;

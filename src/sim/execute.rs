@@ -5,13 +5,13 @@
 //! simulated HRP-4 as the closed loop's [`Executor`].
 
 use super::checks::{Ids, Monitor};
+use super::params::{ServoParams, SimParams};
 use super::sensors::SimSensors;
 use super::world::{SimError, World};
 use crate::cancel::Cancel;
 use crate::climb::{ControlCost, Event, Execution, Executor, Observer, RobotState, Watch};
 use crate::control::Stabilizer;
 use crate::estimate::Odometry;
-use crate::params::ClimbParams;
 use crate::planning::gait::Swing;
 use crate::planning::Plan;
 use crate::robot::hrp4;
@@ -19,22 +19,6 @@ use crate::robot::model::{base_pose, RobotModel, Q_JOINTS, V_JOINTS};
 use crate::scene::Scene;
 use nalgebra::Isometry3;
 use std::cell::RefCell;
-
-/// How the servos track q(t).
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct ServoParams {
-    /// Integral gain on each joint's tracking error, 1/s: the set point sent to the position
-    /// servo is q_ref + K_i * integral(q_ref - q) dt, as a servo drive's integral term
-    /// removes the sag a pure PD servo keeps under load (0 = pure PD).
-    pub integral_gain_per_s: f64,
-}
-
-impl Default for ServoParams {
-    fn default() -> Self {
-        Self { integral_gain_per_s: 1.0 }
-    }
-}
 
 /// The position servos with the integral term of [`ServoParams`].
 struct Servos {
@@ -92,7 +76,7 @@ pub fn execute(
     model: &RobotModel,
     scene: &Scene,
     plan: &Plan,
-    params: &ClimbParams,
+    params: &SimParams,
     observer: &mut dyn Observer,
     cancel: &Cancel,
 ) -> Result<Execution, SimError> {
@@ -109,7 +93,7 @@ pub fn execute_from(
     scene: &Scene,
     plan: &Plan,
     plan_to_world: &Isometry3<f64>,
-    params: &ClimbParams,
+    params: &SimParams,
     observer: &mut dyn Observer,
     cancel: &Cancel,
 ) -> Result<Execution, SimError> {
@@ -342,7 +326,7 @@ pub struct SimRobot<'a> {
     world: &'a RefCell<World>,
     model: &'a RobotModel,
     scene: &'a Scene,
-    params: ClimbParams,
+    params: SimParams,
     /// The robot's own estimate of its pose, when `params.estimate` enables it.
     odometry: Option<Odometry<'a>>,
 }
@@ -355,7 +339,7 @@ impl<'a> SimRobot<'a> {
         world: &'a RefCell<World>,
         model: &'a RobotModel,
         scene: &'a Scene,
-        params: &ClimbParams,
+        params: &SimParams,
     ) -> Result<Self, SimError> {
         let odometry = match params.estimate.enabled {
             true => {

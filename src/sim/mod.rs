@@ -7,16 +7,17 @@ pub mod checks;
 pub mod emulator;
 pub mod execute;
 pub mod lidar;
+pub mod params;
 pub mod sensors;
 pub mod world;
 
 pub use execute::SimRobot;
 pub use lidar::SimSource;
+pub use params::SimParams;
 pub use world::{SimError, World};
 
 use crate::cancel::Cancel;
-use crate::climb::{self, Bench, ClimbError, ClimbReport, Observer};
-use crate::params::ClimbParams;
+use crate::climb::{self, Bench, ClimbError, ClimbReport, LoopParams, Observer};
 use crate::scenario::Scenario;
 use crate::scene::Scene;
 use crate::sensor::{SensorError, Sweep};
@@ -43,10 +44,13 @@ pub enum SetupError {
 }
 
 /// Runs the closed loop on `scenario` in MuJoCo: its world, its lidar as the source, the
-/// simulated HRP-4 as the executor, judged against the scenario's ground truth.
+/// simulated HRP-4 as the executor, judged against the scenario's ground truth: the loop
+/// under `p`, the robot under `sim` (a climb's parameters give both,
+/// `crate::params::ClimbParams::loop_params` and `::sim`).
 pub fn climb_scenario(
     scenario: &Scenario,
-    p: &ClimbParams,
+    p: LoopParams<'_>,
+    sim: &SimParams,
     observer: &mut dyn Observer,
     cancel: &Cancel,
 ) -> Result<ClimbReport, SetupError> {
@@ -54,9 +58,9 @@ pub fn climb_scenario(
     let model = crate::robot::hrp4::model()?;
     let world = RefCell::new(World::for_scene(&scene)?);
     let mut source = SimSource::new(&world, &scenario.lidar, scenario.seed)?;
-    let mut robot = SimRobot::new(&world, &model, &scene, p)?;
+    let mut robot = SimRobot::new(&world, &model, &scene, sim)?;
     let bench = Bench { source: &mut source, robot: &mut robot, model: &model, truth: &scene };
-    Ok(climb::run(bench, p.loop_params(), observer, cancel)?)
+    Ok(climb::run(bench, p, observer, cancel)?)
 }
 
 /// A scenario's world, scanned once by its lidar from the robot's start.

@@ -16,7 +16,7 @@ use stairbench::sim::climb_scenario;
 
 /// One climb of `scenario` with `params`, seen by `observer`.
 fn climb(scenario: &Scenario, params: &ClimbParams, observer: &mut dyn Observer) -> Result<ClimbReport> {
-    Ok(climb_scenario(scenario, params, observer, &Cancel::never())?)
+    Ok(climb_scenario(scenario, params.loop_params(), &params.sim(), observer, &Cancel::never())?)
 }
 
 /// Returns the Markdown table.
