@@ -445,19 +445,27 @@ fn wall_at(y: f64) -> Vec<Point3<f64>> {
         .collect()
 }
 
-/// Issue 19, stairwells: the wrist met a side wall the lidar saw. With the lanes held where
-/// the robot stands (a zero body half width, so that only the IK acts), a wall 2 cm beyond
-/// the farthest the arms reach in a plan that knows of no wall: planned among the wall's
-/// points, the body keeps its 3 cm from every one of them at every sample.
-#[test]
-fn the_ik_keeps_the_body_off_a_wall_the_lidar_saw() {
+/// Exp. 1's first two stances planned knowing of no surroundings, the lanes held where the
+/// robot stands (a zero body half width, so that only the IK acts): the model, the
+/// rectangles, the start, the parameters and the plan.
+fn planned_blind() -> (RobotModel, Vec<PlaneSegment>, Vec<f64>, PlanParams, Plan) {
     let model = hrp4::model().unwrap();
     let scene = common::scene_of(&Scenario::default());
     let rects = rectangles::from_step_tops(scene.steps());
     let q0 = start_q(&model, &scene.robot_start());
     let mut p = PlanParams::default();
     p.gait.body_half_width_m = 0.0;
-    let blind = plan(&model, &q0, &rects, Some(2), &p).expect("planned without the wall");
+    let blind = plan(&model, &q0, &rects, Some(2), &p).expect("planned without surroundings");
+    (model, rects, q0, p, blind)
+}
+
+/// Issue 19, stairwells: the wrist met a side wall the lidar saw. With the lanes held where
+/// the robot stands (a zero body half width, so that only the IK acts), a wall 2 cm beyond
+/// the farthest the arms reach in a plan that knows of no wall: planned among the wall's
+/// points, the body keeps its 3 cm from every one of them at every sample.
+#[test]
+fn the_ik_keeps_the_body_off_a_wall_the_lidar_saw() {
+    let (model, rects, q0, p, blind) = planned_blind();
     let (_, [_, reach_y]) = upper_body_reach(&blind, &[]);
     let wall = wall_at(reach_y + 0.02);
     let (blind_least, _) = upper_body_reach(&blind, &wall);
@@ -508,13 +516,7 @@ fn the_ik_keeps_the_body_off_a_wall_the_lidar_saw() {
 /// returned nearer.
 #[test]
 fn a_plan_between_two_walls_keeps_the_sway_or_is_refused() {
-    let model = hrp4::model().unwrap();
-    let scene = common::scene_of(&Scenario::default());
-    let rects = rectangles::from_step_tops(scene.steps());
-    let q0 = start_q(&model, &scene.robot_start());
-    let mut p = PlanParams::default();
-    p.gait.body_half_width_m = 0.0;
-    let blind = plan(&model, &q0, &rects, Some(2), &p).expect("planned without the walls");
+    let (model, rects, q0, p, blind) = planned_blind();
     let (_, [right_y, left_y]) = upper_body_reach(&blind, &[]);
     let mut refused = 0;
     for inside_m in [-0.01, 0.02, 0.05, 0.08, 0.11] {
