@@ -1,6 +1,9 @@
 //! The library's layers import only downward, and no two modules of a layer import each other
 //! round a cycle: read from the `crate::` and `super::` paths of every file under `src/`
-//! (the command line, `src/cli` and `main.rs`, sits on top and is not read).
+//! (the command line, `src/cli` and `main.rs`, sits on top and is not read). Within a layer
+//! it follows paths into the layer's own modules (`crate::planning::gait`, `super::gait`
+//! from a file of the layer's folder); a name the layer's `mod.rs` re-exports, and
+//! `super::` inside a nested folder, are not followed.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -38,14 +41,44 @@ fn module_of(rel: &Path) -> (String, Option<String>) {
     (top, sub)
 }
 
-/// The code of a file without its unit tests (a `#[cfg(test)]` module at its end imports
-/// `super::*`, its own file) and without comments.
+/// The code of a file without its unit-test modules (`#[cfg(test)] mod tests { .. }` imports
+/// `super::*`, its own file) and without line comments.
 fn code_of(text: &str) -> String {
-    let text = text.split("#[cfg(test)]").next().unwrap_or("");
-    text.lines().filter(|l| !l.trim_start().starts_with("//")).collect::<Vec<_>>().join("\n")
+    let mut code = String::new();
+    let mut rest = text;
+    while let Some(i) = rest.find("#[cfg(test)]") {
+        code.push_str(&rest[..i]);
+        let after = &rest[i + "#[cfg(test)]".len()..];
+        let item = after.trim_start();
+        if !item.starts_with("mod ") {
+            rest = after;
+            continue;
+        }
+        // Skip the module, up to its matching brace.
+        let open = item.find('{').unwrap_or(item.len());
+        let mut depth = 0usize;
+        let mut end = item.len();
+        for (k, c) in item[open..].char_indices() {
+            match c {
+                '{' => depth += 1,
+                '}' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        end = open + k + 1;
+                        break;
+                    }
+                }
+                _ => {}
+            }
+        }
+        rest = &item[end..];
+    }
+    code.push_str(rest);
+    code.lines().filter(|l| !l.trim_start().starts_with("//")).collect::<Vec<_>>().join("\n")
 }
 
-/// Every path after `prefix` in `code`, as its first two segments.
+/// Every path after `prefix` in `code`, as its first two segments; a group
+/// (`crate::{a::b, c}`) gives each of its paths.
 fn paths_after(code: &str, prefix: &str) -> Vec<(String, Option<String>)> {
     let mut out = Vec::new();
     let mut rest = code;
@@ -55,15 +88,42 @@ fn paths_after(code: &str, prefix: &str) -> Vec<(String, Option<String>)> {
         if before.is_some_and(|c| c.is_alphanumeric() || c == '_') {
             continue;
         }
-        let ident = |s: &str| s.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect::<String>();
-        let first = ident(rest);
-        let after = &rest[first.len()..];
-        let second = after.strip_prefix("::").map(ident).filter(|s| !s.is_empty());
-        if !first.is_empty() {
-            out.push((first, second));
+        match rest.strip_prefix('{') {
+            Some(group) => out.extend(group_items(group).iter().filter_map(|item| first_two(item))),
+            None => out.extend(first_two(rest)),
         }
     }
     out
+}
+
+/// A path's first two segments (the second `None` where it ends or opens a group).
+fn first_two(path: &str) -> Option<(String, Option<String>)> {
+    let ident = |s: &str| s.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect::<String>();
+    let path = path.trim_start();
+    let first = ident(path);
+    let second = path[first.len()..].strip_prefix("::").map(ident).filter(|s| !s.is_empty());
+    (!first.is_empty()).then_some((first, second))
+}
+
+/// The items of a group whose `{` was just read, up to its `}`: split at its own commas.
+fn group_items(group: &str) -> Vec<&str> {
+    let (mut depth, mut start, mut items) = (0usize, 0usize, Vec::new());
+    for (i, c) in group.char_indices() {
+        match c {
+            '{' => depth += 1,
+            '}' if depth == 0 => {
+                items.push(&group[start..i]);
+                return items;
+            }
+            '}' => depth -= 1,
+            ',' if depth == 0 => {
+                items.push(&group[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    items
 }
 
 /// The layering's violations among `files` (paths relative to `src/`, with their text): an
@@ -182,10 +242,15 @@ fn a_back_import_and_a_cycle_are_caught() {
     let back = vec![
         file("sim/execute.rs", "use crate::params::ClimbParams;\n"),
         file("params.rs", "use crate::sim::params::ServoParams;\n"),
+        file(
+            "scene/mod.rs",
+            "use crate::{\n    scenario::Scenario,\n    perception::{PlaneSegment, Perception},\n};\n",
+        ),
     ];
     let bad = violations(&back);
-    assert_eq!(bad.len(), 1, "{bad:?}");
+    assert_eq!(bad.len(), 2, "{bad:?}");
     assert!(bad[0].contains("`sim` imports `crate::params`"), "{bad:?}");
+    assert!(bad[1].contains("`scene` imports `crate::perception`"), "{bad:?}");
     let cycle = vec![
         file("planning/gait.rs", "use super::footholds::{Foot, Stance};\n"),
         file("planning/footholds.rs", "use super::gait::Legs;\n#[cfg(test)]\nmod tests { use super::*; }\n"),

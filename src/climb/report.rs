@@ -74,8 +74,10 @@ pub struct CycleReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub correction_yaw_rad: Option<f64>,
     /// Where the plan brought the body (arms, trunk, head) nearest a surface the lidar saw
-    /// (what the plan kept against what the execution touched); `None` when none came
-    /// within the IK's clearance range.
+    /// (what the plan kept against what the execution touched), in the plan's frame (the
+    /// robot's estimate of the world when it keeps one); absent when none came within the
+    /// IK's clearance range.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub plan_nearest_surface: Option<NearestSurface>,
     /// What the execution found (flattened into the JSON: `min_margin_m`,
     /// `max_torque_ratio`, `torque_joint`, `touchdowns`, `violations`, `sim_s`, ...).

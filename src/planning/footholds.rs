@@ -3,7 +3,9 @@
 //! the middle of its rectangle along the direction of ascent; across, each foot keeps the
 //! lane it starts in, unless a surface the lidar saw beside the flight (a stairwell's wall,
 //! a crate) would then be nearer the body than its half width: both lanes then move away
-//! from it, on the floor before the flight or at the first step; its height comes from the
+//! from it, on the floor before the flight or at the first step, and a flight with less room
+//! between such surfaces than the body's whole width is refused
+//! ([`PlanError::NarrowFlight`]); its height comes from the
 //! rectangle and its yaw from the staircase, and it is level (no roll or pitch: §6.2 takes
 //! every contact frame level; the rectangle's fitted normal is not a measure of a tread's
 //! tilt under range noise, and a tread's tilt is assumed level, not measured). Steps the
@@ -83,7 +85,8 @@ pub struct GaitParams {
     /// the feet, metres: HRP-4's upper arms reach 0.215 m from its midline (the shoulder
     /// joint 0.175 m out, the arm 4 cm thick), the CoM sways over each foot (half the lanes'
     /// spacing, about 0.1 m), and the body keeps its 3 cm clearance from the surroundings'
-    /// points, which stand up to 2 cm proud of a noisy wall. 0.36 m.
+    /// points, which stand up to 2 cm proud of a noisy wall. 0.36 m. A flight with less than
+    /// twice this between what stands beside it at the body's height is refused.
     pub body_half_width_m: f64,
     /// Heights above the tread below in which a surface the lidar saw beside the feet is
     /// beside the body (from the hands to above the shoulders), metres. Lower, it is a
@@ -214,12 +217,6 @@ pub fn footholds_below(
         return Err(PlanError::NoSteps);
     }
     let lay = Layout::new(start, steps, seen, p);
-    // Between two handrails (or walls) nearer each other than the body's lane, the IK holds
-    // each capsule off its one nearest point and gives way toward the other side: the
-    // chest went onto a rail (regression `chest-between-two-rails`).
-    if lay.room_m < 2.0 * p.body_half_width_m {
-        return Err(PlanError::NarrowFlight { room_m: lay.room_m, needs_m: 2.0 * p.body_half_width_m });
-    }
     let u = lay.frame.u;
     let limit_rad = 10f64.to_radians();
     for (i, s) in steps.iter().enumerate() {
@@ -227,6 +224,18 @@ pub fn footholds_below(
         if lay.up(s).dot(&u) < limit_rad.cos() {
             return Err(PlanError::NotStraight { step: i, angle_rad, limit_rad });
         }
+    }
+    // Between two handrails (or walls) nearer each other than the body's lane, the IK holds
+    // each capsule off its one nearest point and gives way toward the other side: the
+    // chest went onto a rail (regression `chest-between-two-rails`). Judged over the whole
+    // flight seen, not only the steps planned now, so that a narrowing higher up is refused
+    // before a foot is set.
+    let room_m = match steps.len() < all.len() {
+        true => lay.room_m.min(Layout::new(start, &all, seen, p).room_m),
+        false => lay.room_m,
+    };
+    if room_m < 2.0 * p.body_half_width_m {
+        return Err(PlanError::NarrowFlight { room_m, needs_m: 2.0 * p.body_half_width_m });
     }
     let lanes = lay.start_lanes.map(|l| l + lay.shift);
     let rises = super::rectangles::rises_m(steps, Some(lay.floor_z));

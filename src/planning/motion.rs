@@ -84,7 +84,8 @@ pub struct IkParams {
     /// (`body_clearance_m`) holds each capsule off its one nearest point, and between two
     /// surfaces (a chest between two handrails) or past a noisy one it gives way; the body
     /// executed sways about its plan, ±20 mm measured on the chest under the stabilizer
-    /// (real-0042's recording), so a plan nearer than that touches. 2 cm.
+    /// (regression `chest-between-two-rails`'s recording), so a plan nearer than that
+    /// touches. 2 cm.
     pub min_body_clearance_m: f64,
     /// The surroundings' points within this of a step solid, or of the floor under the
     /// start, are the steps' and the floor's own surfaces, which the legs are not kept off
@@ -398,9 +399,9 @@ impl<'m> Tracker<'m> {
             feet,
             q: q0.to_vec(),
             // §6.1's reference pose, the same for every plan: a reference taken from q0
-            // would keep whatever the last plan left, and the upper body's drift would add up
-            // over the cycles (real-0042: the waist twisted from -0.18 to -0.42 rad between
-            // two handrails, the chest's corner turned onto a rail).
+            // would keep whatever the last plan left, and the upper body's drift would add
+            // up over the cycles (regression `chest-between-two-rails`: the waist twisted
+            // from -0.18 to -0.42 rad between two handrails, the chest's corner onto a rail).
             q_ref: hrp4::half_sitting_joints(model)?,
             upper,
             limbs,

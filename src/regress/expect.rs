@@ -7,6 +7,7 @@
 
 use crate::planning::footholds::GaitParams;
 use crate::scenario::{ExpectSpec, ExpectedOutcome, Scenario};
+use crate::scene::{RAIL_INSET_M, RAIL_M};
 
 /// How far perception may err on a tread's depth (about one voxel, §4.1: v = 2 cm, plus the
 /// rectangle's fit), metres.
@@ -130,6 +131,9 @@ pub fn expect(s: &Scenario, gait: &GaitParams, feet_half_spacing_m: f64) -> Expe
             None => {}
         }
     }
+    if let Some(why) = between_handrails(s, gait) {
+        return refuse(why);
+    }
     if let Some(why) = handrail_near_the_body(s, lanes, gait) {
         either.push(why);
     }
@@ -233,6 +237,18 @@ fn object_in_the_way(
     None
 }
 
+/// Handrails on both sides with less room between them than the body's whole width
+/// (`body_half_width_m` twice), beyond perception's tolerance: the planner refuses the
+/// flight before a foot is set on it.
+fn between_handrails(s: &Scenario, gait: &GaitParams) -> Option<String> {
+    let st = &s.staircase;
+    let room_m = st.width_m - 2.0 * (RAIL_INSET_M + RAIL_M / 2.0);
+    let needs_m = 2.0 * gait.body_half_width_m;
+    (st.handrails.sides().len() == 2 && room_m < needs_m - SIDE_TOLERANCE_M).then(|| {
+        format!("the handrails leave {room_m:.2} m between them, less than the {needs_m:.2} m the body sweeps (plan.gait.body_half_width_m twice)")
+    })
+}
+
 /// A handrail's posts or rail within the body's half width (`body_half_width_m`, the lane
 /// the arms sweep with their clearance) of the robot's middle line, within perception's
 /// tolerance: the planner moves the lanes away from it where the flight is wide enough, or
@@ -241,8 +257,8 @@ fn handrail_near_the_body(s: &Scenario, lanes: [f64; 2], gait: &GaitParams) -> O
     let st = &s.staircase;
     let mid = (lanes[0] + lanes[1]) / 2.0;
     st.handrails.sides().iter().find_map(|&side| {
-        let rail = side * (st.width_m / 2.0 - 0.05) - mid;
-        let room_m = rail.abs() - 0.025;
+        let rail = side * (st.width_m / 2.0 - RAIL_INSET_M) - mid;
+        let room_m = rail.abs() - RAIL_M / 2.0;
         (room_m < gait.body_half_width_m + SIDE_TOLERANCE_M).then(|| {
             format!(
                 "the {} handrail stands {room_m:.2} m from the robot's middle line, within the body's {:.2} m",
@@ -309,6 +325,28 @@ mod tests {
         assert_eq!(outcome(|s| s.staircase.width_m = 0.32), ExpectedOutcome::Either);
         // The same flight with the robot 20 cm off its middle line: the left lane is off.
         assert_eq!(outcome(|s| s.robot.position_m[1] = 0.2), ExpectedOutcome::Refuse);
+    }
+
+    /// Regression `chest-between-two-rails`: handrails on both sides of a 0.82 m flight
+    /// leave 0.67 m between their bars, less than the body's 0.72 m: refused; with 0.76 m
+    /// between them (a 0.91 m flight), perception's tolerance decides: either.
+    #[test]
+    fn handrails_on_both_sides_nearer_than_the_body_are_refused() {
+        use crate::scenario::Handrails;
+        let both = |width_m: f64| {
+            outcome(|s| {
+                s.staircase.width_m = width_m;
+                s.staircase.handrails = Handrails::Both;
+            })
+        };
+        assert_eq!(both(0.82), ExpectedOutcome::Refuse);
+        assert_eq!(both(0.89), ExpectedOutcome::Either);
+        assert_eq!(both(1.2), ExpectedOutcome::Climb);
+        let one = outcome(|s| {
+            s.staircase.width_m = 0.82;
+            s.staircase.handrails = Handrails::Left;
+        });
+        assert_eq!(one, ExpectedOutcome::Either, "one rail: the lanes may move away from it");
     }
 
     #[test]

@@ -223,11 +223,12 @@ impl PerceivedTop {
     }
 }
 
-/// Cross-section of a handrail and its posts, metres (a 5 cm bar on 4 cm balusters).
-const RAIL_M: f64 = 0.05;
+/// Cross-section of a handrail's bar, metres (a 5 cm bar).
+pub const RAIL_M: f64 = 0.05;
+/// Cross-section of its posts, metres (4 cm balusters).
 const POST_M: f64 = 0.04;
-/// How far a handrail's posts stand in from the flight's side, metres.
-const RAIL_INSET_M: f64 = 0.05;
+/// How far a handrail (its bar's middle, its posts) stands in from the flight's side, metres.
+pub const RAIL_INSET_M: f64 = 0.05;
 
 /// The staircase's boxes (steps, nosings, slabs, handrails) and each present step's tread,
 /// the ground truth: the rectangle a foot can stand on, from its nose to the next riser.

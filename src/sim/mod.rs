@@ -58,6 +58,7 @@ pub fn climb_scenario(
     let model = crate::robot::hrp4::model()?;
     let world = RefCell::new(World::for_scene(&scene)?);
     let mut source = SimSource::new(&world, &scenario.lidar, scenario.seed)?;
+    debug_assert!(p.plan == &sim.plan && p.run == &sim.run, "the loop and the robot under one plan");
     let mut robot = SimRobot::new(&world, &model, &scene, sim)?;
     let bench = Bench { source: &mut source, robot: &mut robot, model: &model, truth: &scene };
     Ok(climb::run(bench, p, observer, cancel)?)
