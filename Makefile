@@ -7,7 +7,7 @@ SCENARIO ?= scenarios/exp1.toml
 
 SHELL := /bin/bash
 
-.PHONY: all setup build run test lint bench clean
+.PHONY: all setup build run test test-slurm lint bench clean
 
 all: build
 
@@ -29,6 +29,12 @@ run: build
 test: setup
 	@set -o pipefail; $(CARGO) test --release 2>&1 | tee out/test.log
 	@awk '/^test result:/ { p += $$4; f += $$6; i += $$8 } END { printf "stairbench: %d passed, %d failed, %d skipped\n", p, f, i }' out/test.log
+
+# Shards on a real scheduler: a one-node Slurm started here (slurm-wlm and munge, installed
+# if missing), `regress smoke` as an array of 4 shards, merged and compared case for case with
+# a local run; CI runs it.
+test-slurm: build
+	./scripts/slurm-smoke.sh $(BIN)
 
 # Formatting and clippy (the [lints] of Cargo.toml, warnings as errors); CI runs it.
 lint: setup
