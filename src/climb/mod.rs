@@ -32,6 +32,7 @@ use crate::planning::{plan_approach, plan_below, plan_in_sight, plan_retreat, Pl
 use crate::robot::hrp4;
 use crate::robot::model::RobotModel;
 use crate::robot::Kinematics;
+use crate::scene::geometry::SOLE_ON_TREAD_M;
 use crate::scene::Scene;
 use crate::sensor::{AssembleParams, SensorError, Source};
 use std::sync::Arc;
@@ -451,7 +452,7 @@ pub fn climbed(scene: &Scene, model: &RobotModel, q: &[f64]) -> usize {
         let s = &scene.steps()[i];
         [&stance.right, &stance.left].iter().all(|f| {
             let c = nalgebra::Point3::from(f.translation.vector);
-            (c.z - s.height_m).abs() < 0.02 && s.contains_xy(&c, 0.0)
+            (c.z - s.height_m).abs() < SOLE_ON_TREAD_M && s.contains_xy(&c, 0.0)
         })
     };
     (0..scene.steps().len()).rev().find(|&i| on(i)).map_or(0, |i| i + 1)

@@ -811,6 +811,11 @@ impl Layout {
     }
 }
 
+/// The body's half depth along the climb (trunk and arms, ahead of and behind the feet's
+/// midpoint), metres: what stands beside the flight that far beyond the first and last
+/// footholds is beside the body.
+const BODY_HALF_DEPTH_M: f64 = 0.3;
+
 /// The staircase's frame: origin `o` (step 1's centre), ascent `u`, across `w` (leftward).
 struct Frame {
     o: Point3<f64>,
@@ -837,9 +842,10 @@ impl Frame {
         let Some(top) = steps.last() else { return (0.0, f64::INFINITY) };
         let front = |s: &PlaneSegment| (s.center() - self.o).dot(&self.u) - s.depth_m() / 2.0;
         // From behind the start to past the top foothold, by the body's half depth.
-        let reach_m = 0.3;
-        let (first, last) =
-            (start_along - reach_m, front(top) + (top.depth_m() / 2.0).min(p.landing_foothold_m) + reach_m);
+        let (first, last) = (
+            start_along - BODY_HALF_DEPTH_M,
+            front(top) + (top.depth_m() / 2.0).min(p.landing_foothold_m) + BODY_HALF_DEPTH_M,
+        );
         let mid = (lanes[0] + lanes[1]) / 2.0;
         let feet_half = (lanes[0] - lanes[1]).abs() / 2.0 + p.sole_width_m / 2.0;
         let (mut right, mut left) = (f64::NEG_INFINITY, f64::INFINITY);

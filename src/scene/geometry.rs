@@ -98,6 +98,10 @@ impl SceneBox {
     }
 }
 
+/// A sole stands on a true tread when its height is within this of the tread's, metres: its
+/// sink into the contact and the ankle's give are millimetres, a step's rise over 10 cm.
+pub const SOLE_ON_TREAD_M: f64 = 0.02;
+
 /// Ground truth of one step: the rectangle of its top (tread), in the world frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StepTop {

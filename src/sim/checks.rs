@@ -18,6 +18,7 @@ use crate::planning::gait::Swing;
 use crate::planning::polygon::{by_double_description, margin};
 use crate::planning::Foot;
 use crate::robot::model::Joint;
+use crate::scene::geometry::SOLE_ON_TREAD_M;
 use crate::scene::mjcf::ROBOT_GEOM_GROUP;
 use crate::scene::Scene;
 use nalgebra::{Isometry3, Point3, Quaternion, UnitQuaternion, Vector3};
@@ -167,9 +168,9 @@ pub fn touchdown_check(
 }
 
 /// How far the sole at `sole` (half sizes `half_m`) overhangs the true tread it stands on
-/// (the step whose height is within 2 cm of it); `None` on the floor.
+/// (the step whose height is within [`SOLE_ON_TREAD_M`] of it); `None` on the floor.
 pub fn overhang_m(scene: &Scene, sole: &Isometry3<f64>, half_m: [f64; 2]) -> Option<f64> {
-    let step = scene.steps().iter().find(|s| (s.height_m - sole.translation.z).abs() < 0.02)?;
+    let step = scene.steps().iter().find(|s| (s.height_m - sole.translation.z).abs() < SOLE_ON_TREAD_M)?;
     let [hx, hy] = half_m;
     let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)];
     Some(
