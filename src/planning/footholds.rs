@@ -225,18 +225,6 @@ pub fn footholds_below(
             return Err(PlanError::NotStraight { step: i, angle_rad, limit_rad });
         }
     }
-    // Between two handrails (or walls) nearer each other than the body's lane, the IK holds
-    // each capsule off its one nearest point and gives way toward the other side: the
-    // chest went onto a rail (regression `chest-between-two-rails`). Judged over the whole
-    // flight seen, not only the steps planned now, so that a narrowing higher up is refused
-    // before a foot is set.
-    let room_m = match steps.len() < all.len() {
-        true => lay.room_m.min(Layout::new(start, &all, seen, p).room_m),
-        false => lay.room_m,
-    };
-    if room_m < 2.0 * p.body_half_width_m {
-        return Err(PlanError::NarrowFlight { room_m, needs_m: 2.0 * p.body_half_width_m });
-    }
     let lanes = lay.start_lanes.map(|l| l + lay.shift);
     let rises = super::rectangles::rises_m(steps, Some(lay.floor_z));
     let usual = usual_rise_m(&rises);
@@ -324,6 +312,19 @@ pub fn footholds_below(
         unobstructed(&lay, &all, before, std::slice::from_ref(&on_step), out.len(), seen, p)?;
         out.push(on_step);
         prev_along = along;
+    }
+    // Between two handrails (or walls) nearer each other than the body's lane, the IK holds
+    // each capsule off its one nearest point and gives way toward the other side: the
+    // chest went onto a rail (regression `chest-between-two-rails`). Judged over the whole
+    // flight seen, not only the steps planned now, so that a narrowing higher up is refused
+    // before a foot is set; and after the steps themselves (a riser over 40 cm high stands
+    // in the body's band beside the feet, and is refused as the rise it is).
+    let room_m = match steps.len() < all.len() {
+        true => lay.room_m.min(Layout::new(start, &all, seen, p).room_m),
+        false => lay.room_m,
+    };
+    if room_m < 2.0 * p.body_half_width_m {
+        return Err(PlanError::NarrowFlight { room_m, needs_m: 2.0 * p.body_half_width_m });
     }
     Ok(out)
 }
