@@ -400,8 +400,7 @@ impl<'m> Tracker<'m> {
             q: q0.to_vec(),
             // §6.1's reference pose, the same for every plan: a reference taken from q0
             // would keep whatever the last plan left, and the upper body's drift would add
-            // up over the cycles (regression `chest-between-two-rails`: the waist twisted
-            // from -0.18 to -0.42 rad between two handrails, the chest's corner onto a rail).
+            // up over the cycles (regression `chest-between-two-rails`).
             q_ref: hrp4::half_sitting_joints(model)?,
             upper,
             limbs,
