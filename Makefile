@@ -32,9 +32,9 @@ test: setup
 
 # Shards on a real scheduler: a one-node Slurm started here (slurm-wlm and munge, installed
 # if missing), `regress smoke` as an array of 4 shards, merged and compared case for case with
-# a local run; CI runs it.
+# a local run (the one `make test` just made, when it is newer than the binary); CI runs it.
 test-slurm: build
-	./scripts/slurm-smoke.sh $(BIN)
+	./scripts/slurm-smoke.sh $(BIN) target/tmp/regress/smoke/results.jsonl
 
 # Formatting and clippy (the [lints] of Cargo.toml, warnings as errors); CI runs it.
 lint: setup

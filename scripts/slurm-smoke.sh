@@ -4,11 +4,15 @@
 # shards (each reads its shard from SLURM_ARRAY_TASK_ID/_MIN/_COUNT, as Slurm sets them), waits,
 # merges the shards' results, and checks them case for case against a local run of the same
 # suite (verdict and simulated time). Everything lives in a temporary folder; the daemons are
-# stopped on exit. Usage: scripts/slurm-smoke.sh [BIN] (default ./target/release/stairbench).
+# stopped on exit. Usage: scripts/slurm-smoke.sh [BIN [LOCAL]] (BIN defaults to
+# ./target/release/stairbench). LOCAL, if given, is the results.jsonl of a local `regress smoke`
+# run by this same binary (the one `make test` leaves), used instead of running the suite again
+# here; it is ignored, and the suite run, when it is older than the binary.
 # `make test-slurm` runs it; `.ci/run` calls that.
 set -euo pipefail
 
 BIN=$(realpath "${1:-./target/release/stairbench}")
+LOCAL=${2:-}
 SHARDS=4
 [ -x "$BIN" ] || { echo "slurm-smoke: no stairbench binary at $BIN (make build first)" >&2; exit 2; }
 
@@ -92,8 +96,13 @@ sbatch --wait --array=1-$SHARDS --cpus-per-task=1 --output="$D/out/shard-%a.log"
 "$BIN" regress merge "$D"/out/shard-*/results.jsonl --out "$D/merged.jsonl" --junit "$D/merged.xml" || true
 [ -s "$D/merged.jsonl" ] || { echo "slurm-smoke: no merged results" >&2; exit 1; }
 
-# The same suite run here, and the two compared case for case.
-"$BIN" regress smoke --out "$D/local" -q || true
+# The same suite run here (or the given local run of this binary), compared case for case.
+if [ -n "$LOCAL" ] && [ -s "$LOCAL" ] && [ "$LOCAL" -nt "$BIN" ]; then
+    echo "slurm-smoke: comparing with the local run in $LOCAL"
+    mkdir -p "$D/local" && cp "$LOCAL" "$D/local/results.jsonl"
+else
+    "$BIN" regress smoke --out "$D/local" -q || true
+fi
 python3 - "$D/merged.jsonl" "$D/local/results.jsonl" "$SHARDS" <<'EOF'
 import json, sys
 def load(path):
