@@ -25,7 +25,7 @@ const SUITE_DIR: &str = "scenarios/suites";
 pub struct RegressArgs {
     #[command(subcommand)]
     command: Option<RegressCommand>,
-    /// The suite: a file, or a name in scenarios/suites/ (smoke, ci, envelope, wide, real, regressions).
+    /// The suite: a file, or a name in scenarios/suites/ (smoke, ci, envelope, wide, real, robust, regressions).
     #[arg(required = true)]
     suite: Option<PathBuf>,
     /// Output folder: results.jsonl, junit.xml, cases/<id>.toml, the maps (default
@@ -62,7 +62,8 @@ pub struct RegressArgs {
     /// Shards in all, for a Kubernetes Indexed Job's JOB_COMPLETION_INDEX.
     #[arg(long)]
     shards: Option<usize>,
-    /// Also map the verdicts over these two parameters (repeatable), e.g. --map yaw_deg,noise_mm.
+    /// Also map the verdicts over these two parameters (repeatable), e.g. --map yaw_deg,noise_mm
+    /// (rise x tread is always mapped, and so are the two fields of a suite's [grid]).
     #[arg(long, value_name = "X,Y")]
     map: Vec<String>,
     /// Climb parameters as TOML (as for `run --params`).
@@ -224,7 +225,14 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
     bar.finish_and_clear();
     let elapsed_s = started.elapsed().as_secs_f64();
     print!("{}", summary::text(&results, a.min_rate, Some(elapsed_s), jobs, 10));
-    write_reports(&out, &suite.name, &results, &robot, &a.map)?;
+    // A grid over two fields other than rise x tread is mapped over them too.
+    let mut maps = a.map.clone();
+    if let [(x, _), (y, _)] = suite.grid.as_slice() {
+        if (x.as_str(), y.as_str()) != ("rise_m", "tread_m") && !maps.contains(&format!("{x},{y}")) {
+            maps.push(format!("{x},{y}"));
+        }
+    }
+    write_reports(&out, &suite.name, &results, &robot, &maps)?;
     let mut regressions = 0;
     if let Some(base) = &a.baseline {
         let before = results::read(base)?;

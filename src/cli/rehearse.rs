@@ -87,7 +87,7 @@ pub fn run(
     let model = stairbench::robot::hrp4::model()?;
     let mut world = World::for_scene(&scene)?;
     settle(&mut world, params.run.settle_s);
-    let q0 = world.data().qpos()[..model.nq()].to_vec();
+    let q0 = world.configuration().to_vec();
     // The plan's input as the loop (and replay) make it: the steps above the feet, a partly
     // seen top step left out.
     let next = StepMap::default().next_input(
@@ -137,7 +137,7 @@ pub fn run(
     for v in &ex.violations {
         println!("  t = {:.3} s  {}: {}", v.t_s, v.check.kind(), v.check);
     }
-    let climbed = stairbench::climb::climbed(&scene, &model, &world.data().qpos()[..model.nq()]);
+    let climbed = stairbench::climb::climbed(&scene, &model, &world.configuration());
     println!(
         "rehearsal: {} of {} steps, CoM margin {:.1} mm at least, torque {:.0} % of a limit ({}), friction ratio {:.2}",
         climbed,

@@ -9,7 +9,7 @@ use stairbench::climb::{ClimbReport, CycleReport, Each, Event, Observer, Watch};
 use stairbench::params::ClimbParams;
 use stairbench::record::viewer::{RerunLogger, Sink};
 use stairbench::regress::verdict::classify;
-use stairbench::scenario::Scenario;
+use stairbench::scenario::{PlantPreset, Scenario};
 use stairbench::sim::climb_scenario;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -38,6 +38,12 @@ pub struct RunArgs {
     estimate: Option<OnOff>,
     #[command(flatten)]
     noise: super::NoiseArgs,
+    /// The simulated body: `hrp4-like` for a body that differs from the planner's model as a
+    /// real HRP-4 does (masses, CoMs, inertias, friction, play, latency, servo gains,
+    /// compliant ankles; drawn from the scenario's seed), `nominal` for the model exactly.
+    /// Sets the scenario's [plant] preset; the fields its file sets stay.
+    #[arg(long, value_name = "PRESET")]
+    plant: Option<PlantArg>,
     /// Speed the planned motion up by this factor (CoM and foot speeds, shortest
     /// segment and swing piece, the IK's joint speed bound), to see how far from
     /// quasi-static the plan runs.
@@ -77,6 +83,15 @@ pub struct RunArgs {
     trajectory: PathBuf,
 }
 
+/// The `[plant]` presets, at the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum PlantArg {
+    /// The model exactly.
+    Nominal,
+    /// A body like a real HRP-4 against its model.
+    Hrp4Like,
+}
+
 /// A switch's two positions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum OnOff {
@@ -91,6 +106,12 @@ pub enum OnOff {
 pub fn run(a: RunArgs) -> Result<ExitCode> {
     let mut scenario = super::load_scenario(a.scenario.as_deref())?;
     a.noise.apply(&mut scenario);
+    if let Some(p) = a.plant {
+        scenario.plant.preset = match p {
+            PlantArg::Nominal => PlantPreset::Nominal,
+            PlantArg::Hrp4Like => PlantPreset::Hrp4Like,
+        };
+    }
     let mut params: ClimbParams = match &a.params {
         Some(p) => toml::from_str(
             &std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?,
@@ -120,6 +141,11 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         "climbing {} ({} steps): scan, perceive, plan, execute, scan again",
         scenario.name, scenario.staircase.steps
     );
+    let plant = scenario.plant.errors();
+    if !plant.is_nominal() {
+        let fields: Vec<String> = plant.fields().iter().map(|(n, v)| format!("{n} {v}")).collect();
+        println!("the body differs from the planner's model (seed {}): {}", scenario.seed, fields.join(", "));
+    }
     println!(
         "{:>5}  {:<8} {:<5} {:>10} {:>14} {:<14} {:>12} {:>8} {:>8} {:>6} {:>10} {:>8} {:>7}",
         "cycle",
@@ -195,6 +221,8 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
     }
     if let Some(path) = &a.json {
         let mut json = serde_json::to_value(&report)?;
+        json["plant"] = serde_json::to_value(scenario.plant.errors())?;
+        json["plant_preset"] = serde_json::to_value(scenario.plant.preset)?;
         if let Some((e, v)) = &verdict {
             json["verdict"] = serde_json::to_value(v)?;
             json["expect"] = serde_json::to_value(e)?;

@@ -23,8 +23,9 @@ pub struct SceneArgs {
 
 /// Runs `stairbench scene`.
 pub fn run(a: SceneArgs) -> Result<ExitCode> {
-    let scenario = super::load_scenario(a.scenario.as_deref())?;
+    let mut scenario = super::load_scenario(a.scenario.as_deref())?;
     if a.resolved {
+        scenario.plant = scenario.plant.resolved();
         print!("{}", scenario.to_toml_string()?);
         return Ok(ExitCode::SUCCESS);
     }

@@ -8,7 +8,7 @@
 use super::expect::expect;
 use super::suite::{fnv1a, Default as FieldDefault, Dist, Field, Kind, Suite, Val, FIELDS};
 use crate::planning::footholds::GaitParams;
-use crate::scenario::{BoxSpec, ExpectSpec, Handrails, ObjectSpec, Risers, Scenario};
+use crate::scenario::{BoxSpec, ExpectSpec, Handrails, ObjectSpec, PlantErrors, PlantPreset, Risers, Scenario};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::collections::BTreeMap;
@@ -277,6 +277,15 @@ fn build(
     s.robot.yaw_deg = st.yaw_deg + num(v, "heading_deg");
     s.lidar.noise_sigma_m = num(v, "noise_mm") / 1000.0;
     s.lidar.dropout_probability = num(v, "dropout");
+    if v.get("plant") == Some(&Val::Text("hrp4-like".into())) {
+        s.plant.preset = PlantPreset::Hrp4Like;
+    }
+    for (name, _) in PlantErrors::NOMINAL.fields() {
+        let x = num(v, name);
+        if x.is_finite() {
+            s.plant.set(name, x);
+        }
+    }
 
     let origin = s.staircase.start_m;
     let at = move |a: f64, l: f64| [origin[0] + u[0] * a + w[0] * l, origin[1] + u[1] * a + w[1] * l];

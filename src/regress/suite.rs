@@ -152,7 +152,20 @@ pub const FIELDS: &[Field] = &[
     Field { key: "object_kind", kind: Kind::Word(OBJECT_KINDS), doc: "what an object is (its size): shoe, parcel, bag, person", default: Default::Word("parcel") },
     Field { key: "object_place", kind: Kind::Word(OBJECT_PLACES), doc: "where across the tread an object stands: in a foot's lane, at the tread's side, anywhere", default: Default::Word("anywhere") },
     Field { key: "object_step", kind: Kind::Int { lo: 0, hi: 200 }, doc: "the step an object stands on (1 = lowest; 0: any, drawn)", default: Default::Num(0.0) },
+    Field { key: "plant", kind: Kind::Word(PLANT_PRESETS), doc: "the simulated body's preset ([plant] preset): nominal (the model exactly) or hrp4-like", default: Default::Word("nominal") },
+    Field { key: "mass_error", kind: Kind::Float { lo: 0.0, hi: 0.5 }, doc: "[plant] each link's mass off by up to this fraction (unset: the preset's)", default: Default::Num(f64::NAN) },
+    Field { key: "com_error_m", kind: Kind::Float { lo: 0.0, hi: 0.05 }, doc: "[plant] each link's CoM off by up to this along each axis, m (unset: the preset's)", default: Default::Num(f64::NAN) },
+    Field { key: "inertia_error", kind: Kind::Float { lo: 0.0, hi: 0.5 }, doc: "[plant] each link's inertia off by up to this fraction (unset: the preset's)", default: Default::Num(f64::NAN) },
+    Field { key: "joint_friction_nm", kind: Kind::Float { lo: 0.0, hi: 50.0 }, doc: "[plant] dry friction of every joint, N m (unset: the preset's)", default: Default::Num(f64::NAN) },
+    Field { key: "backlash_rad", kind: Kind::Float { lo: 0.0, hi: 0.05 }, doc: "[plant] play of every joint's drive, rad (unset: the preset's)", default: Default::Num(f64::NAN) },
+    Field { key: "latency_s", kind: Kind::Float { lo: 0.0, hi: 0.05 }, doc: "[plant] delay from sensing to actuation, s (unset: the preset's)", default: Default::Num(f64::NAN) },
+    Field { key: "ankle_stiffness_nm_per_rad", kind: Kind::Float { lo: 0.0, hi: 1.0e6 }, doc: "[plant] stiffness of the bush under each ankle, N m/rad; 0 rigid (unset: the preset's)", default: Default::Num(f64::NAN) },
+    Field { key: "ankle_damping_nms_per_rad", kind: Kind::Float { lo: 0.0, hi: 1.0e4 }, doc: "[plant] damping of that bush, N m s/rad (unset: the preset's)", default: Default::Num(f64::NAN) },
+    Field { key: "servo_gain_error", kind: Kind::Float { lo: 0.0, hi: 0.5 }, doc: "[plant] each servo's gains off by up to this fraction (unset: the preset's)", default: Default::Num(f64::NAN) },
 ];
+
+/// The `[plant]` presets a suite can draw.
+pub const PLANT_PRESETS: &[&str] = &["nominal", "hrp4-like"];
 
 /// Kinds of risers.
 pub const RISERS: &[&str] = &["closed", "open"];

@@ -5,10 +5,14 @@
 //! sensors the real robot has: a 6-axis force/torque sensor at each ankle (at the origin of
 //! the link carrying the sole) and an IMU (accelerometer, gyro) at the waist (the root link's
 //! origin). Sites and sensors have no mass and no geometry: they change nothing in the physics.
+//!
+//! A [`BodyVariation`] makes the simulated body differ from the model on purpose (masses,
+//! centres of mass, inertias, joint friction, servo gains, a compliant bush under each
+//! ankle); the nominal variation writes the model exactly.
 
 use super::model::{RobotError, RobotModel, Shape, Q_JOINTS};
 use crate::scene::mjcf::{RobotFragment, ROBOT_GEOM_GROUP};
-use nalgebra::{Isometry3, UnitQuaternion};
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use std::fmt::Write;
 
 /// Servo position gain per newton-metre of torque limit, N m/rad per N m: the servo reaches
@@ -34,6 +38,57 @@ pub fn ft_site(sole: &str) -> String {
     format!("{sole}_FT")
 }
 
+/// Mass of the sole plate below an ankle bush, kg (taken from the ankle link's own mass, so
+/// the body weighs what it did; an estimate for a plate of this size).
+pub const SOLE_PLATE_MASS_KG: f64 = 0.2;
+
+/// How the simulated body differs from the model it is generated from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BodyVariation {
+    /// Each link's mass over the model's (by link index).
+    pub mass_scale: Vec<f64>,
+    /// Each link's centre of mass moved by this, in the link frame, metres.
+    pub com_offset_m: Vec<Vector3<f64>>,
+    /// Each link's inertia tensor over the model's.
+    pub inertia_scale: Vec<f64>,
+    /// Each servo's gains over the model's (by joint index).
+    pub gain_scale: Vec<f64>,
+    /// Dry friction of every joint, N m.
+    pub joint_friction_nm: f64,
+    /// A compliant bush between each sole-carrying link and its sole, if any.
+    pub ankle_bush: Option<AnkleBush>,
+}
+
+/// A rotational spring and damper about the sole's pitch and roll axes at the ankle link's
+/// origin: the sole plate (its geoms and frames) moves on it, unseen by the encoders.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AnkleBush {
+    /// N m/rad.
+    pub stiffness_nm_per_rad: f64,
+    /// N m s/rad.
+    pub damping_nms_per_rad: f64,
+}
+
+impl BodyVariation {
+    /// The model exactly.
+    pub fn nominal(model: &RobotModel) -> Self {
+        let n = model.links().len();
+        Self {
+            mass_scale: vec![1.0; n],
+            com_offset_m: vec![Vector3::zeros(); n],
+            inertia_scale: vec![1.0; n],
+            gain_scale: vec![1.0; model.joints().len()],
+            joint_friction_nm: 0.0,
+            ankle_bush: None,
+        }
+    }
+}
+
+/// Name of the bush joints under the link `link` (pitch, roll).
+pub fn bush_joints(link: &str) -> [String; 2] {
+    [format!("{link}_BUSH_P"), format!("{link}_BUSH_R")]
+}
+
 /// Name of the IMU site at the root link's origin; its sensors are `IMU_accel`, `IMU_gyro`.
 pub const IMU_SITE: &str = "IMU";
 
@@ -47,6 +102,18 @@ fn fmt_pose(p: &Isometry3<f64>) -> String {
 /// keyframe `initial` (load it with `mj_resetDataKeyframe`, or set qpos directly). The
 /// links carrying the frames `sole_frames` get the sole friction.
 pub fn fragment(model: &RobotModel, q: &[f64], sole_frames: &[&str]) -> Result<RobotFragment, RobotError> {
+    fragment_varied(model, q, sole_frames, &BodyVariation::nominal(model))
+}
+
+/// [`fragment`] of a body that differs from `model` by `var`. With an ankle bush, MuJoCo's
+/// qpos has the bush's two angles after each sole-carrying link's joint: read joints by
+/// address (the keyframe has them at 0).
+pub fn fragment_varied(
+    model: &RobotModel,
+    q: &[f64],
+    sole_frames: &[&str],
+    var: &BodyVariation,
+) -> Result<RobotFragment, RobotError> {
     let mut soles = vec![false; model.links().len()];
     for f in sole_frames {
         soles[model.frames()[model.frame_id(f)?].link] = true;
@@ -72,10 +139,12 @@ pub fn fragment(model: &RobotModel, q: &[f64], sole_frames: &[&str]) -> Result<R
     }
     sensors += "  </sensor>\n";
     let mut body = String::new();
-    write_body(model, 0, &children, &soles, &sites, q, 2, &mut body);
+    let mut qpos = Vec::with_capacity(q.len() + 4);
+    let tree = Tree { model, children: &children, soles: &soles, sites: &sites, var };
+    tree.write_body(0, q, 2, &mut body, &mut qpos);
     let mut extras = String::from("  <actuator>\n");
-    for j in model.joints() {
-        let kp = KP_PER_EFFORT * j.effort_nm;
+    for (k, j) in model.joints().iter().enumerate() {
+        let kp = KP_PER_EFFORT * j.effort_nm * var.gain_scale[k];
         let _ = writeln!(
             extras,
             r#"    <position name="{n}" joint="{n}" kp="{kp:?}" kv="{kv:?}" forcerange="{lo:?} {hi:?}" ctrlrange="{cl:?} {ch:?}"/>"#,
@@ -89,7 +158,7 @@ pub fn fragment(model: &RobotModel, q: &[f64], sole_frames: &[&str]) -> Result<R
     }
     extras += "  </actuator>\n";
     extras += &sensors;
-    let qs: Vec<String> = q.iter().map(|x| format!("{x:?}")).collect();
+    let qs: Vec<String> = qpos.iter().map(|x| format!("{x:?}")).collect();
     let ctrl: Vec<String> = q[Q_JOINTS..].iter().map(|x| format!("{x:?}")).collect();
     let _ = write!(
         extras,
@@ -100,87 +169,125 @@ pub fn fragment(model: &RobotModel, q: &[f64], sole_frames: &[&str]) -> Result<R
     Ok(RobotFragment { body_xml: body.trim_end().to_string(), extras_xml: extras })
 }
 
-#[allow(clippy::too_many_arguments)]
-fn write_body(
-    model: &RobotModel,
-    i: usize,
-    children: &[Vec<usize>],
-    soles: &[bool],
-    sites: &[Vec<String>],
-    q: &[f64],
-    depth: usize,
-    out: &mut String,
-) {
-    let link = &model.links()[i];
-    let pad = "  ".repeat(depth);
-    let placement = if i == 0 {
-        Isometry3::from_parts(
-            nalgebra::Translation3::new(q[0], q[1], q[2]),
-            UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[3], q[4], q[5], q[6])),
-        )
-    } else {
-        link.placement
-    };
-    let _ = writeln!(out, r#"{pad}<body name="{}" {}>"#, link.name, fmt_pose(&placement));
-    match link.joint {
-        None => {
-            let _ = writeln!(out, r#"{pad}  <freejoint name="root"/>"#);
-        }
-        Some(j) => {
-            let jt = &model.joints()[j];
-            let a = link.axis;
-            let range = if jt.lower_rad.is_finite() {
-                format!(r#" range="{:?} {:?}""#, jt.lower_rad, jt.upper_rad)
-            } else {
-                String::new()
-            };
-            let _ = writeln!(
-                out,
-                r#"{pad}  <joint name="{}" type="hinge" axis="{:?} {:?} {:?}"{range} armature="{ARMATURE_KGM2:?}" damping="{JOINT_DAMPING:?}"/>"#,
-                jt.name, a.x, a.y, a.z
-            );
-        }
-    }
-    let c = link.com_m;
-    let m = &link.inertia;
-    let _ = writeln!(
-        out,
-        r#"{pad}  <inertial pos="{:?} {:?} {:?}" mass="{:?}" fullinertia="{:?} {:?} {:?} {:?} {:?} {:?}"/>"#,
-        c.x,
-        c.y,
-        c.z,
-        link.mass_kg,
-        m[(0, 0)],
-        m[(1, 1)],
-        m[(2, 2)],
-        m[(0, 1)],
-        m[(0, 2)],
-        m[(1, 2)]
-    );
-    for (k, col) in link.collisions.iter().enumerate() {
-        let (kind, size) = match col.shape {
-            Shape::Box(s) => ("box", format!("{:?} {:?} {:?}", s[0] / 2.0, s[1] / 2.0, s[2] / 2.0)),
-            Shape::Cylinder { radius_m, length_m } => {
-                ("capsule", format!("{radius_m:?} {:?}", length_m / 2.0))
-            }
-            Shape::Sphere(r) => ("sphere", format!("{r:?}")),
+/// The model's tree and what the MJCF writer needs along it.
+struct Tree<'a> {
+    model: &'a RobotModel,
+    children: &'a [Vec<usize>],
+    soles: &'a [bool],
+    sites: &'a [Vec<String>],
+    var: &'a BodyVariation,
+}
+
+impl Tree<'_> {
+    /// Writes link `i`'s body (and its subtree) at indentation `depth`, and its joints'
+    /// keyframe values (from `q`, the bush's at 0) in MuJoCo's qpos order into `qpos`.
+    fn write_body(&self, i: usize, q: &[f64], depth: usize, out: &mut String, qpos: &mut Vec<f64>) {
+        let (model, var) = (self.model, self.var);
+        let link = &model.links()[i];
+        let pad = "  ".repeat(depth);
+        let placement = if i == 0 {
+            Isometry3::from_parts(
+                nalgebra::Translation3::new(q[0], q[1], q[2]),
+                UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[3], q[4], q[5], q[6])),
+            )
+        } else {
+            link.placement
         };
-        let friction = if soles[i] { SOLE_FRICTION } else { BODY_FRICTION };
+        let _ = writeln!(out, r#"{pad}<body name="{}" {}>"#, link.name, fmt_pose(&placement));
+        match link.joint {
+            None => {
+                let _ = writeln!(out, r#"{pad}  <freejoint name="root"/>"#);
+                qpos.extend_from_slice(&q[..Q_JOINTS]);
+            }
+            Some(j) => {
+                let jt = &model.joints()[j];
+                let a = link.axis;
+                let range = if jt.lower_rad.is_finite() {
+                    format!(r#" range="{:?} {:?}""#, jt.lower_rad, jt.upper_rad)
+                } else {
+                    String::new()
+                };
+                let friction = match var.joint_friction_nm > 0.0 {
+                    true => format!(r#" frictionloss="{:?}""#, var.joint_friction_nm),
+                    false => String::new(),
+                };
+                let _ = writeln!(
+                    out,
+                    r#"{pad}  <joint name="{}" type="hinge" axis="{:?} {:?} {:?}"{range} armature="{ARMATURE_KGM2:?}" damping="{JOINT_DAMPING:?}"{friction}/>"#,
+                    jt.name, a.x, a.y, a.z
+                );
+                qpos.push(q[Q_JOINTS + j]);
+            }
+        }
+        let bush = var.ankle_bush.filter(|_| self.soles[i]);
+        let plate_kg = if bush.is_some() { SOLE_PLATE_MASS_KG.min(link.mass_kg / 2.0) } else { 0.0 };
+        let c = link.com_m + var.com_offset_m[i];
+        let m = link.inertia * var.inertia_scale[i];
         let _ = writeln!(
             out,
-            r#"{pad}  <geom name="{}_geom{k}" type="{kind}" size="{size}" {} group="{ROBOT_GEOM_GROUP}" contype="2" conaffinity="1" condim="3" friction="{friction:?} 0.005 0.0001" rgba="0.75 0.78 0.85 1"/>"#,
-            link.name,
-            fmt_pose(&col.placement)
+            r#"{pad}  <inertial pos="{:?} {:?} {:?}" mass="{:?}" fullinertia="{:?} {:?} {:?} {:?} {:?} {:?}"/>"#,
+            c.x,
+            c.y,
+            c.z,
+            link.mass_kg * var.mass_scale[i] - plate_kg,
+            m[(0, 0)],
+            m[(1, 1)],
+            m[(2, 2)],
+            m[(0, 1)],
+            m[(0, 2)],
+            m[(1, 2)]
         );
+        // The sole plate on its bush: the link's geoms and frames move with it.
+        let inner = match bush {
+            Some(b) => {
+                let [p, r] = bush_joints(&link.name);
+                let _ = writeln!(out, r#"{pad}  <body name="{}_PLATE">"#, link.name);
+                for (name, axis) in [(p, "0 1 0"), (r, "1 0 0")] {
+                    let _ = writeln!(
+                        out,
+                        r#"{pad}    <joint name="{name}" type="hinge" axis="{axis}" stiffness="{:?}" damping="{:?}" armature="{ARMATURE_KGM2:?}"/>"#,
+                        b.stiffness_nm_per_rad, b.damping_nms_per_rad
+                    );
+                    qpos.push(0.0);
+                }
+                let _ = writeln!(
+                    out,
+                    r#"{pad}    <inertial pos="{:?} {:?} {:?}" mass="{plate_kg:?}" diaginertia="1e-4 1e-4 1e-4"/>"#,
+                    c.x, c.y, c.z
+                );
+                format!("{pad}  ")
+            }
+            None => pad.clone(),
+        };
+        for (k, col) in link.collisions.iter().enumerate() {
+            let (kind, size) = match col.shape {
+                Shape::Box(s) => ("box", format!("{:?} {:?} {:?}", s[0] / 2.0, s[1] / 2.0, s[2] / 2.0)),
+                Shape::Cylinder { radius_m, length_m } => {
+                    ("capsule", format!("{radius_m:?} {:?}", length_m / 2.0))
+                }
+                Shape::Sphere(r) => ("sphere", format!("{r:?}")),
+            };
+            let friction = if self.soles[i] { SOLE_FRICTION } else { BODY_FRICTION };
+            let _ = writeln!(
+                out,
+                r#"{inner}  <geom name="{}_geom{k}" type="{kind}" size="{size}" {} group="{ROBOT_GEOM_GROUP}" contype="2" conaffinity="1" condim="3" friction="{friction:?} 0.005 0.0001" rgba="0.75 0.78 0.85 1"/>"#,
+                link.name,
+                fmt_pose(&col.placement)
+            );
+        }
+        for f in model.frames().iter().filter(|f| f.link == i) {
+            let _ =
+                writeln!(out, r#"{inner}  <site name="{}" {} size="0.01"/>"#, f.name, fmt_pose(&f.placement));
+        }
+        if bush.is_some() {
+            let _ = writeln!(out, "{pad}  </body>");
+        }
+        for s in &self.sites[i] {
+            let _ = writeln!(out, r#"{pad}  <site name="{s}" size="0.005"/>"#);
+        }
+        for &c in &self.children[i] {
+            self.write_body(c, q, depth + 1, out, qpos);
+        }
+        let _ = writeln!(out, "{pad}</body>");
     }
-    for f in model.frames().iter().filter(|f| f.link == i) {
-        let _ = writeln!(out, r#"{pad}  <site name="{}" {} size="0.01"/>"#, f.name, fmt_pose(&f.placement));
-    }
-    for s in &sites[i] {
-        let _ = writeln!(out, r#"{pad}  <site name="{s}" size="0.005"/>"#);
-    }
-    for &c in &children[i] {
-        write_body(model, c, children, soles, sites, q, depth + 1, out);
-    }
-    let _ = writeln!(out, "{pad}</body>");
 }

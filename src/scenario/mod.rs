@@ -1,15 +1,17 @@
 //! Scenario files: the TOML that describes one bench case (staircase, clutter, room, lidar,
-//! robot start, seed), its defaults (the paper's Exp. 1) and its validation.
+//! robot start, the simulated body's errors, seed), its defaults (the paper's Exp. 1) and its validation.
 //!
 //! Units: metres and seconds; angles are in degrees in the file (the user's edge) and are
 //! converted with the `*_rad()` accessors. Unknown keys are rejected; every error names the
 //! field and, when the file has it, the line.
 
+mod plant;
 mod validate;
 
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
+pub use plant::{PlantErrors, PlantPreset, PlantSpec};
 pub use validate::{ScenarioError, ROBOT_HEADROOM_M, ROBOT_RADIUS_M};
 
 /// One bench case. Every field has a default; an empty file is the paper's Exp. 1 (§5).
@@ -34,6 +36,9 @@ pub struct Scenario {
     pub robot: RobotStart,
     /// The tilting lidar.
     pub lidar: LidarSpec,
+    /// How the simulated body differs from the robot's model (nothing, by default).
+    #[serde(skip_serializing_if = "PlantSpec::is_nominal_default")]
+    pub plant: PlantSpec,
     /// What the bench should do with this case, when known (`regress` writes it from the
     /// ground truth and the planner's declared limits; `run` reports its verdict against it).
     pub expect: Option<ExpectSpec>,
@@ -81,6 +86,7 @@ impl Default for Scenario {
             objects: Vec::new(),
             robot: RobotStart::default(),
             lidar: LidarSpec::default(),
+            plant: PlantSpec::default(),
             expect: None,
         }
     }

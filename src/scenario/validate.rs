@@ -295,6 +295,9 @@ impl Scenario {
                 format!("a sweep of {rows:.0} rows is too long (at most 100000)"),
             );
         }
+        for (field, reason) in self.plant.issues() {
+            check(&mut v, false, &field, reason);
+        }
         if v.is_empty() {
             self.world_issues(&mut v);
         }

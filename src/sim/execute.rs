@@ -15,7 +15,7 @@ use crate::estimate::Odometry;
 use crate::planning::gait::Swing;
 use crate::planning::Plan;
 use crate::robot::hrp4;
-use crate::robot::model::{base_pose, RobotModel, Q_JOINTS, V_JOINTS};
+use crate::robot::model::{base_pose, RobotModel, Q_JOINTS};
 use crate::scene::Scene;
 use nalgebra::Isometry3;
 use std::cell::RefCell;
@@ -26,6 +26,8 @@ struct Servos {
     kv: Vec<f64>,
     integral: Vec<f64>,
     gain_per_s: f64,
+    /// The set points sent last.
+    set_points: Vec<f64>,
 }
 
 impl Servos {
@@ -37,32 +39,32 @@ impl Servos {
     /// from 114 / 270 N to 335 / 48 N in 5 ms, and the CoM left the right sole's polygon).
     fn new(world: &World, p: &ServoParams, q_ref0: &[f64]) -> Self {
         let (kp, kv) = world.servo_gains();
-        let held = world.data().ctrl();
+        let held = world.set_points();
         let integral = (0..kp.len())
             .map(|a| match p.integral_gain_per_s > 0.0 {
                 true => (held[a] - q_ref0[Q_JOINTS + a]) / p.integral_gain_per_s,
                 false => 0.0,
             })
             .collect();
-        Self { kp, kv, integral, gain_per_s: p.integral_gain_per_s }
+        let set_points = held.to_vec();
+        Self { kp, kv, integral, gain_per_s: p.integral_gain_per_s, set_points }
     }
 
     /// Sets the servos' set points toward the joint angles of `q_ref` (a configuration).
     fn command(&mut self, world: &mut World, q_ref: &[f64], dt_s: f64) {
-        let d = world.data_mut();
         for (a, i) in self.integral.iter_mut().enumerate() {
-            *i += (q_ref[Q_JOINTS + a] - d.qpos()[Q_JOINTS + a]) * dt_s;
+            *i += (q_ref[Q_JOINTS + a] - world.joint_q(a)) * dt_s;
         }
-        for (a, c) in d.ctrl_mut().iter_mut().enumerate().take(self.integral.len()) {
+        for (a, c) in self.set_points.iter_mut().enumerate() {
             *c = q_ref[Q_JOINTS + a] + self.gain_per_s * self.integral[a];
         }
+        world.send_set_points(&self.set_points);
     }
 
     /// Actuator `a`'s unclamped torque demand, N m (MuJoCo clamps its output at the force
-    /// range, so checking the output would prove nothing).
+    /// range, so checking the output would prove nothing), on the set point reaching it.
     fn demand_nm(&self, world: &World, a: usize) -> f64 {
-        let d = world.data();
-        self.kp[a] * (d.ctrl()[a] - d.qpos()[Q_JOINTS + a]) - self.kv[a] * d.qvel()[V_JOINTS + a]
+        self.kp[a] * (world.data().ctrl()[a] - world.joint_q(a)) - self.kv[a] * world.joint_qd(a)
     }
 }
 
@@ -103,11 +105,11 @@ pub fn execute_from(
     let base_z0 = world.data().qpos()[2];
     let traj = &plan.trajectory;
     let mut servos = Servos::new(world, servo, &traj.sample_at(0.0).q);
-    let soles = hrp4::sole_frames(model)?;
-    let body_of = |frame: usize| world.body_id(&model.links()[model.frames()[frame].link].name);
+    // The feet are the bodies carrying the sole frames (the sole plates, on a bushed body).
+    let sole_sites = [world.site_id(hrp4::R_SOLE)?, world.site_id(hrp4::L_SOLE)?];
     let ids = Ids {
-        feet_bodies: [body_of(soles[0])?, body_of(soles[1])?],
-        sole_sites: [world.site_id(hrp4::R_SOLE)?, world.site_id(hrp4::L_SOLE)?],
+        feet_bodies: sole_sites.map(|s| world.model().site_bodyid()[s] as usize),
+        sole_sites,
         root_body: world.body_id(&model.root().name)?,
     };
     let mut mon = Monitor::new(world, ids, scene, hrp4::sole_half_m(model)?, p, &params.plan.step);
@@ -163,7 +165,7 @@ pub fn execute_from(
             break;
         }
         servos.command(world, &q, dt);
-        world.data_mut().step();
+        world.step();
         let now = world.data().time() - t_start;
         if mon.warnings(world, now).is_some() {
             break;
@@ -196,14 +198,9 @@ pub fn execute_from(
             !now_due
         });
         let margin_m = mon.margin(world, now, &loads, down, &soles);
-        let max_torque_ratio =
-            mon.joints(joints, |a| servos.demand_nm(world, a), |a| world.data().qvel()[V_JOINTS + a], now);
-        let state = RobotState {
-            q: &world.data().qpos()[..model.nq()],
-            foot_forces_n: loads.force,
-            margin_m,
-            max_torque_ratio,
-        };
+        let max_torque_ratio = mon.joints(joints, |a| servos.demand_nm(world, a), |a| world.joint_qd(a), now);
+        let q_now = world.configuration();
+        let state = RobotState { q: &q_now, foot_forces_n: loads.force, margin_m, max_torque_ratio };
         observer.event(&Event::State { stamp_s: world.data().time(), state: &state });
         // The planned base carried into the world, where the fall is judged.
         let base = mon.plan_to_world * base_pose(&planned.q);
@@ -292,7 +289,7 @@ impl Control<'_> {
 pub fn settle(world: &mut World, seconds: f64) {
     let n = (seconds / world.model().opt().timestep).round() as usize;
     for _ in 0..n {
-        world.data_mut().step();
+        world.step();
     }
 }
 
@@ -313,7 +310,7 @@ pub fn settle_until_still(world: &mut World, speed_m_s: f64, still_s: f64, max_s
         } else if t_s - still_from_s + dt / 2.0 >= still_s {
             break;
         }
-        world.data_mut().step();
+        world.step();
         t_s += dt;
     }
     t_s
@@ -342,9 +339,7 @@ impl<'a> SimRobot<'a> {
         params: &SimParams,
     ) -> Result<Self, SimError> {
         let odometry = match params.estimate.enabled {
-            true => {
-                Some(Odometry::new(model, &world.borrow().data().qpos()[..model.nq()], &params.estimate)?)
-            }
+            true => Some(Odometry::new(model, &world.borrow().configuration(), &params.estimate)?),
             false => None,
         };
         Ok(Self { world, model, scene, params: params.clone(), odometry })
@@ -359,7 +354,7 @@ impl Executor for SimRobot<'_> {
     }
 
     fn configuration(&self) -> Vec<f64> {
-        let truth = self.world.borrow().data().qpos()[..self.model.nq()].to_vec();
+        let truth = self.world.borrow().configuration().to_vec();
         match &self.odometry {
             // The encoders read the joints; the base is the odometry's, whose kinematics cannot
             // fail on the joints of the model's own world (never the truth in its place).
@@ -379,7 +374,7 @@ impl Executor for SimRobot<'_> {
     }
 
     fn true_configuration(&self) -> Option<Vec<f64>> {
-        self.odometry.as_ref().map(|_| self.world.borrow().data().qpos()[..self.model.nq()].to_vec())
+        self.odometry.as_ref().map(|_| self.world.borrow().configuration().to_vec())
     }
 
     /// At least `seconds`, then on until the base is still ([`RunParams::still_speed_m_s`],
@@ -406,9 +401,9 @@ impl Executor for SimRobot<'_> {
             return execute(&mut world, self.model, self.scene, plan, &self.params, observer, cancel);
         };
         // The plan's frame in the world: the true base against the estimated one, now.
-        let truth = &world.data().qpos()[..self.model.nq()];
+        let truth = world.configuration().to_vec();
         let estimate = odo.configuration(&truth[Q_JOINTS..])?;
-        let plan_to_world = base_pose(truth) * base_pose(&estimate).inverse();
+        let plan_to_world = base_pose(&truth) * base_pose(&estimate).inverse();
         // The odometry follows every physics step: the encoders and the feet's loads.
         let mut lost = None;
         let mut odometry = Watch(|e: &Event| {

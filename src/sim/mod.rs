@@ -1,13 +1,15 @@
 //! The MuJoCo side of the bench: the compiled world and what is asked of it (ray casts,
 //! frames), the simulated lidar as a sensor [`Source`](crate::sensor::Source), the simulated
-//! HRP-4 with its checks as the loop's [`Executor`](crate::climb::Executor), and the two
-//! together on a scenario ([`climb_scenario`], [`scan_scenario`]).
+//! HRP-4 with its checks as the loop's [`Executor`](crate::climb::Executor) in the body of
+//! the scenario's `[plant]` ([`plant`]), and the two together on a scenario
+//! ([`climb_scenario`], [`scan_scenario`]).
 
 pub mod checks;
 pub mod emulator;
 pub mod execute;
 pub mod lidar;
 pub mod params;
+pub mod plant;
 pub mod sensors;
 pub mod world;
 
@@ -21,6 +23,7 @@ use crate::climb::{self, Bench, ClimbError, ClimbReport, LoopParams, Observer};
 use crate::scenario::Scenario;
 use crate::scene::Scene;
 use crate::sensor::{SensorError, Sweep};
+use plant::Plant;
 use std::cell::RefCell;
 
 /// Why a scenario's world could not be set up.
@@ -56,7 +59,7 @@ pub fn climb_scenario(
 ) -> Result<ClimbReport, SetupError> {
     let scene = Scene::from_scenario(scenario)?;
     let model = crate::robot::hrp4::model()?;
-    let world = RefCell::new(World::for_scene(&scene)?);
+    let world = RefCell::new(World::with_plant(&scene, &Plant::of_scenario(&model, scenario))?);
     let mut source = SimSource::new(&world, &scenario.lidar, scenario.seed)?;
     debug_assert!(p.plan == &sim.plan && p.run == &sim.run, "the loop and the robot under one plan");
     let mut robot = SimRobot::new(&world, &model, &scene, sim)?;

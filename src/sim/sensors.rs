@@ -7,7 +7,6 @@
 use super::world::{SimError, World};
 use crate::control::{ForceTorque, Imu, Measurement};
 use crate::robot::mjcf::{ft_site, IMU_SITE};
-use crate::robot::model::Q_JOINTS;
 use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -108,10 +107,7 @@ impl SimSensors {
         });
         let enc =
             Normal::new(0.0, p.encoder_noise_rad.max(0.0)).unwrap_or(Normal::new(0.0, 0.0).expect("sigma 0"));
-        let joints_rad = d.qpos()[Q_JOINTS..Q_JOINTS + self.joints]
-            .iter()
-            .map(|q| q + enc.sample(&mut self.rng))
-            .collect();
+        let joints_rad = (0..self.joints).map(|a| world.joint_q(a) + enc.sample(&mut self.rng)).collect();
         Measurement { ft, imu, joints_rad }
     }
 }

@@ -1,6 +1,10 @@
 //! A compiled MuJoCo world (model + data) built from a [`Scene`] and a robot fragment, with
-//! thread-safe ray casting for the simulated lidar (the world is a [`RayCaster`]).
+//! thread-safe ray casting for the simulated lidar (the world is a [`RayCaster`]), the robot's
+//! joints read by their MuJoCo addresses (a body with ankle bushes has more joints than its
+//! model), and the servos' set points sent through the body's [`Actuation`] at every step.
 
+use super::plant::{Plant, ServoLine};
+use crate::robot::model::{Q_JOINTS, V_JOINTS};
 use crate::robot::{self, hrp4};
 use crate::scene::mjcf::{world_xml, RobotFragment, ROBOT_GEOM_GROUP};
 use crate::scene::Scene;
@@ -8,6 +12,7 @@ use crate::sensor::{RayCaster, RayHit};
 use mujoco_rs::mujoco_c::{mjNGROUP, mj_ray};
 use mujoco_rs::prelude::{MjData, MjModel, MjtObjBase};
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use std::borrow::Cow;
 use std::sync::Arc;
 
 /// Why a world could not be built or queried.
@@ -47,6 +52,13 @@ pub struct World {
     data: MjData<Arc<MjModel>>,
     xml: String,
     lidar_groups: [u8; mjNGROUP as usize],
+    /// Each actuated joint's qpos and qvel address (the actuators are in the model's joint
+    /// order), and whether they are the model's own order after the free joint.
+    qpos_adr: Vec<usize>,
+    dof_adr: Vec<usize>,
+    model_order: bool,
+    /// The servos' delay and play, when the body has any.
+    line: Option<ServoLine>,
 }
 
 impl World {
@@ -61,8 +73,21 @@ impl World {
     /// the robot.
     pub fn for_scene(scene: &Scene) -> Result<Self, SimError> {
         let model = hrp4::model()?;
+        Self::with_plant(scene, &Plant::nominal(&model))
+    }
+
+    /// [`World::for_scene`] with the robot's body `plant` (drawn for the bench's model).
+    pub fn with_plant(scene: &Scene, plant: &Plant) -> Result<Self, SimError> {
+        let model = hrp4::model()?;
         let q = hrp4::half_sitting_at(&model, &scene.robot_start())?;
-        Self::new(scene, &robot::mjcf::fragment(&model, &q, &[hrp4::R_SOLE, hrp4::L_SOLE])?)
+        let soles = [hrp4::R_SOLE, hrp4::L_SOLE];
+        let mut world = Self::new(scene, &robot::mjcf::fragment_varied(&model, &q, &soles, &plant.body)?)?;
+        let a = &plant.actuation;
+        if a.latency_s > 0.0 || a.backlash_rad > 0.0 {
+            let dt = world.model.opt().timestep;
+            world.line = Some(ServoLine::new(a, dt, world.data.ctrl()));
+        }
+        Ok(world)
     }
 
     /// Compiles an MJCF text (geoms of group 2 are treated as the robot's).
@@ -77,7 +102,78 @@ impl World {
         data.forward();
         let mut lidar_groups = [1u8; mjNGROUP as usize];
         lidar_groups[ROBOT_GEOM_GROUP] = 0;
-        Ok(Self { model, data, xml, lidar_groups })
+        let joints: Vec<usize> = model.actuator_trnid().iter().map(|t| t[0] as usize).collect();
+        let qpos_adr: Vec<usize> = joints.iter().map(|&j| model.jnt_qposadr()[j] as usize).collect();
+        let dof_adr: Vec<usize> = joints.iter().map(|&j| model.jnt_dofadr()[j] as usize).collect();
+        let model_order = qpos_adr.iter().enumerate().all(|(a, &q)| q == Q_JOINTS + a)
+            && dof_adr.iter().enumerate().all(|(a, &v)| v == V_JOINTS + a);
+        Ok(Self { model, data, xml, lidar_groups, qpos_adr, dof_adr, model_order, line: None })
+    }
+
+    /// Actuated joint `a`'s angle, rad.
+    pub fn joint_q(&self, a: usize) -> f64 {
+        self.data.qpos()[self.qpos_adr[a]]
+    }
+
+    /// Actuated joint `a`'s speed, rad/s.
+    pub fn joint_qd(&self, a: usize) -> f64 {
+        self.data.qvel()[self.dof_adr[a]]
+    }
+
+    /// The robot's configuration in its model's layout: the free joint, then the actuated
+    /// joints in order (a bush's angles, which no encoder reads, left out).
+    pub fn configuration(&self) -> Cow<'_, [f64]> {
+        let n = Q_JOINTS + self.qpos_adr.len();
+        match self.model_order {
+            true => Cow::Borrowed(&self.data.qpos()[..n]),
+            false => {
+                let qpos = self.data.qpos();
+                let mut q = qpos[..Q_JOINTS].to_vec();
+                q.extend(self.qpos_adr.iter().map(|&i| qpos[i]));
+                Cow::Owned(q)
+            }
+        }
+    }
+
+    /// Puts the robot at configuration `q` (the model's layout; a bush at rest) and runs
+    /// forward kinematics.
+    pub fn set_configuration(&mut self, q: &[f64]) {
+        let adr = self.qpos_adr.clone();
+        let qpos = self.data.qpos_mut();
+        if !self.model_order {
+            qpos.iter_mut().skip(Q_JOINTS).for_each(|x| *x = 0.0);
+        }
+        qpos[..Q_JOINTS].copy_from_slice(&q[..Q_JOINTS]);
+        for (a, &i) in adr.iter().enumerate() {
+            qpos[i] = q[Q_JOINTS + a];
+        }
+        self.data.forward();
+    }
+
+    /// The servos' set points the controller sent last (those in force).
+    pub fn set_points(&self) -> &[f64] {
+        match &self.line {
+            Some(line) => line.sent(),
+            None => self.data.ctrl(),
+        }
+    }
+
+    /// The controller sends the servos' set points (they reach the servos through the body's
+    /// latency and play, if any).
+    pub fn send_set_points(&mut self, set_points: &[f64]) {
+        match &mut self.line {
+            Some(line) => line.send(set_points),
+            None => self.data.ctrl_mut().copy_from_slice(set_points),
+        }
+    }
+
+    /// One physics step, the set points due applied first.
+    pub fn step(&mut self) {
+        if let Some(line) = &mut self.line {
+            let (qpos, adr) = (self.data.qpos().to_vec(), &self.qpos_adr);
+            line.apply(self.data.ctrl_mut(), |a| qpos[adr[a]]);
+        }
+        self.data.step();
     }
 
     /// The compiled model.

@@ -1,0 +1,117 @@
+//! A body unlike its model: the `[plant]` section, the simulated body it draws (masses,
+//! gains, compliant ankles the encoders do not see), and a climb in that body with the
+//! planner and the stabilizer on the nominal model.
+
+mod common;
+
+use stairbench::params::ClimbParams;
+use stairbench::robot::hrp4;
+use stairbench::robot::kinematics::Kinematics;
+use stairbench::scenario::{PlantErrors, PlantPreset, Scenario};
+use stairbench::scene::Scene;
+use stairbench::sim::plant::Plant;
+use stairbench::sim::World;
+
+fn hrp4_like(seed: u64) -> Scenario {
+    let mut s = Scenario { seed, ..Scenario::default() };
+    s.plant.preset = PlantPreset::Hrp4Like;
+    s
+}
+
+/// The world's total robot mass, kg (every body but the world's own, whose geoms are static).
+fn robot_mass_kg(world: &World, model: &stairbench::robot::RobotModel) -> f64 {
+    let root = world.body_id(&model.root().name).unwrap();
+    world.model().body_subtreemass()[root]
+}
+
+#[test]
+fn plant_fields_are_validated_with_their_line() {
+    let e =
+        Scenario::from_toml_str("seed = 1\n[plant]\npreset = \"hrp4-like\"\nmass_error = 0.7\n", "bad.toml")
+            .unwrap_err()
+            .to_string();
+    assert!(e.contains("plant.mass_error") && e.contains("bad.toml:4"), "{e}");
+    let e = Scenario::from_toml_str("[plant]\npreset = \"stiff\"\n", "bad.toml").unwrap_err().to_string();
+    assert!(e.contains("bad.toml:2") && e.contains("preset"), "{e}");
+    let s =
+        Scenario::from_toml_str("[plant]\npreset = \"hrp4-like\"\nlatency_s = 0.01\n", "ok.toml").unwrap();
+    assert_eq!(s.plant.errors().latency_s, 0.01);
+    assert_eq!(
+        s.plant.errors().ankle_stiffness_nm_per_rad,
+        PlantErrors::HRP4_LIKE.ankle_stiffness_nm_per_rad
+    );
+}
+
+/// The simulated body is not the model: its masses and gains are the draw's, while a
+/// nominal body is the model to the gram.
+#[test]
+fn the_simulated_body_differs_from_the_model_by_its_draw() {
+    let model = hrp4::model().unwrap();
+    let scene = Scene::from_scenario(&Scenario::default()).unwrap();
+    let model_kg: f64 = model.links().iter().map(|l| l.mass_kg).sum();
+    let nominal = World::for_scene(&scene).unwrap();
+    assert!((robot_mass_kg(&nominal, &model) - model_kg).abs() < 1e-9);
+    let plant = Plant::of_scenario(&model, &hrp4_like(5));
+    let world = World::with_plant(&scene, &plant).unwrap();
+    let ratio = robot_mass_kg(&world, &model) / model_kg;
+    assert!((ratio - plant.mass_ratio(&model)).abs() < 1e-9, "{ratio} against {}", plant.mass_ratio(&model));
+    assert!((ratio - 1.0).abs() > 1e-4, "the draw changed no mass: {ratio}");
+    let (kp0, _) = nominal.servo_gains();
+    let (kp, _) = world.servo_gains();
+    let off = kp.iter().zip(&kp0).map(|(a, b)| (a / b - 1.0).abs()).fold(0.0, f64::max);
+    assert!(off > 0.01 && off <= 0.1 + 1e-9, "servo gains off by {off}");
+    // The configuration in the model's layout has the model's joints only.
+    assert_eq!(world.configuration().len(), model.nq());
+}
+
+/// Standing, the soles of a body with ankle bushes are tilted from where the encoders put
+/// them (the bush deflects under the ankle torque, and no encoder reads it); a rigid body's
+/// soles are where its encoders say.
+#[test]
+fn a_bushed_sole_is_not_where_the_encoders_put_it() {
+    let model = hrp4::model().unwrap();
+    let scene = Scene::from_scenario(&Scenario::default()).unwrap();
+    let tilt_from_encoders = |world: &mut World| {
+        for _ in 0..1000 {
+            world.step();
+        }
+        let q = world.configuration().to_vec();
+        let mut k = Kinematics::new(&model);
+        k.update(&q).unwrap();
+        let frames = hrp4::sole_frames(&model).unwrap();
+        let sites = [hrp4::R_SOLE, hrp4::L_SOLE].map(|n| world.site_id(n).unwrap());
+        (0..2)
+            .map(|i| {
+                (k.frame_pose(frames[i]).rotation.inverse() * world.site_pose(sites[i]).rotation).angle()
+            })
+            .fold(0.0, f64::max)
+    };
+    let rigid = tilt_from_encoders(&mut World::for_scene(&scene).unwrap());
+    let errors = PlantErrors {
+        ankle_stiffness_nm_per_rad: 2000.0,
+        ankle_damping_nms_per_rad: 20.0,
+        ..PlantErrors::NOMINAL
+    };
+    let plant = Plant::draw(&model, &errors, 0);
+    let bushed = tilt_from_encoders(&mut World::with_plant(&scene, &plant).unwrap());
+    assert!(rigid < 1e-6, "a rigid sole {rigid} rad from its encoders' pose");
+    assert!(bushed > 1e-4, "a bushed sole only {bushed} rad from its encoders' pose");
+}
+
+/// Exp. 1 in a body like a real HRP-4's (the planner and the stabilizer on the nominal
+/// model): climbed with every check clean.
+#[test]
+fn exp1_is_climbed_in_an_hrp4_like_body() {
+    let scenario = hrp4_like(2);
+    let params = ClimbParams::default();
+    let report = stairbench::sim::climb_scenario(
+        &scenario,
+        params.loop_params(),
+        &params.sim(),
+        &mut stairbench::climb::Nobody,
+        &stairbench::cancel::Cancel::never(),
+    )
+    .unwrap();
+    assert!(report.success, "{:?}: {:?}", report.stop, report.first_violation());
+    assert_eq!(report.steps_climbed, 3);
+}
