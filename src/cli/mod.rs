@@ -192,3 +192,30 @@ pub fn hardware_sweep(
         Err(e) => Err(e.into()),
     }
 }
+
+/// The `[plant]` presets, at the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum PlantArg {
+    /// The model exactly.
+    Nominal,
+    /// A body like a real HRP-4 against its model.
+    Hrp4Like,
+}
+
+impl PlantArg {
+    /// The scenario's preset.
+    pub fn preset(self) -> stairbench::scenario::PlantPreset {
+        match self {
+            Self::Nominal => stairbench::scenario::PlantPreset::Nominal,
+            Self::Hrp4Like => stairbench::scenario::PlantPreset::Hrp4Like,
+        }
+    }
+
+    /// Its name in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Nominal => "nominal",
+            Self::Hrp4Like => "hrp4-like",
+        }
+    }
+}

@@ -69,6 +69,11 @@ pub struct RegressArgs {
     /// Climb parameters as TOML (as for `run --params`).
     #[arg(long)]
     params: Option<PathBuf>,
+    /// Every case in this simulated body (`nominal` or `hrp4-like`, as for `run --plant`):
+    /// sets each case's [plant] preset, the errors a case sets itself stay. Each draw's body
+    /// comes from its noise seed.
+    #[arg(long, value_name = "PRESET")]
+    plant: Option<super::PlantArg>,
     /// Generate and write the cases, print them, run nothing.
     #[arg(long)]
     list: bool,
@@ -120,7 +125,13 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
         None => ClimbParams::default(),
     };
     let robot = bench_robot(&params.plan.gait)?;
-    let all = generate::cases(&suite, &robot)?;
+    let mut all = generate::cases(&suite, &robot)?;
+    if let Some(p) = a.plant {
+        for c in &mut all {
+            c.scenario.plant.preset = p.preset();
+            c.values.insert("plant".into(), suite::Val::Text(p.name().into()));
+        }
+    }
     let shard = match &a.shard {
         Some(s) => Some(Shard::parse(s, "--shard")?),
         None => Shard::from_env(&|k| std::env::var(k).ok(), a.shards)?,

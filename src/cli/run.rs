@@ -9,7 +9,7 @@ use stairbench::climb::{ClimbReport, CycleReport, Each, Event, Observer, Watch};
 use stairbench::params::ClimbParams;
 use stairbench::record::viewer::{RerunLogger, Sink};
 use stairbench::regress::verdict::classify;
-use stairbench::scenario::{PlantPreset, Scenario};
+use stairbench::scenario::Scenario;
 use stairbench::sim::climb_scenario;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -43,7 +43,7 @@ pub struct RunArgs {
     /// compliant ankles; drawn from the scenario's seed), `nominal` for the model exactly.
     /// Sets the scenario's [plant] preset; the fields its file sets stay.
     #[arg(long, value_name = "PRESET")]
-    plant: Option<PlantArg>,
+    plant: Option<super::PlantArg>,
     /// Speed the planned motion up by this factor (CoM and foot speeds, shortest
     /// segment and swing piece, the IK's joint speed bound), to see how far from
     /// quasi-static the plan runs.
@@ -83,15 +83,6 @@ pub struct RunArgs {
     trajectory: PathBuf,
 }
 
-/// The `[plant]` presets, at the command line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum PlantArg {
-    /// The model exactly.
-    Nominal,
-    /// A body like a real HRP-4 against its model.
-    Hrp4Like,
-}
-
 /// A switch's two positions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum OnOff {
@@ -107,10 +98,7 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
     let mut scenario = super::load_scenario(a.scenario.as_deref())?;
     a.noise.apply(&mut scenario);
     if let Some(p) = a.plant {
-        scenario.plant.preset = match p {
-            PlantArg::Nominal => PlantPreset::Nominal,
-            PlantArg::Hrp4Like => PlantPreset::Hrp4Like,
-        };
+        scenario.plant.preset = p.preset();
     }
     let mut params: ClimbParams = match &a.params {
         Some(p) => toml::from_str(

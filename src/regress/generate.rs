@@ -8,7 +8,9 @@
 use super::expect::expect;
 use super::suite::{fnv1a, Default as FieldDefault, Dist, Field, Kind, Suite, Val, FIELDS};
 use crate::planning::footholds::GaitParams;
-use crate::scenario::{BoxSpec, ExpectSpec, Handrails, ObjectSpec, PlantErrors, PlantPreset, Risers, Scenario};
+use crate::scenario::{
+    BoxSpec, ExpectSpec, Handrails, ObjectSpec, PlantErrors, PlantPreset, Risers, Scenario,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::collections::BTreeMap;
@@ -73,6 +75,14 @@ fn stream(seed: u64, index: usize, salt: u64) -> ChaCha8Rng {
     bytes.extend_from_slice(&(index as u64).to_le_bytes());
     bytes.extend_from_slice(&salt.to_le_bytes());
     ChaCha8Rng::seed_from_u64(fnv1a(&bytes))
+}
+
+/// The salt of a case's stream for the body's (`[plant]`) fields.
+const PLANT_SALT: u64 = 0x504c_414e_54;
+
+/// Whether a suite field sets the simulated body (`plant` and the `[plant]` errors).
+fn is_plant_field(key: &str) -> bool {
+    key == "plant" || PlantErrors::NOMINAL.fields().iter().any(|(name, _)| *name == key)
 }
 
 /// The lidar noise seed of noise draw `draw` of case `index` (below 2^63: a TOML integer).
@@ -180,12 +190,19 @@ fn one(suite: &Suite, robot: &Robot, index: usize, plan: &Plan) -> Result<Case, 
     let Plan { name, fixed, by_hand, .. } = plan;
     let id = format!("{}-{index:04}", suite.name);
     let mut rng = stream(suite.seed, index, 0);
+    // The body's fields from their own stream: a suite that gains them keeps its staircases.
+    let mut plant_rng = stream(suite.seed, index, PLANT_SALT);
     let mut reason = String::new();
     for redraws in 0..MAX_TRIES {
         let mut values = BTreeMap::new();
         for f in FIELDS.iter().filter(|f| f.key != "blondel_m") {
             let dist = fixed.get(f.key).or_else(|| suite.draw.get(f.key));
-            values.insert(f.key.to_string(), draw(f, dist, &mut rng));
+            // A field with no default (the body's errors: the preset's) is absent unless set.
+            if dist.is_none() && matches!(f.default, FieldDefault::Num(x) if x.is_nan()) {
+                continue;
+            }
+            let rng = if is_plant_field(f.key) { &mut plant_rng } else { &mut rng };
+            values.insert(f.key.to_string(), draw(f, dist, rng));
         }
         // The step rule constrains the drawn cases; a grid or an explicit case sets its
         // rise and tread itself, and only its own `blondel_m` applies to it.
@@ -533,6 +550,26 @@ mod tests {
         assert_eq!(big.len(), 10);
         assert!(big.iter().all(|c| c.scenario.validate().is_ok()));
         assert!(big.iter().all(|c| c.id.starts_with("t-00")));
+    }
+
+    /// A suite that gains the body's fields keeps its staircases and clutter: the body is
+    /// drawn from a stream of its own.
+    #[test]
+    fn drawing_the_body_changes_no_staircase() {
+        let base = "seed = 5\ncases = 12\n[draw]\nsteps = { min = 3, max = 6 }\nboxes = { min = 0, max = 2 }\nbox_place = [\"beside\", \"ahead\"]\n";
+        let with =
+            format!("{base}plant = [\"nominal\", \"hrp4-like\"]\nlatency_s = {{ min = 0.0, max = 0.02 }}\n");
+        let a = cases(&parse(base, "a", "t").expect("valid"), &robot()).expect("drawn");
+        let b = cases(&parse(&with, "b", "t").expect("valid"), &robot()).expect("drawn");
+        let mut bodies = std::collections::BTreeSet::new();
+        for (a, b) in a.iter().zip(&b) {
+            assert_eq!(a.scenario.staircase, b.scenario.staircase);
+            assert_eq!(a.scenario.boxes, b.scenario.boxes);
+            assert!(a.scenario.plant.errors().is_nominal());
+            bodies.insert(format!("{:?}", b.scenario.plant.preset));
+            assert!((0.0..=0.02).contains(&b.scenario.plant.errors().latency_s));
+        }
+        assert_eq!(bodies.len(), 2, "both presets drawn: {bodies:?}");
     }
 
     #[test]
