@@ -937,3 +937,43 @@ fn the_plan_command_leaves_a_partly_seen_top_step_for_a_closer_look() {
         report["stances"].as_array().expect("stances").iter().filter_map(|s| s["step"].as_u64()).collect();
     assert_eq!(on.last(), Some(&3), "the steps below it climbed: {on:?}");
 }
+
+/// A tread perception did not find in one view (under noise) leaves two treads a double rise
+/// apart, as a missing step does: from the floor the climb starts on, the robot walks nearer
+/// to look again, never onto the flight; from a step, or within a stride of the flight, the
+/// refusal stands (regression `tread-missed-in-the-first-view`: refused for good from
+/// 0.95 m before).
+#[test]
+fn a_step_missing_from_one_view_is_looked_at_again_from_nearer_on_the_floor() {
+    use stairbench::climb::plan_next;
+    use stairbench::perception::step_map::NextInput;
+    use stairbench::planning::clearance::SeenPoints;
+    use stairbench::planning::RefusalKind;
+    use std::sync::Arc;
+    let model = hrp4::model().unwrap();
+    let p = PlanParams::default();
+    let view_from = |start_m: f64| {
+        let mut s = Scenario::default();
+        s.staircase.steps = 4;
+        s.staircase.start_m = [start_m, 0.0];
+        let scene = common::scene_of(&s);
+        let mut rects = rectangles::from_step_tops(scene.steps());
+        rects.remove(1);
+        (NextInput { ahead: rects, deferred: None }, start_q(&model, &scene.robot_start()))
+    };
+    let (next, q0) = view_from(1.6);
+    let floor = Arc::new(SeenPoints::new(floor_seen([0.0, 1.6], 0.0)));
+    let Ok((walk, why)) = plan_next(&model, &q0, &next, floor.clone(), 1, 0.0, &p) else {
+        panic!("refused from 1.6 m without a closer look")
+    };
+    assert_eq!(why.map(|r| r.kind), Some(RefusalKind::MissingStep));
+    assert!(walk.stances.iter().all(|s| s.step.is_none()), "a foot set on the flight");
+    // On a step (the climb's floor 17 cm below the feet): refused, nothing walked.
+    let from_step = plan_next(&model, &q0, &next, floor, 1, -0.17, &p);
+    assert_eq!(from_step.err().map(|r| r.kind), Some(RefusalKind::MissingStep));
+    // Within a stride of the first riser: nothing left to walk on the floor, refused.
+    let (near, q_near) = view_from(0.25);
+    let floor_near = Arc::new(SeenPoints::new(floor_seen([0.0, 0.25], 0.0)));
+    let at_riser = plan_next(&model, &q_near, &near, floor_near, 1, 0.0, &p);
+    assert_eq!(at_riser.err().map(|r| r.kind), Some(RefusalKind::MissingStep));
+}

@@ -319,7 +319,8 @@ pub fn run<E: Executor>(
 ///   a step: the walk's "floor" would be the tread under the feet, and its stances within
 ///   the lidar's blind reach need no returns under them (a walk from the top tread toward
 ///   a strip seen on a wall went past the tread's back edge: regression
-///   `wall-strip-taken-for-a-step`).
+///   `wall-strip-taken-for-a-step`). A missing step is looked at again by this walk only
+///   ([`RefusalKind::looked_at_again_from_the_floor`](crate::planning::RefusalKind::looked_at_again_from_the_floor)).
 ///
 /// On that floor, no stance walks toward a first riser out of the lidar's sight
 /// ([`riser_in_sight`]: its front not placed on the riser, no floor seen before it): set
@@ -357,10 +358,12 @@ pub fn plan_next(
         Ok(plan) => return Ok((plan, None)),
         Err(e) => e.refusal(),
     };
-    if !refusal.kind.about_the_view() {
+    let again_from_the_floor = on_start_floor && refusal.kind.looked_at_again_from_the_floor();
+    if !refusal.kind.about_the_view() && !again_from_the_floor {
         return Err(Box::new(refusal));
     }
-    if let Some(below) = refusal.step.and_then(|s| s.checked_sub(1)).filter(|&b| b > 0) {
+    let below = refusal.step.and_then(|s| s.checked_sub(1)).filter(|&b| b > 0);
+    if let Some(below) = below.filter(|_| refusal.kind.about_the_view()) {
         if let Ok(plan) = plan_below(model, q, &steps, below, surfaces.clone(), Some(stances), p) {
             if plan.stances.first().is_some_and(|s| s.step.is_some()) {
                 return Ok((plan, Some(refusal)));

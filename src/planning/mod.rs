@@ -349,6 +349,16 @@ impl RefusalKind {
             K::NotStraight | K::ShortTread | K::Gap | K::OffTheSide | K::Stride | K::RiserOutOfSight
         )
     }
+
+    /// Whether the loop, on the floor the climb starts from, looks again from nearer before
+    /// this refusal stands: the refusals [about the view](Self::about_the_view), and a
+    /// missing step. A rise is measured whole from any view, but a missing step is a rise
+    /// between two treads seen with none between them, and a tread perception did not find
+    /// in one view (under noise) reads the same (regression `tread-missed-in-the-first-view`).
+    /// It never climbs toward a missing step: only the walk on the floor looks again.
+    pub fn looked_at_again_from_the_floor(self) -> bool {
+        self.about_the_view() || self == RefusalKind::MissingStep
+    }
 }
 
 /// A refusal as data, for reports and regression tables: its kind, where (1-based step,

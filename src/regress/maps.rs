@@ -23,12 +23,13 @@ fn colour(v: Verdict) -> RGBColor {
     }
 }
 
-/// A parameter's value as a number (booleans 0/1, a place by its index).
+/// A parameter's value as a number (booleans 0/1, a place by its index); none for a case
+/// that does not set it.
 fn value(r: &CaseResult, key: &str) -> Option<f64> {
     match r.params.get(key)? {
         super::suite::Val::Bool(b) => Some(f64::from(u8::from(*b))),
         super::suite::Val::Text(t) => super::suite::PLACES.iter().position(|p| p == t).map(|i| i as f64),
-        v => v.as_f64(),
+        v => v.as_f64().filter(|x| x.is_finite()),
     }
 }
 
