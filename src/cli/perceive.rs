@@ -99,7 +99,7 @@ pub fn run(a: PerceiveArgs) -> Result<ExitCode> {
     let run_once = || if voxels { perceive_voxels(cloud, &params) } else { perceive(cloud, &params) };
     let mut runs: Vec<_> = (0..a.repeat.max(1)).map(|_| run_once()).collect();
     runs.sort_by(|x, y| match (x, y) {
-        (Ok(x), Ok(y)) => x.timings.total.total_cmp(&y.timings.total),
+        (Ok(x), Ok(y)) => x.timings.total_ms.total_cmp(&y.timings.total_ms),
         _ => std::cmp::Ordering::Equal,
     });
     let result = runs.swap_remove(runs.len() / 2);
@@ -198,6 +198,6 @@ fn print_tables(r: &Perception, score: Option<&metrics::Score>) {
     let t = &r.timings;
     println!(
         "timings (ms): normals {:.2}, filter1 {:.2}, voxels+filter2 {:.2}, supervoxels {:.2}, clusters+filter3 {:.2}, ransac {:.2}, staircase {:.2}, total {:.2}",
-        t.normals, t.filter1, t.voxels, t.supervoxels, t.clusters, t.ransac, t.staircase, t.total
+        t.normals_ms, t.filter1_ms, t.voxels_ms, t.supervoxels_ms, t.clusters_ms, t.ransac_ms, t.staircase_ms, t.total_ms
     );
 }

@@ -419,25 +419,33 @@ impl PlaneSegment {
     }
 }
 
-/// Wall time of each phase, milliseconds.
+/// Wall time of each phase (its names in records and JSON without the unit).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct PhaseTimings {
     /// Normal estimation (with the measure of the sweep's range noise).
-    pub normals: f64,
+    #[serde(rename = "normals")]
+    pub normals_ms: f64,
     /// Filter 1 (slope).
-    pub filter1: f64,
+    #[serde(rename = "filter1")]
+    pub filter1_ms: f64,
     /// Voxel grid and Filter 2.
-    pub voxels: f64,
+    #[serde(rename = "voxels")]
+    pub voxels_ms: f64,
     /// Supervoxel clustering.
-    pub supervoxels: f64,
+    #[serde(rename = "supervoxels")]
+    pub supervoxels_ms: f64,
     /// Clustering of supervoxels and Filter 3.
-    pub clusters: f64,
+    #[serde(rename = "clusters")]
+    pub clusters_ms: f64,
     /// RANSAC planes.
-    pub ransac: f64,
+    #[serde(rename = "ransac")]
+    pub ransac_ms: f64,
     /// Staircase extraction and rectangles (their fronts on the risers included).
-    pub staircase: f64,
+    #[serde(rename = "staircase")]
+    pub staircase_ms: f64,
     /// Sum of the phases.
-    pub total: f64,
+    #[serde(rename = "total")]
+    pub total_ms: f64,
 }
 
 /// Sizes of the intermediate results.
@@ -537,18 +545,18 @@ pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, 
     counts.range_noise_mm = noise_m.map(|s| s * 1e3);
     counts.normal_neighbours = k;
     let normals = normals::estimate(cloud, k, p.neighbour_search);
-    timings.normals = ms(t);
+    timings.normals_ms = ms(t);
 
     let t = Instant::now();
     let kept = filter_slope(&normals, &cloud.gravity(), p.normal_distance_threshold);
-    timings.filter1 = ms(t);
+    timings.filter1_ms = ms(t);
     counts.after_filter1 = kept.len();
 
     let t = Instant::now();
     let all = voxel::voxelize(cloud.points(), &normals, &kept, p.voxel_resolution_m as f32, None);
     counts.voxels = all.len();
     let voxels = voxel::filter_sparse(&all, p.min_adjacent_voxels);
-    timings.voxels = ms(t);
+    timings.voxels_ms = ms(t);
     counts.after_filter2 = voxels.len();
     let mut found = from_voxels(voxels, cloud.viewpoint(), cloud.gravity(), p, timings, counts)?;
     let t = Instant::now();
@@ -561,8 +569,8 @@ pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, 
         &p.riser,
     );
     let riser_ms = ms(t);
-    found.timings.staircase += riser_ms;
-    found.timings.total += riser_ms;
+    found.timings.staircase_ms += riser_ms;
+    found.timings.total_ms += riser_ms;
     Ok(found)
 }
 
@@ -584,12 +592,12 @@ pub fn perceive_voxels(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perce
     }
     let t = Instant::now();
     let normals = normals::by_kdtree(cloud.points(), p.normal_neighbours, cloud.viewpoint().cast());
-    timings.normals = ms(t);
+    timings.normals_ms = ms(t);
     let t = Instant::now();
     let all: Vec<u32> = (0..cloud.len() as u32).collect();
     let up = -cloud.gravity().into_inner().cast::<f32>();
     let voxels = voxel::voxelize(cloud.points(), &normals, &all, p.voxel_resolution_m as f32, Some(up));
-    timings.voxels = ms(t);
+    timings.voxels_ms = ms(t);
     counts.voxels = voxels.len();
     counts.after_filter2 = voxels.len();
     from_voxels(voxels, cloud.viewpoint(), cloud.gravity(), p, timings, counts)
@@ -612,13 +620,13 @@ fn from_voxels(
     }
     let t = Instant::now();
     let sv = supervoxel::supervoxels(&voxels, p);
-    timings.supervoxels = ms(t);
+    timings.supervoxels_ms = ms(t);
     counts.supervoxels = sv.centres.len();
     counts.supervoxel_passes = sv.rounds;
 
     let t = Instant::now();
     let clusters = supervoxel::cluster(&voxels, &sv, p);
-    timings.clusters = ms(t);
+    timings.clusters_ms = ms(t);
     counts.clusters = clusters.before_filter;
     counts.after_filter3 = clusters.voxel_counts.len();
 
@@ -627,19 +635,19 @@ fn from_voxels(
         .filter(|&l| clusters.of_supervoxel[l as usize] != supervoxel::UNLABELLED)
         .collect();
     let planes = ransac::planes(&sv.centres, &candidates, &gravity, p);
-    timings.ransac = ms(t);
+    timings.ransac_ms = ms(t);
     counts.planes = planes.len();
 
     let t = Instant::now();
     let result = staircase::extract(&voxels, &sv, &clusters, &planes, &viewpoint, &gravity, p);
-    timings.staircase = ms(t);
-    timings.total = timings.normals
-        + timings.filter1
-        + timings.voxels
-        + timings.supervoxels
-        + timings.clusters
-        + timings.ransac
-        + timings.staircase;
+    timings.staircase_ms = ms(t);
+    timings.total_ms = timings.normals_ms
+        + timings.filter1_ms
+        + timings.voxels_ms
+        + timings.supervoxels_ms
+        + timings.clusters_ms
+        + timings.ransac_ms
+        + timings.staircase_ms;
     let (segments, n_segments, ground_m) = result?;
     counts.segments = n_segments;
     Ok(Perception {

@@ -39,7 +39,7 @@ fn median_run(cloud: &PointCloud, p: &PerceptionParams, repeat: usize) -> Result
     for _ in 0..repeat {
         runs.push(perceive(cloud, p)?);
     }
-    runs.sort_by(|a, b| a.timings.total.total_cmp(&b.timings.total));
+    runs.sort_by(|a, b| a.timings.total_ms.total_cmp(&b.timings.total_ms));
     Ok(runs.swap_remove(runs.len() / 2))
 }
 
@@ -108,9 +108,9 @@ pub fn run(repeat: usize, fig5_at: Option<(&Path, &str)>, pcl: Option<&Path>) ->
         ("scan-grid normals, 1 thread", &single),
         ("scan-grid normals, all cores (default)", &ours),
     ] {
-        out += &phase_row(name, r, &exp1.scene, base.timings.total, &paper);
+        out += &phase_row(name, r, &exp1.scene, base.timings.total_ms, &paper);
     }
-    match pcl_peer(exp1, pcl, repeat, base.timings.total, ours.timings.total)? {
+    match pcl_peer(exp1, pcl, repeat, base.timings.total_ms, ours.timings.total_ms)? {
         Some(row) => out += &row,
         None => out += &format!(
             "| PCL peer | - | - | - | - | - | - | - | not run: no binary at {PCL_DEFAULT} (build it with ../shared/peers/run_all.sh, or pass --pcl) | | | |\n"
@@ -152,7 +152,7 @@ pub fn run(repeat: usize, fig5_at: Option<(&Path, &str)>, pcl: Option<&Path>) ->
                 k,
                 first_area_percent: first.filter(|f| f.found).map_or(f64::NAN, |f| f.area_percent),
                 first_coverage_percent: first.filter(|f| f.found).map_or(f64::NAN, |f| f.coverage_percent),
-                total_ms: r.timings.total,
+                total_ms: r.timings.total_ms,
                 found: s.found,
             });
         }
@@ -199,9 +199,17 @@ fn ious(s: &metrics::Score) -> String {
 
 /// The phase times of one run as table cells: normals to staircase, then the total in bold.
 fn phase_cells(t: &PhaseTimings) -> String {
-    let phases = [t.normals, t.filter1, t.voxels, t.supervoxels, t.clusters, t.ransac, t.staircase];
+    let phases = [
+        t.normals_ms,
+        t.filter1_ms,
+        t.voxels_ms,
+        t.supervoxels_ms,
+        t.clusters_ms,
+        t.ransac_ms,
+        t.staircase_ms,
+    ];
     let cells: Vec<String> = phases.iter().map(|v| format!("{v:.1}")).collect();
-    format!("{} | **{:.1}**", cells.join(" | "), t.total)
+    format!("{} | **{:.1}**", cells.join(" | "), t.total_ms)
 }
 
 fn phase_row(name: &str, r: &Perception, scene: &Scene, base_ms: f64, p: &PerceptionParams) -> String {
@@ -209,7 +217,7 @@ fn phase_row(name: &str, r: &Perception, scene: &Scene, base_ms: f64, p: &Percep
     format!(
         "| {name} | {} | {:.2} | {}/{} | {} |\n",
         phase_cells(&r.timings),
-        base_ms / r.timings.total,
+        base_ms / r.timings.total_ms,
         s.found,
         s.steps.len(),
         ious(&s)
