@@ -151,61 +151,16 @@ pub fn run<E: Executor>(
         robot.settle(p.run.settle_s).map_err(failed)?;
         let mut q = robot.configuration();
         let start_floor_z_m = *start_floor.get_or_insert_with(|| feet_height_m(model, &q));
-        let t = Instant::now();
         let stamp_s = robot.now_s();
-        let mut sweep = match source.sweep(cancel, &mut |_, _| {}) {
-            Ok(s) => s,
-            Err(SensorError::Cancelled { .. }) => {
-                report.stop = Some(StopReason::StoppedByUser { cycle });
-                break;
-            }
-            Err(e) => {
-                report.stop = Some(StopReason::SensorFailed { cycle, error: e.to_string() });
-                break;
-            }
-        };
-        // The view is put together where the robot believes its head is (levelled by the
-        // gravity its rows measured).
-        match head_pose(model, &q) {
-            Some(head) => sweep.mount_to_world = head * sweep.lidar.mount_in_head,
-            None => {
-                report.stop = Some(StopReason::SensorFailed {
-                    cycle,
-                    error: "the robot's configuration gives no head pose".into(),
-                });
-                break;
-            }
-        }
         let estimate_error = robot.true_configuration().and_then(|truth| EstimateError::of(&q, &truth));
-        let mut cloud = match sweep.assemble(&AssembleParams::default()) {
-            Ok(c) => c,
-            Err(e) => {
-                report.stop = Some(StopReason::SensorFailed { cycle, error: e.to_string() });
-                break;
-            }
-        };
-        let scan_s = t.elapsed().as_secs_f64();
-        observer.event(&Event::Sweep { stamp_s, sweep: &sweep });
-        observer.event(&Event::Cloud { stamp_s, cloud: &cloud });
-        let t = Instant::now();
-        let perceived = perceive(&cloud, p.perception);
-        let perceive_s = t.elapsed().as_secs_f64();
-        let (seen, nothing) = match perceived {
-            Ok(r) => {
-                observer.event(&Event::Perception { stamp_s, result: &r });
-                (r.segments, None)
-            }
-            Err(e) => {
-                observer.event(&Event::PerceptionFailed { stamp_s, error: &e });
-                match e {
-                    PerceptionError::NoStaircase(why) => (Vec::new(), Some(why)),
-                    e => {
-                        report.stop = Some(StopReason::PerceptionFailed { cycle, error: e.to_string() });
-                        break;
-                    }
+        let View { mut sweep, mut cloud, seen, nothing, scan_s, perceive_s } =
+            match look(source, model, &q, cycle, stamp_s, p.perception, observer, cancel) {
+                Ok(view) => view,
+                Err(stop) => {
+                    report.stop = Some(stop);
+                    break;
                 }
-            }
-        };
+            };
         // A view under the estimate's drift is moved onto the known steps, and the estimate
         // with it (the robot's own; a robot that keeps none is not moved, nor is its view).
         let (mut correction_m, mut correction_yaw_rad) = (None, None);
@@ -278,18 +233,10 @@ pub fn run<E: Executor>(
             execution,
         };
         observer.event(&Event::Cycle { stamp_s: robot.now_s(), report: &c });
-        let (fell, unstable, cancelled) = (c.execution.fell, c.execution.unstable, c.execution.cancelled);
+        let stop = stop_after(&c.execution, cycle, cancel);
         report.cycles.push(c);
-        if fell {
-            report.stop = Some(StopReason::Fell { cycle });
-            break;
-        }
-        if let Some(warning) = unstable {
-            report.stop = Some(StopReason::SimulationUnstable { cycle, warning });
-            break;
-        }
-        if cancelled || cancel.is_cancelled() {
-            report.stop = Some(StopReason::StoppedByUser { cycle });
+        if stop.is_some() {
+            report.stop = stop;
             break;
         }
     }
@@ -304,6 +251,79 @@ pub fn run<E: Executor>(
         && report.steps_climbed == report.steps_total
         && report.cycles.iter().all(|c| c.pass);
     Ok(report)
+}
+
+/// One view from where the robot stands: its sweep, put together where the robot believes its
+/// head is (at configuration `q`, levelled by the gravity its rows measured), and what
+/// perception found in it.
+struct View {
+    sweep: crate::sensor::Sweep,
+    cloud: crate::cloud::PointCloud,
+    /// The steps found (none when perception found no staircase, and then why).
+    seen: Vec<PlaneSegment>,
+    nothing: Option<crate::perception::NoStaircase>,
+    scan_s: f64,
+    perceive_s: f64,
+}
+
+/// Sweeps `source` and perceives the view at configuration `q` (its events told to
+/// `observer`, stamped `stamp_s`); the cycle's stop when the sensor or perception fails.
+#[allow(clippy::too_many_arguments)]
+fn look(
+    source: &mut dyn Source,
+    model: &RobotModel,
+    q: &[f64],
+    cycle: usize,
+    stamp_s: f64,
+    perception: &PerceptionParams,
+    observer: &mut dyn Observer,
+    cancel: &Cancel,
+) -> Result<View, StopReason> {
+    let t = Instant::now();
+    let failed = |error: String| StopReason::SensorFailed { cycle, error };
+    let mut sweep = match source.sweep(cancel, &mut |_, _| {}) {
+        Ok(s) => s,
+        Err(SensorError::Cancelled { .. }) => return Err(StopReason::StoppedByUser { cycle }),
+        Err(e) => return Err(failed(e.to_string())),
+    };
+    let head =
+        head_pose(model, q).ok_or_else(|| failed("the robot's configuration gives no head pose".into()))?;
+    sweep.mount_to_world = head * sweep.lidar.mount_in_head;
+    let cloud = sweep.assemble(&AssembleParams::default()).map_err(|e| failed(e.to_string()))?;
+    let scan_s = t.elapsed().as_secs_f64();
+    observer.event(&Event::Sweep { stamp_s, sweep: &sweep });
+    observer.event(&Event::Cloud { stamp_s, cloud: &cloud });
+    let t = Instant::now();
+    let perceived = perceive(&cloud, perception);
+    let perceive_s = t.elapsed().as_secs_f64();
+    let (seen, nothing) = match perceived {
+        Ok(r) => {
+            observer.event(&Event::Perception { stamp_s, result: &r });
+            (r.segments, None)
+        }
+        Err(e) => {
+            observer.event(&Event::PerceptionFailed { stamp_s, error: &e });
+            match e {
+                PerceptionError::NoStaircase(why) => (Vec::new(), Some(why)),
+                e => return Err(StopReason::PerceptionFailed { cycle, error: e.to_string() }),
+            }
+        }
+    };
+    Ok(View { sweep, cloud, seen, nothing, scan_s, perceive_s })
+}
+
+/// Why the loop stops after a cycle's execution: a fall, a simulation gone unstable, or a
+/// cancellation.
+fn stop_after(ex: &Execution, cycle: usize, cancel: &Cancel) -> Option<StopReason> {
+    if ex.fell {
+        Some(StopReason::Fell { cycle })
+    } else if let Some(warning) = ex.unstable.clone() {
+        Some(StopReason::SimulationUnstable { cycle, warning })
+    } else if ex.cancelled || cancel.is_cancelled() {
+        Some(StopReason::StoppedByUser { cycle })
+    } else {
+        None
+    }
 }
 
 /// The loop's next plan from configuration `q`: the first `stances` stances of the climb

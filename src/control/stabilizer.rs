@@ -290,43 +290,8 @@ impl<'m> Stabilizer<'m> {
             }
         }
         // The wanted net wrench: quasi-static, with the CoM feedback.
-        let (now, _) = self.segment_at(t_s);
-        let tau_now = ((t_s - self.starts_s[now]) / self.segments[now].duration_s).clamp(0.0, 1.0);
-        let (com_ref, com_v) = com_target(&self.segments[now], tau_now);
-        let com_velocity = self.com_prev.map_or(Vector3::zeros(), |c| (com - c) / dt);
-        self.com_prev = Some(com);
-        let (_, v_next) = com_target(seg, tau);
-        let (com_v, v_next) = if hold { (Vector3::zeros(), Vector3::zeros()) } else { (com_v, v_next) };
-        let accel = (v_next - com_v) / dt;
-        let force = self.mass_kg
-            * (Vector3::new(0.0, 0.0, GRAVITY_M_S2)
-                + accel
-                + self.p.com_stiffness_per_s2 * (com_ref - com)
-                + self.p.com_damping_per_s * (com_v - com_velocity));
-        let wanted_net = Vector6::new(force.x, force.y, force.z, 0.0, 0.0, 0.0);
-        // Each support's share of the normal force from where the CoM is between the feet.
-        let share = |k: usize| -> f64 {
-            if supports.len() < 2 {
-                return 1.0;
-            }
-            let (a, b) = (supports[0].1.translation.vector.xy(), supports[1].1.translation.vector.xy());
-            let ab = b - a;
-            let s = ((com_ref.coords.xy() - a).dot(&ab) / ab.norm_squared().max(1e-9)).clamp(0.0, 1.0);
-            if k == 0 {
-                1.0 - s
-            } else {
-                s
-            }
-        };
-        let contacts: Vec<Support> = supports
-            .iter()
-            .enumerate()
-            .map(|(i, (f, pose))| {
-                let [hx, hy] = self.sole_half_m[f.index()];
-                let contact = Contact::new(*pose, hx, hy, self.friction).map_err(IkError::Setup)?;
-                Ok(Support { contact, share: share(i) })
-            })
-            .collect::<Result<_, IkError>>()?;
+        let (wanted_net, com_ref) = self.wanted_net(com, seg, tau, t_s, hold, dt);
+        let contacts = self.contacts(&supports, &com_ref)?;
         // No distribution (the CoM outside what the feet down can hold): the offsets only
         // leak back to the plan this tick, and the record says so.
         let mut wanted_by_foot = [None; 2];
@@ -362,6 +327,65 @@ impl<'m> Stabilizer<'m> {
             wall_s: started.elapsed().as_secs_f64(),
         };
         Ok(self.tracker.q())
+    }
+
+    /// The net wrench the feet should apply now (quasi-static, with the CoM's feedback) for
+    /// the CoM measured at `com`, the plan's next instant at `tau` of `seg`; and the CoM's
+    /// reference now.
+    fn wanted_net(
+        &mut self,
+        com: Point3<f64>,
+        seg: &Segment,
+        tau: f64,
+        t_s: f64,
+        hold: bool,
+        dt: f64,
+    ) -> (Vector6<f64>, Point3<f64>) {
+        let (now, _) = self.segment_at(t_s);
+        let tau_now = ((t_s - self.starts_s[now]) / self.segments[now].duration_s).clamp(0.0, 1.0);
+        let (com_ref, com_v) = com_target(&self.segments[now], tau_now);
+        let com_velocity = self.com_prev.map_or(Vector3::zeros(), |c| (com - c) / dt);
+        self.com_prev = Some(com);
+        let (_, v_next) = com_target(seg, tau);
+        let (com_v, v_next) = if hold { (Vector3::zeros(), Vector3::zeros()) } else { (com_v, v_next) };
+        let accel = (v_next - com_v) / dt;
+        let force = self.mass_kg
+            * (Vector3::new(0.0, 0.0, GRAVITY_M_S2)
+                + accel
+                + self.p.com_stiffness_per_s2 * (com_ref - com)
+                + self.p.com_damping_per_s * (com_v - com_velocity));
+        (Vector6::new(force.x, force.y, force.z, 0.0, 0.0, 0.0), com_ref)
+    }
+
+    /// The supports as contacts, each with its share of the normal force from where the CoM's
+    /// reference `com_ref` lies between the feet.
+    fn contacts(
+        &self,
+        supports: &[(Foot, Isometry3<f64>)],
+        com_ref: &Point3<f64>,
+    ) -> Result<Vec<Support>, IkError> {
+        let share = |k: usize| -> f64 {
+            if supports.len() < 2 {
+                return 1.0;
+            }
+            let (a, b) = (supports[0].1.translation.vector.xy(), supports[1].1.translation.vector.xy());
+            let ab = b - a;
+            let s = ((com_ref.coords.xy() - a).dot(&ab) / ab.norm_squared().max(1e-9)).clamp(0.0, 1.0);
+            if k == 0 {
+                1.0 - s
+            } else {
+                s
+            }
+        };
+        supports
+            .iter()
+            .enumerate()
+            .map(|(i, (f, pose))| {
+                let [hx, hy] = self.sole_half_m[f.index()];
+                let contact = Contact::new(*pose, hx, hy, self.friction).map_err(IkError::Setup)?;
+                Ok(Support { contact, share: share(i) })
+            })
+            .collect()
     }
 
     /// The admittance laws over the feet the plan has in contact.
