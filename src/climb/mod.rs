@@ -157,7 +157,7 @@ pub fn run<E: Executor>(
             match look(source, model, &q, cycle, stamp_s, p.perception, observer, cancel) {
                 Ok(view) => view,
                 Err(stop) => {
-                    report.stop = Some(stop);
+                    report.stop = Some(*stop);
                     break;
                 }
             };
@@ -278,12 +278,12 @@ fn look(
     perception: &PerceptionParams,
     observer: &mut dyn Observer,
     cancel: &Cancel,
-) -> Result<View, StopReason> {
+) -> Result<View, Box<StopReason>> {
     let t = Instant::now();
-    let failed = |error: String| StopReason::SensorFailed { cycle, error };
+    let failed = |error: String| Box::new(StopReason::SensorFailed { cycle, error });
     let mut sweep = match source.sweep(cancel, &mut |_, _| {}) {
         Ok(s) => s,
-        Err(SensorError::Cancelled { .. }) => return Err(StopReason::StoppedByUser { cycle }),
+        Err(SensorError::Cancelled { .. }) => return Err(Box::new(StopReason::StoppedByUser { cycle })),
         Err(e) => return Err(failed(e.to_string())),
     };
     let head =
@@ -305,7 +305,7 @@ fn look(
             observer.event(&Event::PerceptionFailed { stamp_s, error: &e });
             match e {
                 PerceptionError::NoStaircase(why) => (Vec::new(), Some(why)),
-                e => return Err(StopReason::PerceptionFailed { cycle, error: e.to_string() }),
+                e => return Err(Box::new(StopReason::PerceptionFailed { cycle, error: e.to_string() })),
             }
         }
     };
@@ -317,7 +317,7 @@ fn look(
 fn stop_after(ex: &Execution, cycle: usize, cancel: &Cancel) -> Option<StopReason> {
     if ex.fell {
         Some(StopReason::Fell { cycle })
-    } else if let Some(warning) = ex.unstable.clone() {
+    } else if let Some(warning) = ex.unstable {
         Some(StopReason::SimulationUnstable { cycle, warning })
     } else if ex.cancelled || cancel.is_cancelled() {
         Some(StopReason::StoppedByUser { cycle })

@@ -78,7 +78,7 @@ fn stream(seed: u64, index: usize, salt: u64) -> ChaCha8Rng {
 }
 
 /// The salt of a case's stream for the body's (`[plant]`) fields.
-const PLANT_SALT: u64 = 0x504c_414e_54;
+const PLANT_SALT: u64 = 0x0050_4c41_4e54;
 
 /// Whether a suite field sets the simulated body (`plant` and the `[plant]` errors).
 fn is_plant_field(key: &str) -> bool {
