@@ -6,19 +6,11 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use stairbench::climb::{add_view, feet_height_m, moved_view, plan_next};
 use stairbench::params::ClimbParams;
-use stairbench::perception::step_map::StepMap;
-use stairbench::perception::surroundings::Surroundings;
-use stairbench::perception::PerceptionError;
-use stairbench::perception::{perceive, PlaneSegment};
-use stairbench::planning::clearance::SeenPoints;
-use stairbench::record::messages::{PerceptionMsg, PlanMsg};
-use stairbench::record::replay::{read, RecordedSweep};
-use stairbench::sensor::AssembleParams;
+use stairbench::record::compare::{replay, PerceptionVerdict, PlanVerdict, SweepReplay};
+use stairbench::record::replay::read;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::Arc;
 
 /// Arguments of `stairbench replay`.
 #[derive(Debug, Args)]
@@ -32,27 +24,6 @@ pub struct ReplayArgs {
     /// --params or the recorded parameters).
     #[arg(long = "set", value_name = "PATH=VALUE")]
     set: Vec<String>,
-}
-
-/// Corners of the recorded segments, metres.
-fn recorded_corners(m: &PerceptionMsg) -> Vec<[[f64; 3]; 4]> {
-    m.segments.iter().map(corners_of).collect()
-}
-
-fn corners_of(s: &PlaneSegment) -> [[f64; 3]; 4] {
-    s.corners().map(|p| [p.x, p.y, p.z])
-}
-
-/// The largest corner distance between two lists of rectangles, metres (`None` when their
-/// counts differ).
-fn difference_m(a: &[[[f64; 3]; 4]], b: &[[[f64; 3]; 4]]) -> Option<f64> {
-    (a.len() == b.len()).then(|| {
-        a.iter()
-            .zip(b)
-            .flat_map(|(x, y)| x.iter().zip(y))
-            .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
-            .fold(0.0, f64::max)
-    })
 }
 
 /// The parameters to replay with: the file's `--params`, else the recorded ones, else the
@@ -101,143 +72,18 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
     let changed = a.params.is_some() || !a.set.is_empty();
     let params = parameters(&a, rec.attachments.get("params.toml").map(Vec::as_slice))?;
     let model = stairbench::robot::hrp4::model()?;
-    let mut map = StepMap::default();
-    let mut around = Surroundings::default();
-    // The floor the climb started from, as the loop took it: the feet at the first plan.
-    let start_floor_z_m = rec
-        .sweeps
-        .iter()
-        .find_map(|s| s.plan.as_ref())
-        .map_or(f64::NAN, |first| feet_height_m(&model, &first.q0));
-    let (mut differ, mut compared) = (0, 0);
-    for (i, RecordedSweep { stamp_s, sweep, perception, plan: planned, trajectory, .. }) in
-        rec.sweeps.iter().enumerate()
-    {
-        let mut cloud = sweep.assemble(&AssembleParams::default())?;
-        let now = perceive(&cloud, &params.perception);
-        let found: Vec<[[f64; 3]; 4]> =
-            now.as_ref().map(|r| r.segments.iter().map(corners_of).collect()).unwrap_or_default();
-        let then = perception.as_ref().map(recorded_corners);
-        let recorded_error = perception.as_ref().and_then(|m| m.error.as_deref());
-        compared += usize::from(then.is_some());
-        let verdict = match (&then, &now) {
-            (None, _) => "no recorded perception to compare".to_string(),
-            (Some(_), Err(e)) if recorded_error.is_some() => {
-                format!("same: no staircase, then and now ({e})")
-            }
-            (Some(t), Ok(_)) => match difference_m(t, &found) {
-                Some(0.0) => "same rectangles".to_string(),
-                Some(d) => {
-                    differ += 1;
-                    format!("DIFFERENT: corners move by up to {:.1} mm", d * 1e3)
-                }
-                None => {
-                    differ += 1;
-                    format!("DIFFERENT: {} rectangles, recorded {}", found.len(), t.len())
-                }
-            },
-            (Some(t), Err(e)) => {
-                differ += 1;
-                format!("DIFFERENT: {e} (recorded {} rectangles)", t.len())
-            }
-        };
-        println!(
-            "sweep {} at t = {stamp_s:.2} s: {} rows, {} points -> {} rectangles: {verdict}",
-            i + 1,
-            sweep.rows.len(),
-            cloud.len(),
-            found.len()
-        );
-        // The loop's next steps: the step map's next input, planned from the recorded pose.
-        let mut seen = match now {
-            Ok(r) => r.segments,
-            Err(PerceptionError::NoStaircase(_)) => Vec::new(),
-            Err(_) => continue,
-        };
-        // On the robot's own estimate the loop registered each view on the step map and moved
-        // it (the robot with it: the recorded plan starts there): so does the replay.
-        if let Some(offset) = params.estimate.enabled.then(|| map.register(&seen, &params.step_map)).flatten()
-        {
-            let (moved, moved_cloud) = moved_view(&offset, seen, &mut sweep.clone());
-            seen = moved;
-            if let Some(c) = moved_cloud {
-                cloud = c;
-            }
-        }
-        let Some(then) = planned else {
-            // No plan followed this sweep (the top, or a refusal): the view still enters the map.
-            map.update(seen, &params.step_map);
-            continue;
-        };
-        if then.q0.len() != model.nq() {
-            differ += 1;
-            println!("  plan: DIFFERENT: the recorded plan has no usable start configuration");
-            continue;
-        }
-        add_view(&mut around, &cloud, &model, &then.q0, &params.surroundings);
-        let surfaces = Arc::new(SeenPoints::new(around.points(&params.surroundings)));
-        let next = map.next_input(
-            seen,
-            feet_height_m(&model, &then.q0),
-            params.plan.gait.min_tread_m,
-            &params.step_map,
-        );
-        if let Some(top) = &next.deferred {
-            println!(
-                "  step map: the step at {:.3} m, seen {:.3} m deep, and any above it are left for a closer look",
-                top.height_m(),
-                top.depth_m()
-            );
-        }
-        let verdict =
-            // As many stances as were planned then (the loop plans a few per scan, a rehearsal
-            // all it sees).
-            match plan_next(
-                &model,
-                &then.q0,
-                &next,
-                surfaces,
-                then.stances.len(),
-                start_floor_z_m,
-                &params.plan,
-            ) {
-                Err(e) => {
-                    differ += 1;
-                    format!("DIFFERENT: refused now ({})", e.message)
-                }
-                Ok((p, closer_look)) => {
-                    if let Some(r) = closer_look {
-                        println!("  plan: a walk to look again (from here, {})", r.message);
-                    }
-                    let now = PlanMsg::of(then.start_s, &next.ahead, &p);
-                    let same_q = trajectory.as_ref().is_none_or(|t| {
-                        t.q.len() == p.trajectory.samples.len()
-                            && t.q.iter().zip(&p.trajectory.samples).all(|(a, b)| *a == b.q)
-                    });
-                    match now.differs_from(then) {
-                        None if !same_q => {
-                            differ += 1;
-                            "DIFFERENT q(t): the same footholds and segments, another joint trajectory"
-                                .to_string()
-                        }
-                        None => format!(
-                            "same plan: {} stances, {:.1} s of motion, q(t){}",
-                            p.stances.len(),
-                            p.duration_s(),
-                            if trajectory.is_some() { " equal" } else { " not recorded" }
-                        ),
-                        Some(k) => {
-                            differ += 1;
-                            format!(
-                                "DIFFERENT {k}: {:.1} s of motion now, {:.1} s recorded",
-                                now.duration_s, then.duration_s
-                            )
-                        }
-                    }
-                }
-            };
-        println!("  plan: {verdict}");
+    let replayed = replay(&rec, &params, &model)?;
+    for (i, r) in replayed.iter().enumerate() {
+        print_sweep(i + 1, r);
     }
+    let differ: usize = replayed
+        .iter()
+        .map(|r| {
+            usize::from(r.perception.differs())
+                + usize::from(r.plan.as_ref().is_some_and(PlanVerdict::differs))
+        })
+        .sum();
+    let compared = replayed.iter().filter(|r| r.perception != PerceptionVerdict::NotRecorded).count();
     if changed {
         println!("{differ} differences over {} sweeps with the changed parameters", rec.sweeps.len());
         return Ok(ExitCode::SUCCESS);
@@ -252,4 +98,48 @@ pub fn run(a: ReplayArgs) -> Result<ExitCode> {
     }
     println!("replay equals the recording");
     Ok(ExitCode::SUCCESS)
+}
+
+/// Prints sweep `n`'s replay.
+fn print_sweep(n: usize, r: &SweepReplay) {
+    let verdict = match &r.perception {
+        PerceptionVerdict::NotRecorded => "no recorded perception to compare".to_string(),
+        PerceptionVerdict::SameNoStaircase(e) => format!("same: no staircase, then and now ({e})"),
+        PerceptionVerdict::SameRectangles => "same rectangles".to_string(),
+        PerceptionVerdict::Moved(d) => format!("DIFFERENT: corners move by up to {:.1} mm", d * 1e3),
+        PerceptionVerdict::Count { now, then } => format!("DIFFERENT: {now} rectangles, recorded {then}"),
+        PerceptionVerdict::FailedNow { error, then } => {
+            format!("DIFFERENT: {error} (recorded {then} rectangles)")
+        }
+    };
+    println!(
+        "sweep {n} at t = {:.2} s: {} rows, {} points -> {} rectangles: {verdict}",
+        r.stamp_s, r.rows, r.points, r.rectangles
+    );
+    if let Some([height_m, depth_m]) = r.deferred {
+        println!(
+            "  step map: the step at {height_m:.3} m, seen {depth_m:.3} m deep, and any above it are left for a closer look"
+        );
+    }
+    if let Some(why) = &r.closer_look {
+        println!("  plan: a walk to look again (from here, {why})");
+    }
+    let Some(plan) = &r.plan else { return };
+    let verdict = match plan {
+        PlanVerdict::NoStartConfiguration => {
+            "DIFFERENT: the recorded plan has no usable start configuration".to_string()
+        }
+        PlanVerdict::RefusedNow(why) => format!("DIFFERENT: refused now ({why})"),
+        PlanVerdict::OtherTrajectory => {
+            "DIFFERENT q(t): the same footholds and segments, another joint trajectory".to_string()
+        }
+        PlanVerdict::Same { stances, duration_s, q_recorded } => format!(
+            "same plan: {stances} stances, {duration_s:.1} s of motion, q(t){}",
+            if *q_recorded { " equal" } else { " not recorded" }
+        ),
+        PlanVerdict::Different { what, now_s, then_s } => {
+            format!("DIFFERENT {what}: {now_s:.1} s of motion now, {then_s:.1} s recorded")
+        }
+    };
+    println!("  plan: {verdict}");
 }

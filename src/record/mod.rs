@@ -1,4 +1,5 @@
-//! Recording every stage to MCAP (JSON encoding), and reading it back ([`replay`]).
+//! Recording every stage to MCAP (JSON encoding), reading it back ([`replay`]), and replaying
+//! it through the loop's pieces against what was recorded ([`compare`]).
 //!
 //! Log times are the simulation's clock (the real robot's clock for hardware sources), in
 //! nanoseconds. Where one of Foxglove's well-known schemas fits, it is used, so the files open
@@ -29,6 +30,7 @@
 //! leaves every closed chunk readable; a clean stop (or a panic, which unwinds) writes the
 //! summary and index.
 
+pub mod compare;
 pub mod foxglove;
 pub mod messages;
 pub mod replay;
