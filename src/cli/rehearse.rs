@@ -6,21 +6,13 @@
 //! does that, from the trajectory.
 
 use anyhow::{Context, Result};
-use stairbench::cancel::Cancel;
-use stairbench::climb::{add_view, Event, Nobody, Observer};
+use stairbench::climb::{Event, Observer, Watch};
 use stairbench::params::ClimbParams;
 use stairbench::perception::perceive;
-use stairbench::perception::step_map::StepMap;
-use stairbench::perception::surroundings::Surroundings;
-use stairbench::planning::clearance::SeenPoints;
-use stairbench::planning::plan_below;
-use stairbench::scene::{PerceivedTop, Scene};
 use stairbench::sensor::AssembleParams;
-use stairbench::sim::execute::{execute, settle};
-use stairbench::sim::World;
+use stairbench::sim::rehearsal::rehearse;
 use std::path::Path;
 use std::process::ExitCode;
-use std::sync::Arc;
 
 /// The rehearsal; `record` and `trajectory` are written only when it passes.
 pub fn run(
@@ -80,38 +72,35 @@ pub fn run(
             c.y
         );
     }
-    // The world of what was perceived, the robot standing at the origin.
-    let tops: Vec<PerceivedTop> =
-        steps.iter().map(|s| PerceivedTop { corners: *s.corners(), height_m: s.height_m() }).collect();
-    let scene = Scene::rehearsal("hardware rehearsal", &tops, params.run.rehearsal_friction);
-    let model = stairbench::robot::hrp4::model()?;
-    let mut world = World::for_scene(&scene)?;
-    settle(&mut world, params.run.settle_s);
-    let q0 = world.configuration().to_vec();
-    // The plan's input as the loop (and replay) make it: the steps above the feet, a partly
-    // seen top step left out.
-    let next = StepMap::default().next_input(
-        steps.clone(),
-        stairbench::climb::feet_height_m(&model, &q0),
-        params.plan.gait.min_tread_m,
-        &params.step_map,
-    );
-    if let Some(top) = &next.deferred {
+    // The plan is printed as it is made, before the rehearsal runs it.
+    let on_plan = |e: &Event| {
+        if let Event::Plan { plan, .. } = e {
+            println!(
+                "planned {} stances, {:.1} s of motion; rehearsing it in MuJoCo on the perceived steps",
+                plan.stances.len(),
+                plan.duration_s()
+            );
+        }
+    };
+    let r = match rec.as_mut() {
+        Some(rec) => rehearse(
+            &steps,
+            &cloud,
+            params.loop_params(),
+            &params.sim(),
+            &mut Watch(|e: &Event| {
+                on_plan(e);
+                rec.event(e);
+            }),
+        )?,
+        None => rehearse(&steps, &cloud, params.loop_params(), &params.sim(), &mut Watch(on_plan))?,
+    };
+    if let Some([height_m, depth_m]) = r.deferred {
         println!(
-            "  the step at {:.3} m, seen {:.3} m deep, and any above it are left out: a closer look is needed before climbing them",
-            top.height_m(),
-            top.depth_m()
+            "  the step at {height_m:.3} m, seen {depth_m:.3} m deep, and any above it are left out: a closer look is needed before climbing them"
         );
     }
-    let steps = next.ahead.clone();
-    // The body kept off every surface the sensor saw (walls, clutter), as the loop does:
-    // the rehearsal's world holds the perceived steps only, the real one the rest too.
-    let mut around = Surroundings::default();
-    add_view(&mut around, &cloud, &model, &q0, &params.surroundings);
-    let surfaces = Arc::new(SeenPoints::new(around.points(&params.surroundings)));
-    // The step left for a closer look bounds the tread below it, as in the loop.
-    let bounded: Vec<_> = steps.iter().chain(next.deferred.as_ref()).cloned().collect();
-    let planned = match plan_below(&model, &q0, &bounded, steps.len(), surfaces, None, &params.plan) {
+    let planned = match &r.plan {
         Ok(p) => p,
         Err(e) => {
             discard(rec);
@@ -119,35 +108,22 @@ pub fn run(
             return Ok(ExitCode::from(1));
         }
     };
-    println!(
-        "planned {} stances, {:.1} s of motion; rehearsing it in MuJoCo on the perceived steps",
-        planned.stances.len(),
-        planned.duration_s()
-    );
-    let t0 = world.data().time();
-    if let Some(r) = rec.as_mut() {
-        r.event(&Event::Scene(&scene));
-        r.event(&Event::Plan { stamp_s: t0, steps: &steps, plan: &planned });
+    let model = stairbench::robot::hrp4::model()?;
+    if let Some((ex, climbed)) = &r.execution {
+        for v in &ex.violations {
+            println!("  t = {:.3} s  {}: {}", v.t_s, v.check.kind(), v.check);
+        }
+        println!(
+            "rehearsal: {} of {} steps, CoM margin {:.1} mm at least, torque {:.0} % of a limit ({}), friction ratio {:.2}",
+            climbed,
+            r.scene.steps().len(),
+            ex.min_margin_m * 1e3,
+            ex.max_torque_ratio * 100.0,
+            ex.torque_joint,
+            ex.max_friction_ratio
+        );
     }
-    let observer: &mut dyn Observer = match rec.as_mut() {
-        Some(r) => r,
-        None => &mut Nobody,
-    };
-    let ex = execute(&mut world, &model, &scene, &planned, &params.sim(), observer, &Cancel::never())?;
-    for v in &ex.violations {
-        println!("  t = {:.3} s  {}: {}", v.t_s, v.check.kind(), v.check);
-    }
-    let climbed = stairbench::climb::climbed(&scene, &model, &world.configuration());
-    println!(
-        "rehearsal: {} of {} steps, CoM margin {:.1} mm at least, torque {:.0} % of a limit ({}), friction ratio {:.2}",
-        climbed,
-        scene.steps().len(),
-        ex.min_margin_m * 1e3,
-        ex.max_torque_ratio * 100.0,
-        ex.torque_joint,
-        ex.max_friction_ratio
-    );
-    if !ex.pass() || climbed < scene.steps().len() {
+    if !r.passed() {
         discard(rec);
         println!("REHEARSAL FAILED: no trajectory written; the robot must not run this plan");
         return Ok(ExitCode::from(1));

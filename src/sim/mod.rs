@@ -2,7 +2,7 @@
 //! frames), the simulated lidar as a sensor [`Source`](crate::sensor::Source), the simulated
 //! HRP-4 with its checks as the loop's [`Executor`](crate::climb::Executor) in the body of
 //! the scenario's `[plant]` ([`plant`]), and the two together on a scenario
-//! ([`climb_scenario`], [`scan_scenario`]).
+//! ([`climb_scenario`], [`scan_scenario`]); a rehearsal on perceived steps ([`rehearsal`]).
 
 pub mod checks;
 pub mod emulator;
@@ -10,6 +10,7 @@ pub mod execute;
 pub mod lidar;
 pub mod params;
 pub mod plant;
+pub mod rehearsal;
 pub mod sensors;
 pub mod world;
 
