@@ -115,3 +115,25 @@ fn exp1_is_climbed_in_an_hrp4_like_body() {
     assert!(report.success, "{:?}: {:?}", report.stop, report.first_violation());
     assert_eq!(report.steps_climbed, 3);
 }
+
+/// `scene --resolved` writes the body's every error out, the preset's and the file's.
+#[test]
+fn scene_resolved_prints_every_plant_error() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("plant");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("body.toml");
+    std::fs::write(&file, "[plant]\npreset = \"hrp4-like\"\nlatency_s = 0.01\n").unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_stairbench"))
+        .args(["scene", file.to_str().unwrap(), "--resolved"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let back = Scenario::from_toml_str(&text, "resolved").unwrap();
+    let e = back.plant.errors();
+    assert_eq!(e.latency_s, 0.01);
+    assert_eq!(e.mass_error, PlantErrors::HRP4_LIKE.mass_error);
+    for (name, _) in PlantErrors::NOMINAL.fields() {
+        assert!(text.contains(&format!("{name} = ")), "{name} missing from:\n{text}");
+    }
+}
