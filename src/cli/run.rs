@@ -210,6 +210,7 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
     if let Some(path) = &a.json {
         let mut json = serde_json::to_value(&report)?;
         json["plant"] = serde_json::to_value(scenario.plant.errors())?;
+        json["s_per_stair"] = serde_json::to_value(report.seconds_per_stair())?;
         json["plant_preset"] = serde_json::to_value(scenario.plant.preset)?;
         if let Some((e, v)) = &verdict {
             json["verdict"] = serde_json::to_value(v)?;
@@ -299,6 +300,9 @@ fn print_summary(r: &ClimbReport) {
     );
     if let Some(why) = &r.stop {
         println!("stopped: {why}");
+    }
+    if let Some(s) = r.seconds_per_stair() {
+        println!("seconds per stair: {s:.1} s of motion per cycle that went up a step (the stand and the sweep before each not counted)");
     }
     if !r.cycles.is_empty() {
         println!(

@@ -127,6 +127,27 @@ impl ClimbReport {
         sim_s / self.stage_times().execute_s.max(1e-9)
     }
 
+    /// Simulated seconds of motion per stair: the mean execution time of the cycles that
+    /// went up onto a step (each plans one stance a scan by default), without the standing
+    /// still before each scan and the sweep; `None` when no cycle went up.
+    pub fn seconds_per_stair(&self) -> Option<f64> {
+        let mut below = Footing::Floor;
+        let ups: Vec<f64> = self
+            .cycles
+            .iter()
+            .filter_map(|c| {
+                let up = match (below, c.to) {
+                    (Footing::Floor, Footing::Step(_)) => true,
+                    (Footing::Step(a), Footing::Step(b)) => b > a,
+                    _ => false,
+                };
+                below = c.to;
+                up.then_some(c.execution.sim_s)
+            })
+            .collect();
+        (!ups.is_empty()).then(|| ups.iter().sum::<f64>() / ups.len() as f64)
+    }
+
     /// The longest a cycle waited for perception and planning, seconds.
     pub fn worst_think_s(&self) -> f64 {
         self.cycles.iter().map(|c| c.perceive_s + c.plan_s).fold(0.0, f64::max)

@@ -64,6 +64,10 @@ pub struct CaseResult {
     /// Largest error of its yaw, radians (absolute; `None` likewise).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_estimate_yaw_rad: Option<f64>,
+    /// Simulated seconds of motion per stair (the cycles that went up a step; `None` when
+    /// none did, or in results written before it was kept).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub s_per_stair: Option<f64>,
     /// Steps climbed.
     pub steps_climbed: usize,
     /// Steps of the flight.
@@ -100,6 +104,7 @@ impl CaseResult {
         self.max_friction_ratio = r.max_friction_ratio();
         self.max_estimate_error_m = r.max_estimate_error_m();
         self.max_estimate_yaw_rad = r.max_estimate_yaw_rad();
+        self.s_per_stair = r.seconds_per_stair();
         self.steps_climbed = r.steps_climbed;
         self.steps_total = r.steps_total;
         self.cycles = r.cycles.len();

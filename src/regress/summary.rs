@@ -147,6 +147,18 @@ pub fn text(
         pct(wall - scan - perceive - plan - execute),
         sum(|r| r.sim_s)
     );
+    let mut per_stair: Vec<f64> = results.iter().filter_map(|r| r.s_per_stair).collect();
+    if !per_stair.is_empty() {
+        per_stair.sort_by(f64::total_cmp);
+        let _ = writeln!(
+            t,
+            "seconds of motion per stair: median {:.1} s, {:.1} to {:.1} s over the {} runs that went up a step",
+            per_stair[per_stair.len() / 2],
+            per_stair[0],
+            per_stair[per_stair.len() - 1],
+            per_stair.len()
+        );
+    }
     if let Some(e) = elapsed_s.filter(|&e| e > 0.0) {
         let _ = writeln!(
             t,
