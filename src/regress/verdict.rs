@@ -175,6 +175,19 @@ mod tests {
         }
     }
 
+    /// Seconds per stair count the cycles that went up a step only: not the floor walk, not
+    /// a cycle that stayed on its step.
+    #[test]
+    fn seconds_per_stair_counts_the_cycles_that_went_up() {
+        use Footing::*;
+        let mut r = report(&[Floor, Step(1), Step(1), Step(2)], None, false);
+        for (c, s) in r.cycles.iter_mut().zip([10.0, 17.0, 5.0, 19.0]) {
+            c.execution.sim_s = s;
+        }
+        assert_eq!(r.seconds_per_stair(), Some(18.0));
+        assert_eq!(report(&[Floor, Floor], None, false).seconds_per_stair(), None);
+    }
+
     fn refused(cycle: usize) -> Option<StopReason> {
         Some(StopReason::Refused { cycle, refusal: PlanError::NoSteps.refusal() })
     }
