@@ -6,8 +6,8 @@ the runs that climbed (median / worst), and the estimate's largest error at a sw
 Usage:
   scripts/side-by-side.py ROW... [--write BENCHMARKS.md]
 
-Each ROW is LABEL=PATH: PATH is a `regress` results.jsonl, or a folder of `run --json` reports
-(*.json, one per run). With --write, the table replaces the section between
+Each ROW is LABEL=PATH[,PATH...]: a PATH is a `regress` results.jsonl, or a folder of `run
+--json` reports (*.json, one per run); a row counts the runs of all its paths. With --write, the table replaces the section between
 `<!-- side-by-side -->` and `<!-- /side-by-side -->` in that file, with the command that made
 it, as the bench's own `--write` does."""
 import glob
@@ -53,7 +53,7 @@ def table(args):
              "|---|---|---|---|---|---|---|"]
     for a in args:
         label, _, path = a.partition("=")
-        lines.append(row(label, runs(path)))
+        lines.append(row(label, [r for p in path.split(",") for r in runs(p)]))
     return "\n".join(lines)
 
 
