@@ -99,6 +99,8 @@ pub struct ServoLine {
     /// Physics steps of delay.
     delay_steps: usize,
     half_play_rad: f64,
+    /// The joints' angles before the step (read into it, not allocated each step).
+    q_rad: Vec<f64>,
 }
 
 impl ServoLine {
@@ -109,6 +111,7 @@ impl ServoLine {
             queue: std::iter::repeat_n(held.to_vec(), delay_steps + 1).collect(),
             delay_steps,
             half_play_rad: a.backlash_rad / 2.0,
+            q_rad: vec![0.0; held.len()],
         }
     }
 
@@ -124,19 +127,29 @@ impl ServoLine {
         }
     }
 
-    /// Before a physics step: the set points due reach the servos as `ctrl`, each moved
-    /// toward the joint's angle `q(a)` by half the play (within the play, no torque but
-    /// damping); then the line advances one step, the last set points held.
-    pub fn apply(&mut self, ctrl: &mut [f64], q: impl Fn(usize) -> f64) {
+    /// Reads the joints' angles before a step: joint `a` at `qpos[adr[a]]`.
+    pub fn read_joints(&mut self, qpos: &[f64], adr: &[usize]) {
+        for (q, &i) in self.q_rad.iter_mut().zip(adr) {
+            *q = qpos[i];
+        }
+    }
+
+    /// Before a physics step (after [`ServoLine::read_joints`]): the set points due reach
+    /// the servos as `ctrl`, each moved toward its joint's angle by half the play (within the
+    /// play, no torque but damping); then the line advances one step, the last set points
+    /// held.
+    pub fn apply(&mut self, ctrl: &mut [f64]) {
         let due = &self.queue[0];
         for (a, c) in ctrl.iter_mut().enumerate() {
-            let (qa, e) = (q(a), due[a] - q(a));
+            let (qa, e) = (self.q_rad[a], due[a] - self.q_rad[a]);
             *c = qa + e.signum() * (e.abs() - self.half_play_rad).max(0.0);
         }
         if self.delay_steps > 0 {
-            let last = self.sent().to_vec();
-            self.queue.pop_front();
+            let last = self.queue.pop_front().unwrap_or_default();
             self.queue.push_back(last);
+            let n = self.queue.len();
+            let (older, newest) = self.queue.make_contiguous().split_at_mut(n - 1);
+            newest[0].copy_from_slice(&older[n - 2]);
         }
     }
 }
@@ -153,14 +166,16 @@ mod tests {
         let mut seen = Vec::new();
         for k in 0..6 {
             line.send(&[if k == 0 { 0.1 } else { line.sent()[0] }]);
-            line.apply(&mut ctrl, |_| 0.0);
+            line.read_joints(&[0.0], &[0]);
+            line.apply(&mut ctrl);
             seen.push(ctrl[0]);
         }
         // Sent at step 0, due at step 3, less half the play.
         assert_eq!(seen[..3], [0.0, 0.0, 0.0]);
         assert!((seen[3] - 0.095).abs() < 1e-12, "{seen:?}");
         // Within the play of the joint's angle: no error reaches the servo.
-        line.apply(&mut ctrl, |_| 0.097);
+        line.read_joints(&[0.097], &[0]);
+        line.apply(&mut ctrl);
         assert_eq!(ctrl[0], 0.097);
     }
 

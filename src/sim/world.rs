@@ -170,8 +170,8 @@ impl World {
     /// One physics step, the set points due applied first.
     pub fn step(&mut self) {
         if let Some(line) = &mut self.line {
-            let (qpos, adr) = (self.data.qpos().to_vec(), &self.qpos_adr);
-            line.apply(self.data.ctrl_mut(), |a| qpos[adr[a]]);
+            line.read_joints(self.data.qpos(), &self.qpos_adr);
+            line.apply(self.data.ctrl_mut());
         }
         self.data.step();
     }
