@@ -135,21 +135,6 @@ impl World {
         }
     }
 
-    /// Puts the robot at configuration `q` (the model's layout; a bush at rest) and runs
-    /// forward kinematics.
-    pub fn set_configuration(&mut self, q: &[f64]) {
-        let adr = self.qpos_adr.clone();
-        let qpos = self.data.qpos_mut();
-        if !self.model_order {
-            qpos.iter_mut().skip(Q_JOINTS).for_each(|x| *x = 0.0);
-        }
-        qpos[..Q_JOINTS].copy_from_slice(&q[..Q_JOINTS]);
-        for (a, &i) in adr.iter().enumerate() {
-            qpos[i] = q[Q_JOINTS + a];
-        }
-        self.data.forward();
-    }
-
     /// The servos' set points the controller sent last (those in force).
     pub fn set_points(&self) -> &[f64] {
         match &self.line {
