@@ -8,10 +8,12 @@
 //!
 //! Nothing here knows the simulator: [`measurement`] is what the sensors read,
 //! [`distribution`] splits the wanted net wrench over the feet (a QP in the cones of
-//! `planning::contact`), [`admittance`] turns wrench errors into foot offsets, and
+//! `planning::contact`), [`admittance`] turns wrench errors into foot offsets, [`attitude`] reads the base's
+//! tilt from the IMU, and
 //! [`stabilizer`] runs them at the control rate with the QP IK of `planning::motion` online.
 
 pub mod admittance;
+pub mod attitude;
 pub mod distribution;
 pub mod measurement;
 pub mod params;

@@ -5,6 +5,7 @@
 //! servos' set points.
 
 use super::admittance::{self, FootOffset};
+use super::attitude::TiltFilter;
 use super::distribution::{distribute, DistributionError, Support};
 use super::measurement::{FootSensor, Measurement, SoleWrench, GRAVITY_M_S2};
 use super::params::StabilizerParams;
@@ -13,7 +14,7 @@ use crate::planning::gait::Segment;
 use crate::planning::ik::IkError;
 use crate::planning::motion::{com_target, swing_target, Targets, Tracker};
 use crate::planning::{Foot, Plan, PlanError, PlanParams};
-use crate::robot::model::{RobotModel, Q_JOINTS};
+use crate::robot::model::{base_pose, RobotModel, Q_JOINTS};
 use crate::robot::{hrp4, Kinematics};
 use nalgebra::{Isometry3, Point3, Vector3, Vector6};
 use std::time::Instant;
@@ -37,8 +38,23 @@ pub struct TickRecord {
     pub infeasible: Option<[f64; 2]>,
     /// The estimated CoM's error from the plan's, metres.
     pub com_error_m: Vector3<f64>,
+    /// The lean the IMU sees beyond what the encoders and the commanded base say: the CoM's
+    /// displacement it makes (world), metres.
+    pub lean_m: Vector3<f64>,
+    /// The base's tilt from upright as the IMU has it, radians.
+    pub tilt_rad: f64,
     /// Wall time of the tick, seconds.
     pub wall_s: f64,
+}
+
+/// Where the stabilizer puts the CoM at one tick (world, metres).
+struct ComEstimate {
+    /// On the encoders and the commanded base, moved onto the support sole.
+    encoders: Point3<f64>,
+    /// The same, leaning as the IMU says the base does: the estimate.
+    leaning: Point3<f64>,
+    /// The shift to add to any frame of the stabilizer's kinematics to have it in the world.
+    shift: Vector3<f64>,
 }
 
 /// The stabilizer over one plan.
@@ -65,6 +81,7 @@ pub struct Stabilizer<'m> {
     held_s: f64,
     pressed_ticks: [usize; 2],
     q_est: Vec<f64>,
+    tilt: TiltFilter,
     record: TickRecord,
 }
 
@@ -112,6 +129,7 @@ impl<'m> Stabilizer<'m> {
             held_s: 0.0,
             pressed_ticks: [0; 2],
             q_est: q0,
+            tilt: TiltFilter::new(p.tilt_filter_time_s),
             record: TickRecord::default(),
         })
     }
@@ -178,20 +196,31 @@ impl<'m> Stabilizer<'m> {
     }
 
     /// The kinematics from the encoders, the commanded base moved so the first planned
-    /// support sole is where the stabilizer holds it: the CoM, and the shift to add to any
-    /// frame of `self.estimate` to have it in the world.
+    /// support sole is where the stabilizer holds it; then the lean the IMU sees beyond the
+    /// commanded base's tilt, taken about that sole: the CoM where the body leans it.
     fn estimate_com(
         &mut self,
         m: &Measurement,
         anchor: Option<(usize, Isometry3<f64>)>,
-    ) -> Result<(Point3<f64>, Vector3<f64>), IkError> {
+        dt_s: f64,
+    ) -> Result<ComEstimate, IkError> {
         self.q_est[..Q_JOINTS].copy_from_slice(&self.tracker.q()[..Q_JOINTS]);
         self.q_est[Q_JOINTS..].copy_from_slice(&m.joints_rad);
         self.estimate.update(&self.q_est).map_err(|e| IkError::Setup(e.to_string()))?;
         let shift = anchor.map_or(Vector3::zeros(), |(k, held)| {
             held.translation.vector - self.estimate.frame_pose(self.soles[k]).translation.vector
         });
-        Ok((self.estimate.com() + shift, shift))
+        let encoders = self.estimate.com() + shift;
+        self.tilt.update(&m.imu, dt_s);
+        let leaning = match anchor {
+            Some((_, held)) => {
+                let lean = self.tilt.lean(&base_pose(&self.q_est).rotation);
+                let pivot = Point3::from(held.translation.vector);
+                pivot + lean * (encoders - pivot)
+            }
+            None => encoders,
+        };
+        Ok(ComEstimate { encoders, leaning, shift })
     }
 
     /// Where the stabilizer is on the plan's clock, seconds. It runs with the robot's clock
@@ -225,7 +254,7 @@ impl<'m> Stabilizer<'m> {
             .collect();
         // Measured ground wrenches, the feet's orientations from the encoders.
         let anchor = supports.first().map(|(f, pose)| (f.index(), *pose));
-        let (com, shift) = self.estimate_com(m, anchor)?;
+        let ComEstimate { encoders: com_encoders, leaning: com, shift } = self.estimate_com(m, anchor, dt)?;
         let measured: [SoleWrench; 2] = [0, 1].map(|k| {
             let rotation = self.estimate.link_pose(self.sensors[k].link).rotation;
             self.sensors[k].ground_wrench(&m.ft[k], &rotation)
@@ -324,6 +353,8 @@ impl<'m> Stabilizer<'m> {
             held_m: [0, 1].map(|k| self.held[k].map(|h| h.translation.vector)),
             infeasible,
             com_error_m: com - com_ref,
+            lean_m: com - com_encoders,
+            tilt_rad: self.tilt.tilt_rad().unwrap_or(0.0),
             wall_s: started.elapsed().as_secs_f64(),
         };
         Ok(self.tracker.q())

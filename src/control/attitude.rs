@@ -1,0 +1,129 @@
+//! The base's tilt from the waist IMU: a complementary filter on the direction of "up" in
+//! the base's frame. The gyro carries it from tick to tick (up is fixed in the world, so in
+//! a frame turning at w it turns at -w); the accelerometer's specific force (gravity's
+//! reaction, plus the base's own acceleration, small in a quasi-static climb) pulls it back
+//! with time constant `tilt_filter_time_s`, so neither the gyro's drift nor the walk's
+//! accelerations last. The encoders cannot see this tilt where the body bends between the
+//! joints and the ground (a compliant ankle, servos yielding under load); the IMU does.
+
+use super::measurement::Imu;
+use nalgebra::{UnitQuaternion, Vector3};
+
+/// Up in the base's frame, filtered.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TiltFilter {
+    up_base: Option<Vector3<f64>>,
+    time_s: f64,
+}
+
+impl TiltFilter {
+    /// A filter pulled toward the accelerometer with time constant `time_s` (seconds; 0
+    /// takes each accelerometer reading as it is).
+    pub fn new(time_s: f64) -> Self {
+        Self { up_base: None, time_s: time_s.max(0.0) }
+    }
+
+    /// Takes the IMU's reading over the `dt_s` since the last: up in the base's frame
+    /// (`None` while no reading has shown a direction: a zero or non-finite specific force).
+    pub fn update(&mut self, imu: &Imu, dt_s: f64) -> Option<Vector3<f64>> {
+        let measured = imu.accel_m_s2.try_normalize(1e-6).filter(|v| v.iter().all(|c| c.is_finite()));
+        let gyro =
+            if imu.gyro_rad_s.iter().all(|c| c.is_finite()) { imu.gyro_rad_s } else { Vector3::zeros() };
+        self.up_base = match (self.up_base, measured) {
+            (None, m) => m,
+            (Some(up), m) => {
+                let carried = UnitQuaternion::from_scaled_axis(-gyro * dt_s) * up;
+                let pulled = match m {
+                    Some(m) => carried + (m - carried) * (dt_s / (self.time_s + dt_s)),
+                    None => carried,
+                };
+                Some(pulled.try_normalize(1e-9).unwrap_or(carried))
+            }
+        };
+        self.up_base
+    }
+
+    /// The base's tilt from upright, radians: the angle between its z axis and the filtered
+    /// up (`None` before any reading).
+    pub fn tilt_rad(&self) -> Option<f64> {
+        self.up_base.map(|up| up.angle(&Vector3::z()))
+    }
+
+    /// The smallest rotation taking a base whose orientation is `believed` (world from base)
+    /// to one where the filtered up is the world's +z: what the body leans beyond what the
+    /// encoders and the commanded base say (identity before any reading).
+    pub fn lean(&self, believed: &UnitQuaternion<f64>) -> UnitQuaternion<f64> {
+        self.up_base
+            .and_then(|up| UnitQuaternion::rotation_between(&(believed * up), &Vector3::z()))
+            .unwrap_or_else(UnitQuaternion::identity)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at_rest(tilt: &UnitQuaternion<f64>) -> Imu {
+        // Specific force at rest: +g along the world's up, seen in the base's frame.
+        Imu { accel_m_s2: tilt.inverse() * Vector3::new(0.0, 0.0, 9.81), gyro_rad_s: Vector3::zeros() }
+    }
+
+    #[test]
+    fn a_base_at_rest_reads_its_own_tilt() {
+        let tilt = UnitQuaternion::from_euler_angles(0.03, -0.05, 0.4);
+        let mut f = TiltFilter::new(0.5);
+        for _ in 0..10 {
+            f.update(&at_rest(&tilt), 0.005);
+        }
+        // Believing the base level (same heading), the lean found is the tilt's roll and pitch.
+        let believed = UnitQuaternion::from_euler_angles(0.0, 0.0, 0.4);
+        let lean = f.lean(&believed);
+        let corrected = lean * believed;
+        assert!((corrected * f.up_base.unwrap() - Vector3::z()).norm() < 1e-9);
+        assert!(
+            (lean.angle() - tilt.angle_to(&believed)).abs() < 1e-3,
+            "{} vs {}",
+            lean.angle(),
+            tilt.angle_to(&believed)
+        );
+        assert!((f.tilt_rad().unwrap() - tilt.angle_to(&believed)).abs() < 1e-3);
+        // Believing the truth, no lean.
+        assert!(f.lean(&tilt).angle() < 1e-9);
+    }
+
+    #[test]
+    fn the_gyro_carries_a_turn_and_the_accelerometer_corrects_a_push() {
+        let dt = 0.005;
+        let mut f = TiltFilter::new(0.5);
+        f.update(&at_rest(&UnitQuaternion::identity()), dt);
+        // Pitching at 0.1 rad/s for 1 s, the accelerometer agreeing: up follows the turn.
+        let rate = Vector3::new(0.0, 0.1, 0.0);
+        for i in 1..=200 {
+            let tilt = UnitQuaternion::from_scaled_axis(rate * (i as f64 * dt));
+            f.update(&Imu { gyro_rad_s: rate, ..at_rest(&tilt) }, dt);
+        }
+        let tilt = UnitQuaternion::from_scaled_axis(rate * 1.0);
+        assert!(f.lean(&tilt).angle() < 1e-3, "{}", f.lean(&tilt).angle());
+        // A sideways push of 1 m/s^2 for 0.1 s while still: moves up by far less than the
+        // 0.1 rad the accelerometer alone would say.
+        let push =
+            Imu { accel_m_s2: tilt.inverse() * Vector3::new(1.0, 0.0, 9.81), gyro_rad_s: Vector3::zeros() };
+        for _ in 0..20 {
+            f.update(&push, dt);
+        }
+        let lean = f.lean(&tilt).angle();
+        assert!(lean > 0.005 && lean < 0.025, "{lean}");
+        // Then at rest again for 3 s: back within 1 mrad.
+        for _ in 0..600 {
+            f.update(&at_rest(&tilt), dt);
+        }
+        assert!(f.lean(&tilt).angle() < 1e-3);
+    }
+
+    #[test]
+    fn no_direction_no_lean() {
+        let mut f = TiltFilter::new(0.5);
+        assert!(f.update(&Imu::default(), 0.005).is_none());
+        assert_eq!(f.lean(&UnitQuaternion::identity()), UnitQuaternion::identity());
+    }
+}
