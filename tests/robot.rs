@@ -6,7 +6,7 @@ use nalgebra::{Matrix3xX, Matrix6xX, Point3, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use stairbench::robot::hrp4::{self, HEAD_TOP, LIDAR_MOUNT, L_SOLE, R_SOLE};
-use stairbench::robot::model::{Q_JOINTS, V_JOINTS};
+use stairbench::robot::model::{base_pose, set_base_rotation, Q_JOINTS, V_JOINTS};
 use stairbench::robot::{Kinematics, RobotModel};
 use stairbench::scenario::Scenario;
 use stairbench::scene::Scene;
@@ -99,7 +99,7 @@ fn random_q(m: &RobotModel, rng: &mut ChaCha8Rng) -> Vec<f64> {
         rng.random_range(-1.5..1.5),
         rng.random_range(-3.0..3.0),
     );
-    q[3..7].copy_from_slice(&[rot.w, rot.i, rot.j, rot.k]);
+    set_base_rotation(&mut q, &rot);
     for (i, j) in m.joints().iter().enumerate() {
         q[Q_JOINTS + i] = rng.random_range(j.lower_rad..=j.upper_rad);
     }
@@ -179,11 +179,11 @@ fn jacobian_matches_finite_differences() {
         if dof < 3 {
             q1[dof] += h;
         } else if dof < 6 {
-            let rot = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[3], q[4], q[5], q[6]));
+            let rot = base_pose(&q).rotation;
             let mut w = Vector3::zeros();
             w[dof - 3] = h;
             let r1 = rot * UnitQuaternion::from_scaled_axis(w);
-            q1[3..7].copy_from_slice(&[r1.w, r1.i, r1.j, r1.k]);
+            set_base_rotation(&mut q1, &r1);
         } else {
             q1[Q_JOINTS + dof - V_JOINTS] += h;
         }

@@ -178,9 +178,8 @@ pub fn run<E: Executor>(
             }
             _ => seen,
         };
-        add_view(&mut around, &cloud, model, &q, p.surroundings);
-        let feet_z = feet_height_m(model, &q);
-        let next = map.next_input(seen, feet_z, p.plan.gait.min_tread_m, p.step_map);
+        let t = Instant::now();
+        let ViewInput { next, surfaces } = take_view(&mut map, &mut around, seen, &cloud, model, &q, p);
         let ahead = &next.ahead;
         if ahead.is_empty() {
             // The stop's reason is the report's: judged on the true pose where it is known.
@@ -190,8 +189,6 @@ pub fn run<E: Executor>(
             }
             break;
         }
-        let t = Instant::now();
-        let surfaces = Arc::new(SeenPoints::new(around.points(p.surroundings)));
         let (planned, closer_look) =
             match plan_next(model, &q, &next, surfaces, p.run.stances_per_scan, start_floor_z_m, p.plan) {
                 Ok(x) => x,
@@ -404,6 +401,32 @@ pub fn plan_next(
         Ok(Some(walk)) => Ok((walk, Some(refusal))),
         _ => Err(Box::new(refusal)),
     }
+}
+
+/// What the planner is given from one view: the step map's next input and the surfaces the
+/// body is kept off.
+pub struct ViewInput {
+    /// The steps ahead (and a partly seen top step left for a closer look).
+    pub next: NextInput,
+    /// Everything the lidar saw so far, the robot's own body left out.
+    pub surfaces: Arc<SeenPoints>,
+}
+
+/// Takes one view, seen from configuration `q`, into the step map and the surroundings: its
+/// `cloud` added to `around` (the body at `q` left out), its steps `seen` merged into `map`.
+/// The loop, `replay` and a rehearsal take a view alike.
+pub fn take_view(
+    map: &mut StepMap,
+    around: &mut Surroundings,
+    seen: Vec<PlaneSegment>,
+    cloud: &crate::cloud::PointCloud,
+    model: &RobotModel,
+    q: &[f64],
+    p: LoopParams<'_>,
+) -> ViewInput {
+    add_view(around, cloud, model, q, p.surroundings);
+    let next = map.next_input(seen, feet_height_m(model, q), p.plan.gait.min_tread_m, p.step_map);
+    ViewInput { next, surfaces: Arc::new(SeenPoints::new(around.points(p.surroundings))) }
 }
 
 /// Adds a sweep's cloud to the surroundings, leaving out the robot's own body at the

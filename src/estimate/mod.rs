@@ -15,7 +15,7 @@
 //! would feed it the same.
 
 use crate::robot::hrp4;
-use crate::robot::model::{base_pose, RobotError, RobotModel, Q_JOINTS};
+use crate::robot::model::{base_pose, set_base_pose, RobotError, RobotModel, Q_JOINTS};
 use crate::robot::Kinematics;
 use nalgebra::{Isometry3, UnitQuaternion};
 
@@ -117,9 +117,7 @@ impl<'m> Odometry<'m> {
     pub fn configuration(&self, joints: &[f64]) -> Result<Vec<f64>, RobotError> {
         let base = self.base(joints)?;
         let mut q = vec![0.0; self.model.nq()];
-        q[..3].copy_from_slice(base.translation.vector.as_slice());
-        let r = base.rotation.quaternion();
-        q[3..7].copy_from_slice(&[r.w, r.i, r.j, r.k]);
+        set_base_pose(&mut q, &base);
         let n = joints.len().min(q.len() - Q_JOINTS);
         q[Q_JOINTS..Q_JOINTS + n].copy_from_slice(&joints[..n]);
         Ok(q)

@@ -13,7 +13,7 @@
 //! in a list.
 
 use super::clearance::Nearest;
-use crate::robot::model::{RobotModel, Q_JOINTS, V_JOINTS};
+use crate::robot::model::{base_pose, set_base_rotation, RobotModel, Q_JOINTS, V_JOINTS};
 use crate::robot::Kinematics;
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
@@ -588,10 +588,9 @@ pub fn integrate(q: &mut [f64], qd: &[f64], dt_s: f64) {
     for k in 0..3 {
         q[k] += qd[k] * dt_s;
     }
-    let rot = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[3], q[4], q[5], q[6]));
     let w = Vector3::new(qd[3], qd[4], qd[5]) * dt_s;
-    let next = rot * UnitQuaternion::from_scaled_axis(w);
-    q[3..7].copy_from_slice(&[next.w, next.i, next.j, next.k]);
+    let next = base_pose(q).rotation * UnitQuaternion::from_scaled_axis(w);
+    set_base_rotation(q, &next);
     for (qi, vi) in q[Q_JOINTS..].iter_mut().zip(&qd[V_JOINTS..]) {
         *qi += vi * dt_s;
     }

@@ -8,7 +8,7 @@ use super::ik::{self, Task};
 use super::stance::Foot;
 use super::PlanError;
 use crate::robot::hrp4;
-use crate::robot::model::RobotModel;
+use crate::robot::model::{normalize_base_rotation, RobotModel};
 use crate::robot::Kinematics;
 use crate::scene::SceneBox;
 use nalgebra::{Isometry3, Point3, Translation3, Vector6};
@@ -178,8 +178,7 @@ impl JointTrajectory {
         for (k, qk) in q.iter_mut().enumerate() {
             *qk = self.samples[i].q[k] * (1.0 - f) + self.samples[j].q[k] * f;
         }
-        let norm = q[3..7].iter().map(|v| v * v).sum::<f64>().sqrt();
-        q[3..7].iter_mut().for_each(|v| *v /= norm);
+        normalize_base_rotation(q);
     }
 }
 

@@ -5,15 +5,13 @@
 
 use super::messages::PlanMsg;
 use super::replay::{RecordedSweep, Recording};
-use crate::climb::{add_view, feet_height_m, moved_view, plan_next};
+use crate::climb::{feet_height_m, moved_view, plan_next, take_view, ViewInput};
 use crate::params::ClimbParams;
 use crate::perception::step_map::StepMap;
 use crate::perception::surroundings::Surroundings;
 use crate::perception::{perceive, PerceptionError, PlaneSegment};
-use crate::planning::clearance::SeenPoints;
 use crate::robot::model::RobotModel;
 use crate::sensor::{AssembleParams, SensorError};
-use std::sync::Arc;
 
 /// Perception now against perception then.
 #[derive(Debug, Clone, PartialEq)]
@@ -205,14 +203,8 @@ pub fn replay(
             out.push(replayed);
             continue;
         }
-        add_view(&mut around, &cloud, model, &then.q0, &params.surroundings);
-        let surfaces = Arc::new(SeenPoints::new(around.points(&params.surroundings)));
-        let next = map.next_input(
-            seen,
-            feet_height_m(model, &then.q0),
-            params.plan.gait.min_tread_m,
-            &params.step_map,
-        );
+        let ViewInput { next, surfaces } =
+            take_view(&mut map, &mut around, seen, &cloud, model, &then.q0, params.loop_params());
         replayed.deferred = next.deferred.as_ref().map(|top| [top.height_m(), top.depth_m()]);
         // As many stances as were planned then (the loop plans a few per scan, a rehearsal all
         // it sees).

@@ -40,13 +40,12 @@ use crate::climb::{Event, Observer, RobotState};
 use crate::cloud::PointCloud;
 use crate::perception::{Perception, PerceptionError, PlaneSegment};
 use crate::planning::Plan;
-use crate::robot::model::{RobotModel, Q_JOINTS};
+use crate::robot::model::{base_pose, RobotModel, Q_JOINTS};
 use crate::scene::{Scene, SurfaceRole};
 use crate::sensor::{ScanRow, Sweep};
 use foxglove::{CubePrimitive, FrameTransform, LaserScan, LinePrimitive, SceneEntity, SceneUpdate, Time};
 use mcap::records::MessageHeader;
 use messages::{JointStateMsg, PerceptionMsg, PlanMsg, SweepMsg, TrajectoryMsg};
-use nalgebra::Isometry3;
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
@@ -398,11 +397,7 @@ impl Recorder {
             max_torque_ratio: state.max_torque_ratio,
         };
         self.log("/robot/joints", stamp_s, &msg);
-        let base = Isometry3::from_parts(
-            nalgebra::Translation3::new(q[0], q[1], q[2]),
-            nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[3], q[4], q[5], q[6])),
-        );
-        self.log("/tf", stamp_s, &FrameTransform::new(stamp_s, "world", "base", &base));
+        self.log("/tf", stamp_s, &FrameTransform::new(stamp_s, "world", "base", &base_pose(q)));
     }
 }
 

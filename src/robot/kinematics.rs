@@ -7,10 +7,8 @@
 //! the free-flyer's columns are world translations (0-2) and rotations about the base's own
 //! axes (3-5).
 
-use super::model::{RobotModel, Q_JOINTS, V_JOINTS};
-use nalgebra::{
-    Isometry3, Matrix3x6, Matrix3xX, Matrix6xX, Point3, Quaternion, Translation3, UnitQuaternion, Vector3,
-};
+use super::model::{base_pose, RobotModel, Q_JOINTS, V_JOINTS};
+use nalgebra::{Isometry3, Matrix3x6, Matrix3xX, Matrix6xX, Point3, Quaternion, UnitQuaternion, Vector3};
 
 /// Why a configuration was refused.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -75,12 +73,10 @@ impl<'m> Kinematics<'m> {
         if let Some(i) = q.iter().position(|x| !x.is_finite()) {
             return Err(ConfigError::NotFinite(i));
         }
-        let quat = Quaternion::new(q[3], q[4], q[5], q[6]);
-        if quat.norm() < 1e-12 {
+        if Quaternion::new(q[3], q[4], q[5], q[6]).norm() < 1e-12 {
             return Err(ConfigError::NotFinite(3));
         }
-        let base =
-            Isometry3::from_parts(Translation3::new(q[0], q[1], q[2]), UnitQuaternion::from_quaternion(quat));
+        let base = base_pose(q);
         for (i, link) in self.model.links().iter().enumerate() {
             match (link.parent, link.joint) {
                 (Some(p), Some(j)) => {

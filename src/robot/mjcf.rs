@@ -10,7 +10,7 @@
 //! centres of mass, inertias, joint friction, servo gains, a compliant bush under each
 //! ankle); the nominal variation writes the model exactly.
 
-use super::model::{RobotError, RobotModel, Shape, Q_JOINTS};
+use super::model::{base_pose, RobotError, RobotModel, Shape, Q_JOINTS};
 use crate::scene::mjcf::{RobotFragment, ROBOT_GEOM_GROUP};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use std::fmt::Write;
@@ -185,14 +185,7 @@ impl Tree<'_> {
         let (model, var) = (self.model, self.var);
         let link = &model.links()[i];
         let pad = "  ".repeat(depth);
-        let placement = if i == 0 {
-            Isometry3::from_parts(
-                nalgebra::Translation3::new(q[0], q[1], q[2]),
-                UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[3], q[4], q[5], q[6])),
-            )
-        } else {
-            link.placement
-        };
+        let placement = if i == 0 { base_pose(q) } else { link.placement };
         let _ = writeln!(out, r#"{pad}<body name="{}" {}>"#, link.name, fmt_pose(&placement));
         match link.joint {
             None => {

@@ -116,6 +116,23 @@ pub fn base_pose(q: &[f64]) -> Isometry3<f64> {
     Isometry3::from_parts(Translation3::new(q[0], q[1], q[2]), rotation)
 }
 
+/// Sets the floating base's rotation in configuration `q` (quaternion w x y z at 3..7).
+pub fn set_base_rotation(q: &mut [f64], rotation: &UnitQuaternion<f64>) {
+    q[3..7].copy_from_slice(&[rotation.w, rotation.i, rotation.j, rotation.k]);
+}
+
+/// Sets the floating base's pose in configuration `q` (position at 0..3, rotation at 3..7).
+pub fn set_base_pose(q: &mut [f64], pose: &Isometry3<f64>) {
+    q[..3].copy_from_slice(pose.translation.vector.as_slice());
+    set_base_rotation(q, &pose.rotation);
+}
+
+/// Scales the base's quaternion in `q` back to unit length (after an interpolation).
+pub fn normalize_base_rotation(q: &mut [f64]) {
+    let norm = q[3..7].iter().map(|v| v * v).sum::<f64>().sqrt();
+    q[3..7].iter_mut().for_each(|v| *v /= norm);
+}
+
 /// A floating-base kinematic tree. Valid once built: links in depth-first order (a parent
 /// before its children), one root, positive masses, unit axes, finite figures.
 #[derive(Debug, Clone)]

@@ -17,11 +17,11 @@ use crate::planning::dd::DdParams;
 use crate::planning::gait::Swing;
 use crate::planning::polygon::{by_double_description, margin};
 use crate::planning::Foot;
-use crate::robot::model::Joint;
+use crate::robot::model::{base_pose, Joint};
 use crate::scene::geometry::SOLE_ON_TREAD_M;
 use crate::scene::mjcf::ROBOT_GEOM_GROUP;
 use crate::scene::Scene;
-use nalgebra::{Isometry3, Point3, Quaternion, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
 
 /// Limits of the checks.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -232,9 +232,8 @@ pub fn strike_check(
 /// Whether the robot fell: the base at `qpos` below `min_base_z_m`, or tilted away from the
 /// plan's base orientation (`planned_q`; a lean the plan asked for is not a fall).
 pub fn fall_check(qpos: &[f64], planned_q: &[f64], min_base_z_m: f64, p: &CheckParams) -> Option<Check> {
-    let quat = |q: &[f64]| UnitQuaternion::from_quaternion(Quaternion::new(q[3], q[4], q[5], q[6]));
-    let up = quat(qpos) * Vector3::z();
-    let tilt_rad = up.angle(&(quat(planned_q) * Vector3::z()));
+    let up = base_pose(qpos).rotation * Vector3::z();
+    let tilt_rad = up.angle(&(base_pose(planned_q).rotation * Vector3::z()));
     (qpos[2] < min_base_z_m || tilt_rad > p.fall_tilt_rad).then(|| Check::Fall {
         base_z_m: qpos[2],
         min_base_z_m,
@@ -623,7 +622,7 @@ impl<'a> Monitor<'a> {
 mod tests {
     use super::*;
     use crate::planning::gait::Swing;
-    use nalgebra::Translation3;
+    use nalgebra::{Translation3, UnitQuaternion};
 
     fn p() -> CheckParams {
         CheckParams::default()

@@ -6,15 +6,13 @@
 use super::execute::{execute, settle};
 use super::{SetupError, SimParams, World};
 use crate::cancel::Cancel;
-use crate::climb::{add_view, climbed, feet_height_m, Event, Execution, LoopParams, Observer};
+use crate::climb::{climbed, take_view, Event, Execution, LoopParams, Observer, ViewInput};
 use crate::cloud::PointCloud;
 use crate::perception::step_map::StepMap;
 use crate::perception::surroundings::Surroundings;
 use crate::perception::PlaneSegment;
-use crate::planning::clearance::SeenPoints;
 use crate::planning::{plan_below, Plan, PlanError};
 use crate::scene::{PerceivedTop, Scene};
-use std::sync::Arc;
 
 /// What a rehearsal did.
 #[derive(Debug)]
@@ -56,19 +54,18 @@ pub fn rehearse(
     settle(&mut world, p.run.settle_s);
     let q0 = world.configuration().to_vec();
     // The plan's input as the loop (and replay) make it: the steps above the feet, a partly
-    // seen top step left out.
-    let next = StepMap::default().next_input(
+    // seen top step left out; the body kept off every surface the sensor saw (walls,
+    // clutter): the rehearsal's world holds the perceived steps only, the real one the rest too.
+    let ViewInput { next, surfaces } = take_view(
+        &mut StepMap::default(),
+        &mut Surroundings::default(),
         steps.to_vec(),
-        feet_height_m(&model, &q0),
-        p.plan.gait.min_tread_m,
-        p.step_map,
+        cloud,
+        &model,
+        &q0,
+        p,
     );
     let deferred = next.deferred.as_ref().map(|top| [top.height_m(), top.depth_m()]);
-    // The body kept off every surface the sensor saw (walls, clutter), as the loop does:
-    // the rehearsal's world holds the perceived steps only, the real one the rest too.
-    let mut around = Surroundings::default();
-    add_view(&mut around, cloud, &model, &q0, p.surroundings);
-    let surfaces = Arc::new(SeenPoints::new(around.points(p.surroundings)));
     // The step left for a closer look bounds the tread below it, as in the loop.
     let bounded: Vec<_> = next.ahead.iter().chain(next.deferred.as_ref()).cloned().collect();
     let plan = plan_below(&model, &q0, &bounded, next.ahead.len(), surfaces, None, p.plan);
