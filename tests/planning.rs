@@ -15,7 +15,7 @@ use stairbench::planning::reach;
 use stairbench::planning::{
     clearance, plan, plan_among, rectangles, Contact, Foot, Plan, PlanError, PlanParams,
 };
-use stairbench::robot::model::Q_JOINTS;
+use stairbench::robot::model::{base_pose, Q_JOINTS};
 use stairbench::robot::{hrp4, Kinematics, RobotModel};
 use stairbench::scenario::Scenario;
 use stairbench::scene::Scene;
@@ -392,7 +392,7 @@ fn a_yawed_staircase_is_planned_along_its_own_direction() {
 fn base_turn(plan: &Plan, heading: f64, from_s: f64) -> f64 {
     plan.trajectory.samples.iter().filter(|smp| smp.t_s >= from_s).fold(0.0f64, |most, smp| {
         let q = &smp.q;
-        let rot = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[3], q[4], q[5], q[6]));
+        let rot = base_pose(q).rotation;
         let turn = UnitQuaternion::from_euler_angles(0.0, 0.0, rot.euler_angles().2 - heading).angle();
         most.max(turn.to_degrees())
     })

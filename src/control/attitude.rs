@@ -3,11 +3,12 @@
 //! a frame turning at w it turns at -w); the accelerometer's specific force (gravity's
 //! reaction, plus the base's own acceleration, small in a quasi-static climb) pulls it back
 //! with time constant `tilt_filter_time_s`, so neither the gyro's drift nor the walk's
-//! accelerations last. The encoders cannot see this tilt where the body bends between the
-//! joints and the ground (a compliant ankle, servos yielding under load); the IMU does.
+//! accelerations last. An estimate that keeps the base at its commanded orientation misses
+//! what the body bends between its joints' set points and the ground (a compliant ankle,
+//! servos yielding under load); the IMU does not.
 
 use super::measurement::Imu;
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::{Point3, UnitQuaternion, Vector3};
 
 /// Up in the base's frame, filtered.
 #[derive(Debug, Clone, PartialEq)]
@@ -18,7 +19,10 @@ pub struct TiltFilter {
 
 impl TiltFilter {
     /// A filter pulled toward the accelerometer with time constant `time_s` (seconds; 0
-    /// takes each accelerometer reading as it is).
+    /// takes each accelerometer reading as it is). It starts on its first reading, whose
+    /// noise it forgets over `time_s`. (Averaging the readings while it starts, its time
+    /// constant the time elapsed, follows the walk's first accelerations instead: over
+    /// Exp. 1 the 99th percentile of its error was 1.06 deg against 0.30 deg.)
     pub fn new(time_s: f64) -> Self {
         Self { up_base: None, time_s: time_s.max(0.0) }
     }
@@ -33,11 +37,14 @@ impl TiltFilter {
             (None, m) => m,
             (Some(up), m) => {
                 let carried = UnitQuaternion::from_scaled_axis(-gyro * dt_s) * up;
+                let blend = dt_s / (self.time_s + dt_s);
                 let pulled = match m {
-                    Some(m) => carried + (m - carried) * (dt_s / (self.time_s + dt_s)),
-                    None => carried,
+                    Some(m) if blend.is_finite() => carried + (m - carried) * blend,
+                    _ => carried,
                 };
-                Some(pulled.try_normalize(1e-9).unwrap_or(carried))
+                Some(
+                    pulled.try_normalize(1e-9).filter(|v| v.iter().all(|c| c.is_finite())).unwrap_or(carried),
+                )
             }
         };
         self.up_base
@@ -57,6 +64,13 @@ impl TiltFilter {
             .and_then(|up| UnitQuaternion::rotation_between(&(believed * up), &Vector3::z()))
             .unwrap_or_else(UnitQuaternion::identity)
     }
+}
+
+/// Where `point` is when the body leans by `lean` about `pivot` (the support sole's centre:
+/// a compliant ankle bends at the ankle, a few centimetres above it, so this is off by the
+/// lean times that height, about 2 mm at 0.02 rad).
+pub fn leaning(point: &Point3<f64>, pivot: &Point3<f64>, lean: &UnitQuaternion<f64>) -> Point3<f64> {
+    pivot + lean * (point - pivot)
 }
 
 #[cfg(test)]
@@ -80,13 +94,9 @@ mod tests {
         let lean = f.lean(&believed);
         let corrected = lean * believed;
         assert!((corrected * f.up_base.unwrap() - Vector3::z()).norm() < 1e-9);
-        assert!(
-            (lean.angle() - tilt.angle_to(&believed)).abs() < 1e-3,
-            "{} vs {}",
-            lean.angle(),
-            tilt.angle_to(&believed)
-        );
-        assert!((f.tilt_rad().unwrap() - tilt.angle_to(&believed)).abs() < 1e-3);
+        let true_tilt = (tilt * Vector3::z()).angle(&Vector3::z());
+        assert!((lean.angle() - true_tilt).abs() < 1e-9, "{} vs {true_tilt}", lean.angle());
+        assert!((f.tilt_rad().unwrap() - true_tilt).abs() < 1e-9);
         // Believing the truth, no lean.
         assert!(f.lean(&tilt).angle() < 1e-9);
     }
@@ -118,6 +128,20 @@ mod tests {
             f.update(&at_rest(&tilt), dt);
         }
         assert!(f.lean(&tilt).angle() < 1e-3);
+    }
+
+    /// A body pitched forward by 0.05 rad (about +y: its top toward +x), believed upright:
+    /// a CoM 0.75 m above the sole leans forward by 0.75 sin 0.05 and down by 0.75 (1 - cos).
+    #[test]
+    fn a_forward_pitch_leans_the_com_forward() {
+        let pitch = UnitQuaternion::from_euler_angles(0.0, 0.05, 0.0);
+        let mut f = TiltFilter::new(2.0);
+        f.update(&at_rest(&pitch), 0.005);
+        let lean = f.lean(&UnitQuaternion::identity());
+        let pivot = Point3::new(0.3, -0.1, 0.2);
+        let com = leaning(&(pivot + Vector3::new(0.0, 0.0, 0.75)), &pivot, &lean);
+        let expected = pivot + Vector3::new(0.75 * 0.05f64.sin(), 0.0, 0.75 * 0.05f64.cos());
+        assert!((com - expected).norm() < 1e-9, "{com} against {expected}");
     }
 
     #[test]

@@ -8,9 +8,9 @@
 //!
 //! Nothing here knows the simulator: [`measurement`] is what the sensors read,
 //! [`distribution`] splits the wanted net wrench over the feet (a QP in the cones of
-//! `planning::contact`), [`admittance`] turns wrench errors into foot offsets, [`attitude`] reads the base's
-//! tilt from the IMU, and
-//! [`stabilizer`] runs them at the control rate with the QP IK of `planning::motion` online.
+//! `planning::contact`), [`admittance`] turns wrench errors into foot offsets, [`attitude`]
+//! reads the base's tilt from the IMU, and [`stabilizer`] runs them at the control rate with
+//! the QP IK of `planning::motion` online.
 
 pub mod admittance;
 pub mod attitude;

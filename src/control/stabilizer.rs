@@ -5,7 +5,7 @@
 //! servos' set points.
 
 use super::admittance::{self, FootOffset};
-use super::attitude::TiltFilter;
+use super::attitude::{leaning, TiltFilter};
 use super::distribution::{distribute, DistributionError, Support};
 use super::measurement::{FootSensor, Measurement, SoleWrench, GRAVITY_M_S2};
 use super::params::StabilizerParams;
@@ -212,12 +212,16 @@ impl<'m> Stabilizer<'m> {
         });
         let encoders = self.estimate.com() + shift;
         self.tilt.update(&m.imu, dt_s);
+        // The commanded base's orientation is in the plan's frame and the IMU's up is the
+        // world's: with the robot's own estimate on, a tilt between the two frames (none
+        // on level ground) would count as lean. Without a support (every foot seeking the
+        // ground) there is no pivot and no lean is taken: the estimate jumps when one lands.
         let leaning = match anchor {
-            Some((_, held)) => {
-                let lean = self.tilt.lean(&base_pose(&self.q_est).rotation);
-                let pivot = Point3::from(held.translation.vector);
-                pivot + lean * (encoders - pivot)
-            }
+            Some((_, held)) => leaning(
+                &encoders,
+                &Point3::from(held.translation.vector),
+                &self.tilt.lean(&base_pose(&self.q_est).rotation),
+            ),
             None => encoders,
         };
         Ok(ComEstimate { encoders, leaning, shift })

@@ -15,7 +15,7 @@ use crate::estimate::Odometry;
 use crate::planning::gait::Swing;
 use crate::planning::Plan;
 use crate::robot::hrp4;
-use crate::robot::model::{base_pose, RobotModel, Q_JOINTS};
+use crate::robot::model::{base_pose, set_base_pose, RobotModel, Q_JOINTS};
 use crate::scene::Scene;
 use nalgebra::Isometry3;
 use std::cell::RefCell;
@@ -204,8 +204,8 @@ pub fn execute_from(
         observer.event(&Event::State { stamp_s: world.data().time(), state: &state });
         // The planned base carried into the world, where the fall is judged.
         let base = mon.plan_to_world * base_pose(&planned.q);
-        let r = base.rotation.quaternion();
-        let planned_base = [base.translation.x, base.translation.y, base.translation.z, r.w, r.i, r.j, r.k];
+        let mut planned_base = [0.0; Q_JOINTS];
+        set_base_pose(&mut planned_base, &base);
         if mon.fell(world, now, planned_base[2].min(base_z0) - p.fall_drop_m, &planned_base) {
             break;
         }
