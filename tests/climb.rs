@@ -14,7 +14,7 @@ use stairbench::planning::clearance::step_blocks;
 use stairbench::planning::gait::Phase;
 use stairbench::planning::motion::track;
 use stairbench::planning::RefusalKind;
-use stairbench::planning::{plan, rectangles, Foot, Plan, PlanParams};
+use stairbench::planning::{rectangles, Foot, Plan, PlanParams, PlanRequest};
 use stairbench::robot::RobotModel;
 use stairbench::scenario::Scenario;
 use stairbench::scene::Scene;
@@ -129,7 +129,8 @@ fn a_40_cm_rise_is_refused_before_anything_moves() {
 fn a_floor_stance_executes_in_mujoco_with_the_checks_holding() {
     let (scene, model, mut world, q0) = settled_exp1();
     let rects = rectangles::from_step_tops(scene.steps());
-    let p = plan(&model, &q0, &rects, Some(1), &PlanParams::default()).unwrap();
+    let p =
+        PlanRequest::new(&model, &q0, &rects, &PlanParams::default()).max_stances(Some(1)).climb().unwrap();
     let ex = execute_checked(&mut world, &model, &scene, &p);
     println!(
         "margin {:.1} mm, torque {:.0} % ({}), speed {:.0} % ({}), touchdowns {:?}",
@@ -165,7 +166,7 @@ fn a_broken_plan_lifting_the_support_foot_is_caught_with_its_instant() {
     let (scene, model, mut world, q0) = settled_exp1();
     let rects = rectangles::from_step_tops(scene.steps());
     let params = PlanParams::default();
-    let good = plan(&model, &q0, &rects, Some(1), &params).unwrap();
+    let good = PlanRequest::new(&model, &q0, &rects, &params).max_stances(Some(1)).climb().unwrap();
     // Break segment (2): the CoM is over the left ankle, and the left foot is lifted along
     // the right foot's swing path moved over to it, while only the right foot holds.
     let mut segments = good.segments.clone();
@@ -207,7 +208,8 @@ fn a_foot_placed_5_cm_off_its_steps_edge_is_reported() {
     // step 1's wrong rectangle puts the heel 5 cm over the true nose ((27 - 24) / 2 + 5 cm).
     let shift = -0.065;
     let rects = step_tops_moved(&scene, Vector3::new(shift, 0.0, 0.0));
-    let p = plan(&model, &q0, &rects, Some(3), &PlanParams::default()).unwrap();
+    let p =
+        PlanRequest::new(&model, &q0, &rects, &PlanParams::default()).max_stances(Some(3)).climb().unwrap();
     assert_eq!(p.stances.last().unwrap().step, Some(0), "the third stance is on step 1");
     let ex = execute_checked(&mut world, &model, &scene, &p);
     let off = ex.first(CheckKind::OffStep).expect("the overhang is reported");

@@ -12,9 +12,7 @@ use stairbench::planning::gait::Phase;
 use stairbench::planning::plan::legs_at;
 use stairbench::planning::polygon::{by_bretl, margin};
 use stairbench::planning::reach;
-use stairbench::planning::{
-    clearance, plan, plan_among, rectangles, Contact, Foot, Plan, PlanError, PlanParams,
-};
+use stairbench::planning::{clearance, rectangles, Contact, Foot, Plan, PlanError, PlanParams, PlanRequest};
 use stairbench::robot::model::{base_pose, Q_JOINTS};
 use stairbench::robot::{hrp4, Kinematics, RobotModel};
 use stairbench::scenario::Scenario;
@@ -29,7 +27,7 @@ fn scenario_plan(s: &Scenario) -> (Scene, Result<Plan, PlanError>) {
     let scene = common::scene_of(s);
     let rects = rectangles::from_step_tops(scene.steps());
     let q0 = start_q(&model, &scene.robot_start());
-    let r = plan(&model, &q0, &rects, None, &PlanParams::default());
+    let r = PlanRequest::new(&model, &q0, &rects, &PlanParams::default()).climb();
     (scene, r)
 }
 
@@ -239,7 +237,8 @@ fn the_papers_rectangles_are_planned() {
     let front = first.center() - first.along() * (first.depth_m() / 2.0 + 0.20);
     let start = Isometry3::from_parts(Translation3::new(front.x, front.y, -1.38), UnitQuaternion::identity());
     let model = hrp4::model().unwrap();
-    let plan = plan(&model, &start_q(&model, &start), &rects, None, &PlanParams::default())
+    let plan = PlanRequest::new(&model, &start_q(&model, &start), &rects, &PlanParams::default())
+        .climb()
         .expect("the paper's climb");
     assert_eq!(plan.stances.len(), 3, "one stance per step, no approach steps needed");
     check(&plan, None);
@@ -361,14 +360,14 @@ fn a_gap_a_missing_step_and_nothing_are_refused() {
     // Steps 4 and 5 moved 15 cm away: a gap before step 4.
     let gap: Vec<PlaneSegment> =
         rects.iter().enumerate().map(|(i, r)| if i >= 3 { moved(r, 0.15) } else { r.clone() }).collect();
-    let e = plan(&model, &q0, &gap, None, &p).unwrap_err();
+    let e = PlanRequest::new(&model, &q0, &gap, &p).climb().unwrap_err();
     assert!(matches!(e, PlanError::Gap { step: 3, .. }), "{e}");
     // Step 3 not seen: the rise to step 4 is twice the others.
     let missing: Vec<PlaneSegment> =
         rects.iter().enumerate().filter(|(i, _)| *i != 2).map(|(_, r)| r.clone()).collect();
-    let e2 = plan(&model, &q0, &missing, None, &p).unwrap_err();
+    let e2 = PlanRequest::new(&model, &q0, &missing, &p).climb().unwrap_err();
     assert!(matches!(e2, PlanError::MissingStep { step: 2, .. }), "{e2}");
-    assert_eq!(plan(&model, &q0, &[], None, &p).unwrap_err(), PlanError::NoSteps);
+    assert_eq!(PlanRequest::new(&model, &q0, &[], &p).climb().unwrap_err(), PlanError::NoSteps);
     println!("gap: {e}\nmissing: {e2}");
 }
 
@@ -455,7 +454,10 @@ fn planned_blind() -> (RobotModel, Vec<PlaneSegment>, Vec<f64>, PlanParams, Plan
     let q0 = start_q(&model, &scene.robot_start());
     let mut p = PlanParams::default();
     p.gait.body_half_width_m = 0.0;
-    let blind = plan(&model, &q0, &rects, Some(2), &p).expect("planned without surroundings");
+    let blind = PlanRequest::new(&model, &q0, &rects, &p)
+        .max_stances(Some(2))
+        .climb()
+        .expect("planned without surroundings");
     (model, rects, q0, p, blind)
 }
 
@@ -471,7 +473,11 @@ fn the_ik_keeps_the_body_off_a_wall_the_lidar_saw() {
     let (blind_least, _) = upper_body_reach(&blind, &wall);
     assert!(blind_least < p.ik.body_clearance_m - 0.005, "the blind plan comes within {blind_least} m");
     let seen = std::sync::Arc::new(clearance::SeenPoints::new(wall.clone()));
-    let among = plan_among(&model, &q0, &rects, seen, Some(2), &p).expect("planned among the wall");
+    let among = PlanRequest::new(&model, &q0, &rects, &p)
+        .among(seen)
+        .max_stances(Some(2))
+        .climb()
+        .expect("planned among the wall");
     let (least, _) = upper_body_reach(&among, &wall);
     assert!(least >= p.ik.body_clearance_m - 1e-3, "the body came within {least} m of the wall");
     // The plan says where: its least body clearance is the brute-force one, at a wall point.
@@ -485,15 +491,11 @@ fn the_ik_keeps_the_body_off_a_wall_the_lidar_saw() {
     assert_eq!(among.stances, blind.stances, "the lanes were held: only the IK acted");
     // The wall where the body stands: refused, naming the limb, not planned through.
     let through: Vec<Point3<f64>> = wall.iter().map(|q| Point3::new(q.x, reach_y - 0.2, q.z)).collect();
-    let e = plan_among(
-        &model,
-        &q0,
-        &rects,
-        std::sync::Arc::new(clearance::SeenPoints::new(through)),
-        Some(2),
-        &p,
-    )
-    .expect_err("a wall through the body");
+    let e = PlanRequest::new(&model, &q0, &rects, &p)
+        .among(std::sync::Arc::new(clearance::SeenPoints::new(through)))
+        .max_stances(Some(2))
+        .climb()
+        .expect_err("a wall through the body");
     // Its foot of wall stands in the left foot's lane: the footholds may refuse it first.
     assert!(
         matches!(
@@ -522,7 +524,7 @@ fn a_plan_between_two_walls_keeps_the_sway_or_is_refused() {
     for inside_m in [-0.01, 0.02, 0.05, 0.08, 0.11] {
         let walls: Vec<Point3<f64>> = [wall_at(right_y + inside_m), wall_at(left_y - inside_m)].concat();
         let seen = std::sync::Arc::new(clearance::SeenPoints::new(walls.clone()));
-        match plan_among(&model, &q0, &rects, seen, Some(2), &p) {
+        match PlanRequest::new(&model, &q0, &rects, &p).among(seen).max_stances(Some(2)).climb() {
             Ok(among) => {
                 let (least, _) = upper_body_reach(&among, &walls);
                 assert!(
@@ -658,7 +660,10 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
     let (rects, _, q0) = seen_from(1.6, 1);
     let p = PlanParams::default();
     let floor = floor_seen([0.0, 1.6], 0.0);
-    let Err(refused) = plan_among(&model, &q0, &rects, Arc::new(SeenPoints::new(floor.clone())), Some(1), &p)
+    let Err(refused) = PlanRequest::new(&model, &q0, &rects, &p)
+        .among(Arc::new(SeenPoints::new(floor.clone())))
+        .max_stances(Some(1))
+        .climb()
     else {
         panic!("step 2 seen in part was planned")
     };
@@ -719,8 +724,10 @@ fn a_flight_refused_from_afar_is_walked_toward_on_seen_floor_only() {
     };
     let Ok((up, why)) = near(&near_rects) else { panic!("step 1 not climbed to look again at step 2") };
     assert_eq!(why.map(|r| r.kind), Some(RefusalKind::OffTheSide));
-    let Ok(climb) =
-        plan_among(&model, &q_near, &flight, Arc::new(SeenPoints::new(floor.clone())), Some(1), &p)
+    let Ok(climb) = PlanRequest::new(&model, &q_near, &flight, &p)
+        .among(Arc::new(SeenPoints::new(floor.clone())))
+        .max_stances(Some(1))
+        .climb()
     else {
         panic!("the whole flight refused")
     };

@@ -9,7 +9,7 @@ use stairbench::climb::feet_height_m;
 use stairbench::params::ClimbParams;
 use stairbench::perception::perceive;
 use stairbench::perception::step_map::StepMap;
-use stairbench::planning::plan;
+use stairbench::planning::PlanRequest;
 use stairbench::record::messages::PlanMsg;
 use stairbench::record::replay::{read, read_bytes};
 use stairbench::record::Recorder;
@@ -68,7 +68,10 @@ fn a_recorded_run_replays_equal_and_reads_in_the_independent_reader() {
         params.plan.gait.min_tread_m,
         &params.step_map,
     );
-    let again = plan(&model, &q0, &next.ahead, Some(params.run.stances_per_scan), &params.plan).unwrap();
+    let again = PlanRequest::new(&model, &q0, &next.ahead, &params.plan)
+        .max_stances(Some(params.run.stances_per_scan))
+        .climb()
+        .unwrap();
     let now_msg = PlanMsg::of(then.start_s, &next.ahead, &again);
     assert_eq!(now_msg.differs_from(then), None);
     assert_eq!(now_msg.steps, then.steps);

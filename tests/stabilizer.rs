@@ -15,7 +15,7 @@ use stairbench::control::distribution::{
 use stairbench::control::{FootSensor, StabilizerParams, TickRecord};
 use stairbench::params::ClimbParams;
 use stairbench::planning::contact::Contact;
-use stairbench::planning::{plan, PlanParams};
+use stairbench::planning::{PlanParams, PlanRequest};
 use stairbench::robot::hrp4;
 use stairbench::scenario::Scenario;
 use stairbench::scene::Scene;
@@ -289,7 +289,8 @@ fn with_the_stabilizer_exp1_uses_at_most_half_the_friction_cone() {
 fn with_perceived_height_off_by(error_m: f64, stabilizer: bool) -> Execution {
     let (scene, model, mut world, q0) = settled_exp1();
     let rects = step_tops_moved(&scene, Vector3::new(0.0, 0.0, error_m));
-    let planned = plan(&model, &q0, &rects, Some(3), &PlanParams::default()).unwrap();
+    let planned =
+        PlanRequest::new(&model, &q0, &rects, &PlanParams::default()).max_stances(Some(3)).climb().unwrap();
     assert_eq!(planned.stances.last().unwrap().step, Some(0), "the third stance is on step 1");
     let mut p = ClimbParams::default();
     p.stabilizer.enabled = stabilizer;
@@ -360,7 +361,8 @@ fn a_landed_foot_stays_on_the_ground_until_its_weight_comes() {
     use stairbench::climb::{Event, Watch};
     let (scene, model, mut world, q0) = settled_exp1();
     let rects = step_tops_moved(&scene, Vector3::zeros());
-    let planned = plan(&model, &q0, &rects, Some(3), &PlanParams::default()).unwrap();
+    let planned =
+        PlanRequest::new(&model, &q0, &rects, &PlanParams::default()).max_stances(Some(3)).climb().unwrap();
     let p = ClimbParams::default();
     let mut ticks = Vec::new();
     let mut watch = Watch(|e: &Event| {

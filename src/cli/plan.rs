@@ -11,7 +11,7 @@ use stairbench::perception::surroundings::{Surroundings, SurroundingsParams};
 use stairbench::perception::{perceive, PerceptionParams, PlaneSegment};
 use stairbench::planning::clearance::SeenPoints;
 use stairbench::planning::motion::JointTrajectory;
-use stairbench::planning::{plan_below, rectangles, Plan, PlanError, PlanParams};
+use stairbench::planning::{rectangles, Plan, PlanError, PlanParams, PlanRequest};
 use stairbench::record::messages::{PlanMsg, PlanReport};
 use stairbench::robot::{hrp4, RobotModel};
 use stairbench::scene::Scene;
@@ -88,7 +88,11 @@ pub fn run(a: PlanArgs) -> Result<ExitCode> {
     });
     let steps: Vec<PlaneSegment> = next.ahead.into_iter().chain(next.deferred).collect();
     let started = Instant::now();
-    let result = plan_below(&model, &q0, &steps, below, seen, a.stances, &params);
+    let result = PlanRequest::new(&model, &q0, &steps, &params)
+        .among(seen)
+        .below(below)
+        .max_stances(a.stances)
+        .climb();
     let wall_s = started.elapsed().as_secs_f64();
     if let (Some(c), false) = (&closer_look, a.json) {
         println!(

@@ -28,7 +28,7 @@ use crate::perception::{perceive, PerceptionError, PerceptionParams};
 use crate::planning::clearance::{body_capsules, SeenPoints};
 use crate::planning::footholds::riser_in_sight;
 use crate::planning::plan::stance_at;
-use crate::planning::{plan_approach, plan_below, plan_in_sight, plan_retreat, Plan, PlanParams, Refusal};
+use crate::planning::{Plan, PlanParams, PlanRequest, Refusal};
 use crate::robot::hrp4;
 use crate::robot::model::RobotModel;
 use crate::robot::Kinematics;
@@ -345,7 +345,7 @@ fn stop_after(ex: &Execution, cycle: usize, cancel: &Cancel) -> Option<StopReaso
 /// begins, and a walk nearer puts the feet into the riser (regression
 /// `set-down-near-the-first-riser`). Such a robot plans from where it stands (the climb's
 /// first stance onto the step), or walks back until the riser is in sight
-/// ([`plan_retreat`]), and looks again.
+/// ([`PlanRequest::retreat`]), and looks again.
 ///
 /// The step map's lowest step left for a closer look ([`NextInput::deferred`]):
 /// no foot goes on it, but its front bounds the tread below it (left out of the plan, the
@@ -366,10 +366,10 @@ pub fn plan_next(
     let ahead = &next.ahead;
     let steps: Vec<PlaneSegment> = ahead.iter().chain(&next.deferred).cloned().collect();
     let on_start_floor = (feet_height_m(model, q) - start_floor_z_m).abs() <= p.gait.floor_band_m;
-    let climb = if on_start_floor {
-        plan_in_sight(model, q, &steps, ahead.len(), surfaces.clone(), Some(stances), p)
-    } else {
-        plan_below(model, q, &steps, ahead.len(), surfaces.clone(), Some(stances), p)
+    let request = PlanRequest::new(model, q, &steps, p).among(surfaces.clone()).max_stances(Some(stances));
+    let climb = match on_start_floor {
+        true => request.clone().below(ahead.len()).climb_in_sight(),
+        false => request.clone().below(ahead.len()).climb(),
     };
     let refusal = match climb {
         Ok(plan) => return Ok((plan, None)),
@@ -381,7 +381,7 @@ pub fn plan_next(
     }
     let below = refusal.step.and_then(|s| s.checked_sub(1)).filter(|&b| b > 0);
     if let Some(below) = below.filter(|_| refusal.kind.about_the_view()) {
-        if let Ok(plan) = plan_below(model, q, &steps, below, surfaces.clone(), Some(stances), p) {
+        if let Ok(plan) = request.below(below).climb() {
             if plan.stances.first().is_some_and(|s| s.step.is_some()) {
                 return Ok((plan, Some(refusal)));
             }
@@ -392,10 +392,10 @@ pub fn plan_next(
     }
     let in_sight =
         stance_at(model, q).is_ok_and(|s| riser_in_sight(&s, ahead, surfaces.points(), &p.gait).is_ok());
-    let walk = if in_sight {
-        plan_approach(model, q, ahead, surfaces, Some(stances), p)
-    } else {
-        plan_retreat(model, q, ahead, surfaces, Some(stances), p)
+    let walk_request = PlanRequest::new(model, q, ahead, p).among(surfaces).max_stances(Some(stances));
+    let walk = match in_sight {
+        true => walk_request.approach(),
+        false => walk_request.retreat(),
     };
     match walk {
         Ok(Some(walk)) => Ok((walk, Some(refusal))),

@@ -17,7 +17,7 @@ pub mod stance;
 
 pub use contact::{Contact, ContactSpec};
 pub use motion::NearestSurface;
-pub use plan::{plan, plan_among, plan_approach, plan_below, plan_in_sight, plan_retreat, Plan, PlanParams};
+pub use plan::{Plan, PlanParams, PlanRequest};
 pub use stance::{Foot, Stance};
 
 /// Why a climb was refused. Steps are numbered from 1, the lowest, in messages.

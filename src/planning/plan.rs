@@ -105,180 +105,156 @@ pub fn stance_at(model: &RobotModel, q: &[f64]) -> Result<Stance, PlanError> {
     Ok(stance_of(&kin, hrp4::sole_frames(model)?))
 }
 
-/// Plans the climb of `rects` from configuration `q0` (standing, both feet down), with
-/// nothing known around the steps (see [`plan_among`]). `max_stances` limits the plan to the
-/// first stances (the closed loop plans one step, moves, and scans again); `None` plans to
-/// the top.
-pub fn plan(
-    model: &RobotModel,
-    q0: &[f64],
-    rects: &[PlaneSegment],
-    max_stances: Option<usize>,
-    p: &PlanParams,
-) -> Result<Plan, PlanError> {
-    plan_among(model, q0, rects, Arc::default(), max_stances, p)
-}
-
-/// [`plan`], keeping the body off the surfaces the lidar saw (`seen`, the surroundings) as
-/// well as the legs off the steps.
-pub fn plan_among(
-    model: &RobotModel,
-    q0: &[f64],
-    rects: &[PlaneSegment],
-    seen: Arc<SeenPoints>,
-    max_stances: Option<usize>,
-    p: &PlanParams,
-) -> Result<Plan, PlanError> {
-    plan_below(model, q0, rects, rects.len(), seen, max_stances, p)
-}
-
-/// [`plan_among`] up to the `below` lowest rectangles of `rects` (a higher one left to be
-/// judged from nearer): the feet go on those only, the legs keep off all of `rects`.
-pub fn plan_below(
-    model: &RobotModel,
-    q0: &[f64],
-    rects: &[PlaneSegment],
+/// What to plan: from configuration `q0` (standing, both feet down) over the perceived steps
+/// `rects`, with `params`. By default the feet may go on every rectangle, nothing is known
+/// around the steps and the plan goes to the top; [`PlanRequest::among`],
+/// [`PlanRequest::below`] and [`PlanRequest::max_stances`] change that. Then one of
+/// [`PlanRequest::climb`], [`PlanRequest::climb_in_sight`], [`PlanRequest::approach`] or
+/// [`PlanRequest::retreat`] plans it.
+#[derive(Clone)]
+pub struct PlanRequest<'a> {
+    model: &'a RobotModel,
+    q0: &'a [f64],
+    rects: &'a [PlaneSegment],
     below: usize,
     seen: Arc<SeenPoints>,
     max_stances: Option<usize>,
-    p: &PlanParams,
-) -> Result<Plan, PlanError> {
-    plan_climb(model, q0, (rects, below), seen, max_stances, p, false)
+    params: &'a PlanParams,
 }
 
-/// [`plan_below`] where the first riser may be out of the lidar's sight (the closed loop, on
-/// the floor it started from; `seen` is everything the lidar saw): a climb that would first
-/// walk the floor toward the lowest step is refused as [`riser_in_sight`] refuses it, unless
-/// that riser is in sight. A robot set down near the first riser plans from where it stands
-/// (its first stance onto the step) or not at all, and never walks a foot into a riser it
-/// did not see.
-pub fn plan_in_sight(
-    model: &RobotModel,
-    q0: &[f64],
-    rects: &[PlaneSegment],
-    below: usize,
-    seen: Arc<SeenPoints>,
-    max_stances: Option<usize>,
-    p: &PlanParams,
-) -> Result<Plan, PlanError> {
-    plan_climb(model, q0, (rects, below), seen, max_stances, p, true)
-}
-
-/// The climb of the `below` lowest of `rects`, its first riser required in sight when the
-/// climb starts with a floor walk and `in_sight` is set ([`plan_below`], [`plan_in_sight`]).
-fn plan_climb(
-    model: &RobotModel,
-    q0: &[f64],
-    (rects, below): (&[PlaneSegment], usize),
-    seen: Arc<SeenPoints>,
-    max_stances: Option<usize>,
-    p: &PlanParams,
-    in_sight: bool,
-) -> Result<Plan, PlanError> {
-    plan_stances(model, q0, rects, seen, max_stances, p, |start, pts, legs| {
-        let stances = footholds_below(start, rects, below, pts, legs, &p.gait)?;
-        if in_sight && stances.first().is_some_and(|s| s.step.is_none()) {
-            riser_in_sight(start, rects, pts, &p.gait)?;
-        }
-        Ok(stances)
-    })?
-    .ok_or(PlanError::NoSteps)
-}
-
-/// The walk on the floor toward the flight of `rects` ([`approach`]), its first
-/// `max_stances` stances, planned as [`plan_among`] plans a climb but with the steps left
-/// unjudged: the closed loop walks it to look again at a flight it refused from afar.
-/// `Ok(None)` when there is nothing left to walk (the first step is within a stride).
-pub fn plan_approach(
-    model: &RobotModel,
-    q0: &[f64],
-    rects: &[PlaneSegment],
-    seen: Arc<SeenPoints>,
-    max_stances: Option<usize>,
-    p: &PlanParams,
-) -> Result<Option<Plan>, PlanError> {
-    plan_stances(model, q0, rects, seen, max_stances, p, |start, pts, _| {
-        Ok(approach(start, rects, pts, &p.gait))
-    })
-}
-
-/// The walk on the floor back from the flight of `rects` ([`retreat`]), its first
-/// `max_stances` stances, planned as [`plan_approach`] plans its walk: the closed loop walks
-/// it to see a first riser that was out of the lidar's sight ([`riser_in_sight`]).
-/// `Ok(None)` when there is nothing left to walk.
-pub fn plan_retreat(
-    model: &RobotModel,
-    q0: &[f64],
-    rects: &[PlaneSegment],
-    seen: Arc<SeenPoints>,
-    max_stances: Option<usize>,
-    p: &PlanParams,
-) -> Result<Option<Plan>, PlanError> {
-    plan_stances(model, q0, rects, seen, max_stances, p, |start, pts, _| {
-        Ok(retreat(start, rects, pts, &p.gait))
-    })
-}
-
-/// A plan through the stances `stances_from` gives from the start stance and the seen
-/// surfaces and the legs' limits, the first `max_stances` of them: the gait's segments and the joint
-/// trajectory, the legs kept off `rects` and the body off `seen`; `None` for no stances.
-fn plan_stances(
-    model: &RobotModel,
-    q0: &[f64],
-    rects: &[PlaneSegment],
-    seen: Arc<SeenPoints>,
-    max_stances: Option<usize>,
-    p: &PlanParams,
-    stances_from: impl FnOnce(&Stance, &[nalgebra::Point3<f64>], &Legs) -> Result<Vec<Stance>, PlanError>,
-) -> Result<Option<Plan>, PlanError> {
-    let started = Instant::now();
-    let soles = hrp4::sole_frames(model)?;
-    let mut kin = Kinematics::new(model);
-    kin.update(q0)?;
-    let start = stance_of(&kin, soles);
-    let body = Body::measure(&kin, soles)?;
-    let mut stances = stances_from(&start, seen.points(), &Legs::of(&body, &p.step))?;
-    if let Some(n) = max_stances {
-        stances.truncate(n);
+impl<'a> PlanRequest<'a> {
+    /// The climb of all of `rects` from `q0`, to the top, nothing known around the steps.
+    pub fn new(
+        model: &'a RobotModel,
+        q0: &'a [f64],
+        rects: &'a [PlaneSegment],
+        params: &'a PlanParams,
+    ) -> Self {
+        Self { model, q0, rects, below: rects.len(), seen: Arc::default(), max_stances: None, params }
     }
-    if stances.is_empty() {
-        return Ok(None);
+
+    /// The body kept off the surfaces the lidar saw (`seen`, the surroundings) as well as the
+    /// legs off the steps.
+    pub fn among(self, seen: Arc<SeenPoints>) -> Self {
+        Self { seen, ..self }
     }
-    // The steps as solids down to below the feet: what the legs must keep clear of.
-    let feet_z = start.right.translation.z.min(start.left.translation.z);
-    let blocks = step_blocks(rects, feet_z - BLOCK_DEPTH_M);
-    // The gait from the legs' model, tracked; where the tracked leading leg lands farther
-    // from its hip than it reaches, its touchdown waypoint comes down by as much and the
-    // gait is tracked again (the hip's place moves a little with the CoM's height, hence
-    // more than one round).
-    let reach_m = Legs::of(&body, &p.step).reach_m;
-    let mut drops_m = vec![0.0; stances.len()];
-    let (mut gait_started, mut gait_time_s, mut round) = (started, 0.0, 1);
-    let mut ik_spent = Tracking::default();
-    loop {
-        let segs = segments(kin.com(), &start, &stances, &drops_m, &body, &p.step)?;
-        gait_time_s += gait_started.elapsed().as_secs_f64();
-        let (trajectory, mut tracking) = track(model, q0, &segs, &blocks, seen.clone(), &p.ik)?;
-        let more_m = reach::touchdown_drops_m(model, &segs, &trajectory, reach_m)?;
-        tracking.ik_ticks += ik_spent.ik_ticks;
-        tracking.ik_interior_point_qps += ik_spent.ik_interior_point_qps;
-        tracking.ik_time_s += ik_spent.ik_time_s;
-        if round == REACH_ROUNDS || more_m.iter().all(|&d| d <= REACH_TOLERANCE_M) {
-            return Ok(Some(Plan {
-                start,
-                stances,
-                segments: segs,
-                trajectory,
-                tracking,
-                gait_time_s,
-                blocks,
-                seen,
-            }));
+
+    /// The feet on the `below` lowest rectangles only (a higher one left to be judged from
+    /// nearer); the legs still keep off all of them.
+    pub fn below(self, below: usize) -> Self {
+        Self { below, ..self }
+    }
+
+    /// The plan limited to its first `max_stances` stances (the closed loop plans a few,
+    /// moves, and scans again); `None` plans to the top.
+    pub fn max_stances(self, max_stances: Option<usize>) -> Self {
+        Self { max_stances, ..self }
+    }
+
+    /// The climb.
+    pub fn climb(&self) -> Result<Plan, PlanError> {
+        self.plan_climb(false)
+    }
+
+    /// The climb where the first riser may be out of the lidar's sight (the closed loop, on
+    /// the floor it started from; `seen` is everything the lidar saw): a climb that would
+    /// first walk the floor toward the lowest step is refused as [`riser_in_sight`] refuses
+    /// it, unless that riser is in sight. A robot set down near the first riser plans from
+    /// where it stands (its first stance onto the step) or not at all, and never walks a foot
+    /// into a riser it did not see.
+    pub fn climb_in_sight(&self) -> Result<Plan, PlanError> {
+        self.plan_climb(true)
+    }
+
+    /// The walk on the floor toward the flight ([`approach`]), planned as a climb is but with
+    /// the steps left unjudged: the closed loop walks it to look again at a flight it refused
+    /// from afar. `Ok(None)` when there is nothing left to walk (the first step is within a
+    /// stride).
+    pub fn approach(&self) -> Result<Option<Plan>, PlanError> {
+        self.plan_stances(|start, pts, _| Ok(approach(start, self.rects, pts, &self.params.gait)))
+    }
+
+    /// The walk on the floor back from the flight ([`retreat`]), planned as
+    /// [`PlanRequest::approach`] plans its walk: the closed loop walks it to see a first
+    /// riser that was out of the lidar's sight ([`riser_in_sight`]). `Ok(None)` when there is
+    /// nothing left to walk.
+    pub fn retreat(&self) -> Result<Option<Plan>, PlanError> {
+        self.plan_stances(|start, pts, _| Ok(retreat(start, self.rects, pts, &self.params.gait)))
+    }
+
+    /// The climb of the `below` lowest rectangles, its first riser required in sight when
+    /// the climb starts with a floor walk and `in_sight` is set.
+    fn plan_climb(&self, in_sight: bool) -> Result<Plan, PlanError> {
+        let (rects, gait) = (self.rects, &self.params.gait);
+        self.plan_stances(|start, pts, legs| {
+            let stances = footholds_below(start, rects, self.below, pts, legs, gait)?;
+            if in_sight && stances.first().is_some_and(|s| s.step.is_none()) {
+                riser_in_sight(start, rects, pts, gait)?;
+            }
+            Ok(stances)
+        })?
+        .ok_or(PlanError::NoSteps)
+    }
+
+    /// A plan through the stances `stances_from` gives from the start stance, the seen
+    /// surfaces and the legs' limits, the first `max_stances` of them: the gait's segments
+    /// and the joint trajectory, the legs kept off `rects` and the body off `seen`; `None`
+    /// for no stances.
+    fn plan_stances(
+        &self,
+        stances_from: impl FnOnce(&Stance, &[nalgebra::Point3<f64>], &Legs) -> Result<Vec<Stance>, PlanError>,
+    ) -> Result<Option<Plan>, PlanError> {
+        let Self { model, q0, rects, seen, max_stances, params: p, .. } = self;
+        let (model, q0, rects, max_stances) = (*model, *q0, *rects, *max_stances);
+        let started = Instant::now();
+        let soles = hrp4::sole_frames(model)?;
+        let mut kin = Kinematics::new(model);
+        kin.update(q0)?;
+        let start = stance_of(&kin, soles);
+        let body = Body::measure(&kin, soles)?;
+        let mut stances = stances_from(&start, seen.points(), &Legs::of(&body, &p.step))?;
+        if let Some(n) = max_stances {
+            stances.truncate(n);
         }
-        ik_spent = tracking;
-        for (d, more) in drops_m.iter_mut().zip(more_m) {
-            *d += more;
+        if stances.is_empty() {
+            return Ok(None);
         }
-        (gait_started, round) = (Instant::now(), round + 1);
+        // The steps as solids down to below the feet: what the legs must keep clear of.
+        let feet_z = start.right.translation.z.min(start.left.translation.z);
+        let blocks = step_blocks(rects, feet_z - BLOCK_DEPTH_M);
+        // The gait from the legs' model, tracked; where the tracked leading leg lands farther
+        // from its hip than it reaches, its touchdown waypoint comes down by as much and the
+        // gait is tracked again (the hip's place moves a little with the CoM's height, hence
+        // more than one round).
+        let reach_m = Legs::of(&body, &p.step).reach_m;
+        let mut drops_m = vec![0.0; stances.len()];
+        let (mut gait_started, mut gait_time_s, mut round) = (started, 0.0, 1);
+        let mut ik_spent = Tracking::default();
+        loop {
+            let segs = segments(kin.com(), &start, &stances, &drops_m, &body, &p.step)?;
+            gait_time_s += gait_started.elapsed().as_secs_f64();
+            let (trajectory, mut tracking) = track(model, q0, &segs, &blocks, seen.clone(), &p.ik)?;
+            let more_m = reach::touchdown_drops_m(model, &segs, &trajectory, reach_m)?;
+            tracking.ik_ticks += ik_spent.ik_ticks;
+            tracking.ik_interior_point_qps += ik_spent.ik_interior_point_qps;
+            tracking.ik_time_s += ik_spent.ik_time_s;
+            if round == REACH_ROUNDS || more_m.iter().all(|&d| d <= REACH_TOLERANCE_M) {
+                return Ok(Some(Plan {
+                    start,
+                    stances,
+                    segments: segs,
+                    trajectory,
+                    tracking,
+                    gait_time_s,
+                    blocks,
+                    seen: Arc::clone(seen),
+                }));
+            }
+            ik_spent = tracking;
+            for (d, more) in drops_m.iter_mut().zip(more_m) {
+                *d += more;
+            }
+            (gait_started, round) = (Instant::now(), round + 1);
+        }
     }
 }

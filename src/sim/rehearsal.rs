@@ -11,7 +11,7 @@ use crate::cloud::PointCloud;
 use crate::perception::step_map::StepMap;
 use crate::perception::surroundings::Surroundings;
 use crate::perception::PlaneSegment;
-use crate::planning::{plan_below, Plan, PlanError};
+use crate::planning::{Plan, PlanError, PlanRequest};
 use crate::scene::{PerceivedTop, Scene};
 
 /// What a rehearsal did.
@@ -68,7 +68,8 @@ pub fn rehearse(
     let deferred = next.deferred.as_ref().map(|top| [top.height_m(), top.depth_m()]);
     // The step left for a closer look bounds the tread below it, as in the loop.
     let bounded: Vec<_> = next.ahead.iter().chain(next.deferred.as_ref()).cloned().collect();
-    let plan = plan_below(&model, &q0, &bounded, next.ahead.len(), surfaces, None, p.plan);
+    let plan =
+        PlanRequest::new(&model, &q0, &bounded, p.plan).among(surfaces).below(next.ahead.len()).climb();
     let execution = match &plan {
         Err(_) => None,
         Ok(planned) => {

@@ -7,7 +7,7 @@ use nalgebra::{Point3, Vector3};
 use stairbench::planning::clearance::SeenPoints;
 use stairbench::planning::ik::{self, Solver};
 use stairbench::planning::motion::IkParams;
-use stairbench::planning::{plan_among, rectangles, Plan, PlanParams};
+use stairbench::planning::{rectangles, Plan, PlanParams, PlanRequest};
 use stairbench::robot::model::Q_JOINTS;
 use stairbench::robot::{hrp4, Kinematics};
 use stairbench::scene::Scene;
@@ -46,7 +46,9 @@ fn once(name: &str, walls: bool, active_set: bool) -> Result<(Plan, f64)> {
     let mut params = PlanParams::default();
     params.ik.active_set = active_set;
     let t = Instant::now();
-    let p = plan_among(&model, &q0, &rects, seen, None, &params)
+    let p = PlanRequest::new(&model, &q0, &rects, &params)
+        .among(seen)
+        .climb()
         .with_context(|| format!("{name}: plan refused"))?;
     Ok((p, t.elapsed().as_secs_f64()))
 }
