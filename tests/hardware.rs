@@ -2,6 +2,9 @@
 //! Dynamixel drivers, over TCP and pseudo-terminals, sweep the emulated head; the cloud and the
 //! steps match the simulated path's; each fault is a clear error and nothing received is lost.
 
+// Test helpers unwrap: a panic there is the test failing.
+#![allow(clippy::unwrap_used)]
+
 mod common;
 
 use stairbench::cancel::Cancel;

@@ -5,6 +5,9 @@
 //! exactly where each plan ends. The loop must still perceive, keep its step map, plan every
 //! stance to the top and report it as typed data.
 
+// Test helpers unwrap: a panic there is the test failing.
+#![allow(clippy::unwrap_used)]
+
 mod common;
 
 use std::cell::RefCell;

@@ -1,5 +1,8 @@
 //! Perception against ground truth, the paper's real data, and bad input.
 
+// Test helpers unwrap: a panic there is the test failing.
+#![allow(clippy::unwrap_used)]
+
 mod common;
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};

@@ -3,6 +3,9 @@
 //! projection, the independent method), the IK trajectory tracking its feet and holding its
 //! contacts, the swing clearing the steps, the legs kept off the true steps, and the refusals.
 
+// Test helpers unwrap: a panic there is the test failing.
+#![allow(clippy::unwrap_used)]
+
 mod common;
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};

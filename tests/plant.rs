@@ -2,6 +2,9 @@
 //! gains, compliant ankles the encoders do not see), and a climb in that body with the
 //! planner and the stabilizer on the nominal model.
 
+// Test helpers unwrap: a panic there is the test failing.
+#![allow(clippy::unwrap_used)]
+
 mod common;
 
 use stairbench::params::ClimbParams;

@@ -2,6 +2,9 @@
 //! polygon against Bretl and Lall's projection (an independent method), against the convex
 //! hull of coplanar soles, and the CWC's span against its 16 face inequalities.
 
+// Test helpers unwrap: a panic there is the test failing.
+#![allow(clippy::unwrap_used)]
+
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector6};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

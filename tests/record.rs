@@ -3,6 +3,9 @@
 //! replayed perception and planning equal the recorded ones, and a damaged file gives a clear error and
 //! every complete sweep before the damage.
 
+// Test helpers unwrap: a panic there is the test failing.
+#![allow(clippy::unwrap_used)]
+
 use serde_json::Value;
 use stairbench::cancel::Cancel;
 use stairbench::climb::feet_height_m;

@@ -8,6 +8,9 @@
 //!
 //! The tests run the binary one at a time (each climbs on every core).
 
+// Test helpers unwrap: a panic there is the test failing.
+#![allow(clippy::unwrap_used)]
+
 use serde_json::Value;
 use stairbench::regress::results::{read, CaseResult};
 use stairbench::regress::Verdict;

@@ -2,6 +2,9 @@
 //! an independent implementation, standing still under its own servos, and the lidar mount's
 //! view of the floor.
 
+// Test helpers unwrap: a panic there is the test failing.
+#![allow(clippy::unwrap_used)]
+
 use nalgebra::{Matrix3xX, Matrix6xX, Point3, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

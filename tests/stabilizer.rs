@@ -3,6 +3,9 @@
 //! climbs keep their loaded feet well inside the friction cone; a step higher than perceived
 //! is met by the compliant touchdown.
 
+// Test helpers unwrap: a panic there is the test failing.
+#![allow(clippy::unwrap_used)]
+
 mod common;
 
 use common::{settled_exp1, step_tops_moved};

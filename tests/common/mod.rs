@@ -1,6 +1,9 @@
 //! Helpers shared by the integration tests: an independent ray caster (slab method on the
 //! scene's boxes, no MuJoCo) to check the simulated lidar against; the Exp. 1 world settled
 //! and its true step rectangles, moved as a perception error made on purpose.
+
+// Test helpers unwrap: a panic there is the test failing.
+#![allow(clippy::unwrap_used)]
 #![allow(dead_code)]
 
 use nalgebra::{Isometry3, Point3, Vector3};
