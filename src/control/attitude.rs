@@ -20,9 +20,7 @@ pub struct TiltFilter {
 impl TiltFilter {
     /// A filter pulled toward the accelerometer with time constant `time_s` (seconds; 0
     /// takes each accelerometer reading as it is). It starts on its first reading, whose
-    /// noise it forgets over `time_s`. (Averaging the readings while it starts, its time
-    /// constant the time elapsed, follows the walk's first accelerations instead: over
-    /// Exp. 1 the 99th percentile of its error was 1.06 deg against 0.30 deg.)
+    /// noise it forgets over `time_s`.
     pub fn new(time_s: f64) -> Self {
         Self { up_base: None, time_s: time_s.max(0.0) }
     }

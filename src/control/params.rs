@@ -91,11 +91,11 @@ pub struct StabilizerParams {
     pub max_seek_m: f64,
     /// Time constant of the IMU's tilt filter, seconds ([`super::attitude::TiltFilter`]):
     /// the gyro carries the tilt over shorter times, the accelerometer sets it over longer.
-    /// The climb's own accelerations pull the accelerometer off gravity: over Exp. 1 (seed 3)
-    /// the filtered tilt is off MuJoCo's by 0.06 deg median and 0.30 deg at the 99th
-    /// percentile in a rigid body (0.08 and 0.47 deg on 500 N m/rad ankle bushes); at 0.5 s
-    /// it was 0.18 and 0.86 deg in the rigid body (test
-    /// `the_stabilizer_reads_the_true_tilt_and_sees_the_lean`, with `--nocapture`).
+    /// The climb's own accelerations pull the accelerometer off gravity, the more the
+    /// shorter this is: at 2 s the filtered tilt stays within 0.15 deg of MuJoCo's at the
+    /// median and 0.75 deg at the 99th percentile over Exp. 1, rigid or on soft ankle bushes
+    /// (test `the_stabilizer_reads_the_true_tilt_and_sees_the_lean`, which prints its
+    /// figures with `--nocapture`); at 0.5 s it does not.
     /// A gyro bias `b` offsets it by `b` times this: 0.02 deg at a MEMS gyro's 0.01 deg/s.
     pub tilt_filter_time_s: f64,
 }
