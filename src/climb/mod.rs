@@ -367,10 +367,8 @@ pub fn plan_next(
     let steps: Vec<PlaneSegment> = ahead.iter().chain(&next.deferred).cloned().collect();
     let on_start_floor = (feet_height_m(model, q) - start_floor_z_m).abs() <= p.gait.floor_band_m;
     let request = PlanRequest::new(model, q, &steps, p).among(surfaces.clone()).max_stances(Some(stances));
-    let climb = match on_start_floor {
-        true => request.clone().below(ahead.len()).climb_in_sight(),
-        false => request.clone().below(ahead.len()).climb(),
-    };
+    let first = request.clone().below(ahead.len());
+    let climb = if on_start_floor { first.climb_in_sight() } else { first.climb() };
     let refusal = match climb {
         Ok(plan) => return Ok((plan, None)),
         Err(e) => e.refusal(),
@@ -393,10 +391,7 @@ pub fn plan_next(
     let in_sight =
         stance_at(model, q).is_ok_and(|s| riser_in_sight(&s, ahead, surfaces.points(), &p.gait).is_ok());
     let walk_request = PlanRequest::new(model, q, ahead, p).among(surfaces).max_stances(Some(stances));
-    let walk = match in_sight {
-        true => walk_request.approach(),
-        false => walk_request.retreat(),
-    };
+    let walk = if in_sight { walk_request.approach() } else { walk_request.retreat() };
     match walk {
         Ok(Some(walk)) => Ok((walk, Some(refusal))),
         _ => Err(Box::new(refusal)),

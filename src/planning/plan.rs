@@ -135,18 +135,21 @@ impl<'a> PlanRequest<'a> {
 
     /// The body kept off the surfaces the lidar saw (`seen`, the surroundings) as well as the
     /// legs off the steps.
+    #[must_use]
     pub fn among(self, seen: Arc<SeenPoints>) -> Self {
         Self { seen, ..self }
     }
 
     /// The feet on the `below` lowest rectangles only (a higher one left to be judged from
     /// nearer); the legs still keep off all of them.
+    #[must_use]
     pub fn below(self, below: usize) -> Self {
         Self { below, ..self }
     }
 
     /// The plan limited to its first `max_stances` stances (the closed loop plans a few,
     /// moves, and scans again); `None` plans to the top.
+    #[must_use]
     pub fn max_stances(self, max_stances: Option<usize>) -> Self {
         Self { max_stances, ..self }
     }
@@ -166,7 +169,7 @@ impl<'a> PlanRequest<'a> {
         self.plan_climb(true)
     }
 
-    /// The walk on the floor toward the flight ([`approach`]), planned as a climb is but with
+    /// The walk on the floor toward the flight ([`footholds::approach`](approach)), planned as a climb is but with
     /// the steps left unjudged: the closed loop walks it to look again at a flight it refused
     /// from afar. `Ok(None)` when there is nothing left to walk (the first step is within a
     /// stride).
@@ -174,7 +177,7 @@ impl<'a> PlanRequest<'a> {
         self.plan_stances(|start, pts, _| Ok(approach(start, self.rects, pts, &self.params.gait)))
     }
 
-    /// The walk on the floor back from the flight ([`retreat`]), planned as
+    /// The walk on the floor back from the flight ([`footholds::retreat`](retreat)), planned as
     /// [`PlanRequest::approach`] plans its walk: the closed loop walks it to see a first
     /// riser that was out of the lidar's sight ([`riser_in_sight`]). `Ok(None)` when there is
     /// nothing left to walk.
