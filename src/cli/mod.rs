@@ -45,6 +45,13 @@ impl NoiseArgs {
 /// Folder searched for a scenario given by name (`exp2` → `scenarios/exp2.toml`).
 const SCENARIO_DIR: &str = "scenarios";
 
+/// The climb parameters of `path` (a TOML file as `run --params` takes), or the defaults.
+pub fn climb_params(path: Option<&Path>) -> Result<stairbench::params::ClimbParams> {
+    let Some(p) = path else { return Ok(Default::default()) };
+    let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+    toml::from_str(&text).with_context(|| format!("{}: not climb parameters", p.display()))
+}
+
 /// The scenario named on the command line: a path, a name in `scenarios/`, or (none) the
 /// built-in default, the paper's Exp. 1.
 pub fn load_scenario(arg: Option<&Path>) -> Result<Scenario> {

@@ -6,9 +6,7 @@ use clap::Args;
 use serde_json::json;
 use stairbench::cloud::io::{read_cloud, read_xyz_text};
 use stairbench::cloud::PointCloud;
-use stairbench::perception::{
-    metrics, perceive, perceive_voxels, NeighbourSearch, Perception, PerceptionParams,
-};
+use stairbench::perception::{metrics, perceive, perceive_voxels, Method, NeighbourSearch, Perception};
 use stairbench::scene::Scene;
 use stairbench::sensor::AssembleParams;
 use stairbench::sim::scan_scenario;
@@ -27,8 +25,17 @@ pub struct PerceiveArgs {
     k: Option<usize>,
     /// Neighbourhood search of the normal estimation (auto: the scan grid when the cloud
     /// has one).
-    #[arg(long, value_enum, default_value = "auto")]
-    search: SearchArg,
+    #[arg(long, value_enum)]
+    search: Option<SearchArg>,
+    /// How the planes are found: the paper's §4 pipeline, or planes grown on cells of the
+    /// scan grid (a cloud without one, a file of points, runs the paper's). Default: the
+    /// parameters' [perception] method, the paper's.
+    #[arg(long, value_enum)]
+    method: Option<MethodArg>,
+    /// Climb parameters as TOML (as for `run --params`): its [perception] table. The options
+    /// above override it.
+    #[arg(long, value_name = "FILE.toml")]
+    params: Option<PathBuf>,
     #[command(flatten)]
     noise: super::NoiseArgs,
     /// Print one JSON object (segments, timings_ms, counts, and the score against ground
@@ -42,6 +49,13 @@ pub struct PerceiveArgs {
     /// the steps in its cloud.
     #[arg(long, value_name = "FILE.toml", conflicts_with = "input")]
     hardware: Option<PathBuf>,
+}
+
+/// `--method` values.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum MethodArg {
+    Paper,
+    Cells,
 }
 
 /// `--search` values.
@@ -80,16 +94,23 @@ fn load(a: &PerceiveArgs) -> Result<Input> {
 
 /// Runs `stairbench perceive`.
 pub fn run(a: PerceiveArgs) -> Result<ExitCode> {
-    let mut params = PerceptionParams::default();
+    let mut params = super::climb_params(a.params.as_deref())?.perception;
     if let Some(k) = a.k {
         params.normal_neighbours = k;
         params.k_grows_with_noise = false;
     }
-    params.neighbour_search = match a.search {
-        SearchArg::Auto => NeighbourSearch::Auto,
-        SearchArg::KdTree => NeighbourSearch::KdTree,
-        SearchArg::ScanGrid => NeighbourSearch::ScanGrid,
-    };
+    if let Some(search) = a.search {
+        params.neighbour_search = match search {
+            SearchArg::Auto => NeighbourSearch::Auto,
+            SearchArg::KdTree => NeighbourSearch::KdTree,
+            SearchArg::ScanGrid => NeighbourSearch::ScanGrid,
+        };
+    }
+    match a.method {
+        Some(MethodArg::Paper) => params.method = Method::Paper,
+        Some(MethodArg::Cells) => params.method = Method::Cells,
+        None => {}
+    }
     let input = load(&a)?;
     let (cloud, voxels, scene) = match &input {
         Input::Scenario(scene, cloud) => (cloud, false, Some(scene.as_ref())),
@@ -139,7 +160,12 @@ fn to_json(r: &Perception, score: Option<&metrics::Score>) -> serde_json::Value 
             })
         })
         .collect();
-    let mut v = json!({ "segments": segments, "timings_ms": r.timings, "counts": r.counts });
+    let mut v = json!({
+        "method": r.method.to_string(),
+        "segments": segments,
+        "timings_ms": r.timings,
+        "counts": r.counts,
+    });
     if let Some(s) = score {
         v["score"] = serde_json::to_value(s).unwrap_or_default();
     }
@@ -148,16 +174,25 @@ fn to_json(r: &Perception, score: Option<&metrics::Score>) -> serde_json::Value 
 
 fn print_tables(r: &Perception, score: Option<&metrics::Score>) {
     let c = &r.counts;
-    println!(
-        "{} points -> {} after Filter 1 -> {} voxels -> {} after Filter 2 -> {} supervoxels -> {} clusters, {} after Filter 3 -> {} planes -> {} segments -> {} steps",
-        c.points, c.after_filter1, c.voxels, c.after_filter2, c.supervoxels, c.clusters, c.after_filter3, c.planes, c.segments, r.segments.len()
-    );
-    match c.range_noise_mm {
-        Some(mm) => println!(
-            "normals on k = {} neighbours (range noise {mm:.1} mm, measured on the sweep)",
-            c.normal_neighbours
-        ),
-        None => println!("normals on k = {} neighbours", c.normal_neighbours),
+    match r.method {
+        Method::Paper => {
+            println!(
+                "{} points -> {} after Filter 1 -> {} voxels -> {} after Filter 2 -> {} supervoxels -> {} clusters, {} after Filter 3 -> {} planes -> {} segments -> {} steps",
+                c.points, c.after_filter1, c.voxels, c.after_filter2, c.supervoxels, c.clusters, c.after_filter3, c.planes, c.segments, r.segments.len()
+            );
+            let noise =
+                c.range_noise_mm.map(|mm| format!(" (range noise {mm:.1} mm, measured on the sweep)"));
+            println!("normals on k = {} neighbours{}", c.normal_neighbours, noise.unwrap_or_default());
+        }
+        Method::Cells => {
+            println!(
+                "{} points -> {} cells fitted, {} level planes -> {} regions holding {} points, {} columns -> {} segments -> {} steps",
+                c.points, c.cells, c.level_cells, c.planes, c.after_filter1, c.voxels, c.segments, r.segments.len()
+            );
+            if let Some(mm) = c.range_noise_mm {
+                println!("planes grown on the scan grid (range noise {mm:.1} mm, measured on the sweep)");
+            }
+        }
     }
     println!("step  height   depth   width   area     voxels  centre (x, y)");
     for (i, s) in r.segments.iter().enumerate() {
@@ -196,6 +231,13 @@ fn print_tables(r: &Perception, score: Option<&metrics::Score>) {
         }
     }
     let t = &r.timings;
+    if r.method == Method::Cells {
+        println!(
+            "timings (ms): cells {:.2}, regions {:.2}, staircase {:.2}, total {:.2}",
+            t.cells_ms, t.regions_ms, t.staircase_ms, t.total_ms
+        );
+        return;
+    }
     println!(
         "timings (ms): normals {:.2}, filter1 {:.2}, voxels+filter2 {:.2}, supervoxels {:.2}, clusters+filter3 {:.2}, ransac {:.2}, staircase {:.2}, total {:.2}",
         t.normals_ms, t.filter1_ms, t.voxels_ms, t.supervoxels_ms, t.clusters_ms, t.ransac_ms, t.staircase_ms, t.total_ms

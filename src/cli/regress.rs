@@ -117,13 +117,7 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
     );
     anyhow::ensure!(a.timeout > 0.0, "--timeout must be positive");
     let suite = suite::load(&resolve(suite_arg)?)?;
-    let params: ClimbParams = match &a.params {
-        Some(p) => toml::from_str(
-            &std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?,
-        )
-        .with_context(|| format!("{}: not climb parameters", p.display()))?,
-        None => ClimbParams::default(),
-    };
+    let params: ClimbParams = super::climb_params(a.params.as_deref())?;
     let robot = bench_robot(&params.plan.gait)?;
     let mut all = generate::cases(&suite, &robot)?;
     if let Some(p) = a.plant {

@@ -100,13 +100,7 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
     if let Some(p) = a.plant {
         scenario.plant.preset = p.preset();
     }
-    let mut params: ClimbParams = match &a.params {
-        Some(p) => toml::from_str(
-            &std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?,
-        )
-        .with_context(|| format!("{}: not climb parameters", p.display()))?,
-        None => ClimbParams::default(),
-    };
+    let mut params: ClimbParams = super::climb_params(a.params.as_deref())?;
     anyhow::ensure!(
         a.speedup.is_finite() && a.speedup > 0.0,
         "--speedup must be a positive number, got {}",

@@ -74,6 +74,41 @@ pub fn extract(
             parts.extend(candidate(vc, voxels, plane.normal.cast()));
         }
     }
+    from_parts(vc, parts, planes.len(), viewpoint, gravity, p)
+}
+
+/// The steps, as [`extract`] gives them, from surfaces found another way: each a set of
+/// `vc`'s voxels with its plane's normal (up), one surface each (a tread may come in
+/// several pieces, which are joined as [`extract`] joins a plane's clusters). A surface
+/// spanning more than epsilon in height on its own plane is dropped, as a plane's part is.
+/// `planes` is how many planes they came from, for the error when none is a surface.
+pub fn from_surfaces(
+    vc: &VoxelCloud,
+    surfaces: Vec<(Vec<u32>, Vector3<f64>)>,
+    planes: usize,
+    viewpoint: &Point3<f64>,
+    gravity: &Unit<Vector3<f64>>,
+    p: &PerceptionParams,
+) -> Result<(Vec<PlaneSegment>, usize, f64), PerceptionError> {
+    let up = -gravity.into_inner();
+    let parts = surfaces
+        .into_iter()
+        .filter(|(voxels, _)| surface_height_extent_m(&vc.positions, voxels, &up) <= p.max_height_extent_m)
+        .filter_map(|(voxels, normal)| candidate(vc, voxels, normal))
+        .collect();
+    from_parts(vc, parts, planes, viewpoint, gravity, p)
+}
+
+/// Steps 2 (from the joining on) to 5 of the module's doc, on the plane segments `parts`.
+fn from_parts(
+    vc: &VoxelCloud,
+    parts: Vec<Candidate>,
+    planes: usize,
+    viewpoint: &Point3<f64>,
+    gravity: &Unit<Vector3<f64>>,
+    p: &PerceptionParams,
+) -> Result<(Vec<PlaneSegment>, usize, f64), PerceptionError> {
+    let up = -gravity.into_inner();
     // Filter 3's rule (§4.2) on each joined part too: RANSAC may split a cluster, and a
     // leftover whose footprint is smaller than the sole is not a foothold (a few voxels cut
     // off a tread would be taken for another step, turned), nor are voxels too few to cover
@@ -84,7 +119,7 @@ pub fn extract(
     let n_candidates = cands.len();
     if cands.is_empty() {
         return Err(PerceptionError::NoStaircase(NoStaircase::NoFlatSegment {
-            planes: planes.len(),
+            planes,
             epsilon_m: p.max_height_extent_m,
         }));
     }
