@@ -8,6 +8,7 @@
 //! and gives sigma as `1.4826 * median / sqrt(6)` for normal noise.
 
 use crate::cloud::{PointCloud, ScanGrid};
+use rayon::prelude::*;
 
 /// Fewest second differences for a measure: below this the sweep says nothing of its noise.
 const MIN_SAMPLES: usize = 100;
@@ -24,17 +25,21 @@ pub fn range_noise_m(cloud: &PointCloud) -> Option<f64> {
         let r = (p - v).norm();
         r.is_finite().then_some(f64::from(r))
     };
-    let mut second: Vec<f64> = Vec::with_capacity(points.len());
-    let mut ranges: Vec<Option<f64>> = Vec::with_capacity(grid.beams());
-    for row in grid.cells().chunks(grid.beams()) {
-        ranges.clear();
-        ranges.extend(row.iter().map(|&c| range(c)));
-        for w in ranges.windows(3) {
-            if let [Some(a), Some(b), Some(c)] = *w {
-                second.push((a - 2.0 * b + c).abs());
-            }
-        }
-    }
+    let mut second: Vec<f64> = grid
+        .cells()
+        .par_chunks(grid.beams())
+        .flat_map_iter(|row| {
+            let ranges: Vec<Option<f64>> = row.iter().map(|&c| range(c)).collect();
+            let second: Vec<f64> = ranges
+                .windows(3)
+                .filter_map(|w| match *w {
+                    [Some(a), Some(b), Some(c)] => Some((a - 2.0 * b + c).abs()),
+                    _ => None,
+                })
+                .collect();
+            second
+        })
+        .collect();
     if second.len() < MIN_SAMPLES {
         return None;
     }

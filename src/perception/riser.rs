@@ -20,6 +20,7 @@
 use super::PlaneSegment;
 use crate::stats::median;
 use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// Where a tread's riser is looked for and when it is believed.
@@ -107,7 +108,7 @@ pub fn place_fronts(
     let least_m = NOSING_MIN_M.max(NOSING_NOISE_FACTOR * noise_m.unwrap_or(0.0));
     // Each segment's riser, and how far its nose projects past it where a nosing is seen.
     let found: Vec<Option<(f64, Option<f64>)>> = segments
-        .iter()
+        .par_iter()
         .map(|s| {
             if (viewpoint - s.center()).dot(&s.along()) >= 0.0 || (lone && s.depth_m() > s.width_m()) {
                 return None;

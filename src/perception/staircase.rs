@@ -282,8 +282,10 @@ fn join_touching(vc: &VoxelCloud, parts: Vec<Candidate>, p: &PerceptionParams) -
         let q = vc.positions[v as usize];
         ((f64::from(q.x) / g).floor() as i64, (f64::from(q.y) / g).floor() as i64)
     };
-    let cells: Vec<std::collections::HashSet<(i64, i64)>> =
-        parts.iter().map(|c| c.voxels.iter().map(|&v| cell(v)).collect()).collect();
+    // Each part's cells, built when a pair first passes the cheaper tests.
+    let cells: Vec<std::cell::OnceCell<rustc_hash::FxHashSet<(i64, i64)>>> =
+        parts.iter().map(|_| std::cell::OnceCell::new()).collect();
+    let cells_of = |i: usize| cells[i].get_or_init(|| parts[i].voxels.iter().map(|&v| cell(v)).collect());
     let boxes: Vec<([f64; 2], [f64; 2])> = parts.iter().map(|c| geom2d::extents(&c.hull, &P2::x())).collect();
     let near = |i: usize, j: usize| {
         let ((xi, yi), (xj, yj)) = (boxes[i], boxes[j]);
@@ -293,9 +295,9 @@ fn join_touching(vc: &VoxelCloud, parts: Vec<Candidate>, p: &PerceptionParams) -
             && xj[0] - reach <= xi[1]
             && yi[0] - reach <= yj[1]
             && yj[0] - reach <= yi[1]
-            && cells[j]
+            && cells_of(j)
                 .iter()
-                .any(|&(x, y)| (-2..=2).any(|dx| (-2..=2).any(|dy| cells[i].contains(&(x + dx, y + dy)))))
+                .any(|&(x, y)| (-2..=2).any(|dx| (-2..=2).any(|dy| cells_of(i).contains(&(x + dx, y + dy)))))
     };
     let n = parts.len();
     let mut label: Vec<usize> = (0..n).collect();

@@ -10,7 +10,7 @@ use stairbench::cloud::PointCloud;
 use stairbench::geom2d;
 use stairbench::perception::normals::grid_window;
 use stairbench::perception::{
-    metrics, perceive, NeighbourSearch, Perception, PerceptionParams, PhaseTimings,
+    metrics, perceive, Method, NeighbourSearch, Perception, PerceptionParams, PhaseTimings,
 };
 use stairbench::scene::Scene;
 use stairbench::sensor::AssembleParams;
@@ -94,33 +94,40 @@ pub fn run(repeat: usize, fig5_at: Option<(&Path, &str)>, pcl: Option<&Path>) ->
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().context("thread pool")?;
     let single = one.install(|| median_run(&exp1.cloud, &paper, repeat))?;
     let ours = median_run(&exp1.cloud, &paper, repeat)?;
+    let cells = PerceptionParams { method: Method::Cells, ..paper.clone() };
+    let cells_single = one.install(|| median_run(&exp1.cloud, &cells, repeat))?;
+    let cells_all = median_run(&exp1.cloud, &cells, repeat)?;
     let (hr, hb) = grid_window(K_PAPER);
     out += &format!(
-        "### Speed, {} ({} points), k = {K_PAPER}\n\nTimes in ms. The baseline is the same pipeline with exact kNN normals from a k-d tree (kiddo, rebuilt per frame), as §4.1 describes; the default finds each point's k nearest among a {} x {} (rows x beams) window of the scan grid.\n\n",
+        "### Speed, {} ({} points), k = {K_PAPER}\n\nTimes in ms. The baseline is the same pipeline with exact kNN normals from a k-d tree (kiddo, rebuilt per frame), as §4.1 describes; the default finds each point's k nearest among a {} x {} (rows x beams) window of the scan grid. `--method cells` grows the planes on {} x {} cells of the scan grid (perception::cells) and draws the same rectangles from them; its sweep's noise measure counts under cells. The staircase phase includes the fronts placed on the risers.\n\n",
         exp1.label,
         exp1.cloud.len(),
         2 * hr + 1,
-        2 * hb + 1
+        2 * hb + 1,
+        cells.cells.rows,
+        cells.cells.beams
     );
-    out += "| variant | normals | filter 1 | voxels + filter 2 | supervoxels | clusters + filter 3 | RANSAC | staircase | total | ratio to baseline | steps found | IoU steps 1/2/3 |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    out += &format!("| variant | {PHASES} | total | ratio to baseline | steps found | IoU steps 1/2/3 |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (name, r) in [
         ("baseline: k-d tree normals, all cores", &base),
         ("scan-grid normals, 1 thread", &single),
         ("scan-grid normals, all cores (default)", &ours),
+        ("cells of the scan grid, 1 thread", &cells_single),
+        ("cells of the scan grid, all cores (`--method cells`)", &cells_all),
     ] {
         out += &phase_row(name, r, &exp1.scene, base.timings.total_ms, &paper);
     }
     match pcl_peer(exp1, pcl, repeat, base.timings.total_ms, ours.timings.total_ms)? {
         Some(row) => out += &row,
         None => out += &format!(
-            "| PCL peer | - | - | - | - | - | - | - | not run: no binary at {PCL_DEFAULT} (build it with ../shared/peers/run_all.sh, or pass --pcl) | | | |\n"
+            "| PCL peer | - | - | - | - | - | - | - | - | - | not run: no binary at {PCL_DEFAULT} (build it with ../shared/peers/run_all.sh, or pass --pcl) | | | |\n"
         ),
     }
 
     // Fig. 5 (b): phases at k = 10 on every cloud.
     eprintln!("phases per cloud ...");
     out += &format!("\n### Fig. 5 (b): time per phase at k = {K_PAPER}, ms\n\n");
-    out += "| cloud | points | normals | filter 1 | voxels + filter 2 | supervoxels | clusters + filter 3 | RANSAC | staircase | total | supervoxels (count) | steps found | IoU per step |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    out += &format!("| cloud | points | {PHASES} | total | supervoxels (count) | steps found | IoU per step |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for c in &cases {
         let r = median_run(&c.cloud, &paper, repeat)?;
         let s = metrics::score(&r.segments, c.scene.steps(), paper.voxel_resolution_m);
@@ -197,7 +204,12 @@ fn ious(s: &metrics::Score) -> String {
     s.steps.iter().map(|st| format!("{:.2}", st.iou)).collect::<Vec<_>>().join(" / ")
 }
 
-/// The phase times of one run as table cells: normals to staircase, then the total in bold.
+/// The phases' column heads, as [`phase_cells`] fills them.
+const PHASES: &str =
+    "normals | filter 1 | voxels + filter 2 | supervoxels | clusters + filter 3 | RANSAC | cells | regions | staircase";
+
+/// The phase times of one run as table cells ([`PHASES`]; "-" for a phase its method does
+/// not run), then the total in bold.
 fn phase_cells(t: &PhaseTimings) -> String {
     let phases = [
         t.normals_ms,
@@ -206,9 +218,12 @@ fn phase_cells(t: &PhaseTimings) -> String {
         t.supervoxels_ms,
         t.clusters_ms,
         t.ransac_ms,
+        t.cells_ms,
+        t.regions_ms,
         t.staircase_ms,
     ];
-    let cells: Vec<String> = phases.iter().map(|v| format!("{v:.1}")).collect();
+    let cells: Vec<String> =
+        phases.iter().map(|v| if *v > 0.0 { format!("{v:.1}") } else { "-".into() }).collect();
     format!("{} | **{:.1}**", cells.join(" | "), t.total_ms)
 }
 
@@ -295,7 +310,7 @@ fn pcl_peer(
     }
     let f = |key: &str| t[key].as_f64().map_or("-".to_string(), |x| format!("{x:.1}"));
     Ok(Some(format!(
-        "| PCL peer ({}, same cloud as PCD, {} threads) | {} | {} | {} | {} | {} | {} | - | **{total:.1}** | {:.2} (ours is {:.0} x faster) | {found}/{} | {} |\n",
+        "| PCL peer ({}, same cloud as PCD, {} threads) | {} | {} | {} | {} | {} | {} | - | - | - | **{total:.1}** | {:.2} (ours is {:.0} x faster) | {found}/{} | {} |\n",
         file_name(&bin),
         rayon::current_num_threads(),
         f("normals"),
