@@ -1,5 +1,6 @@
-//! `stairbench perceive`: the paper's plane-segment estimation on a scenario's simulated scan,
-//! a PLY / PCD cloud, or a voxel file such as the paper's `voxels.txt`.
+//! `stairbench perceive`: the plane-segment estimation (the paper's §4, or `--method cells`)
+//! on a scenario's simulated scan, a PLY / PCD cloud, or a voxel file such as the paper's
+//! `voxels.txt`.
 
 use anyhow::Result;
 use clap::Args;

@@ -58,6 +58,14 @@ pub struct CellParams {
     /// and its cells' normals scatter by more than the 15 deg slope itself; the region
     /// grown from them has its plane judged again, on all its points, by the staircase.
     pub level_sigmas: f64,
+    /// ... and a cell or region whose tilt is that uncertain (radians) is not judged at
+    /// all: its points lie about a line, and any normal fits them. The cells of a near
+    /// tread seen through 25 mm of noise are within about 0.3 rad.
+    pub max_tilt_sd_rad: f64,
+    /// ... nor one whose plane the rays meet at less than this angle (radians): seen
+    /// edge-on, it is the plane of the rays themselves (see `is_known`). A tread 4 m away
+    /// is seen at about 19 deg from HRP-4's head.
+    pub min_incidence_rad: f64,
     /// A cell joins a region when its centre is within this distance of the region's plane,
     /// metres: under the least rise a step has, above what noise and a tread's tilt of a
     /// degree over its width leave.
@@ -79,6 +87,8 @@ impl Default for CellParams {
             planarity_noise_factor: 2.0,
             planarity_floor_m: 0.004,
             level_sigmas: 2.0,
+            max_tilt_sd_rad: 0.5,
+            min_incidence_rad: 5f64.to_radians(),
             merge_distance_m: 0.02,
             point_noise_factor: 1.5,
             point_floor_m: 0.005,
@@ -103,6 +113,8 @@ impl CellParams {
             ("cells.planarity_noise_factor", self.planarity_noise_factor),
             ("cells.planarity_floor_m", self.planarity_floor_m),
             ("cells.level_sigmas", self.level_sigmas),
+            ("cells.max_tilt_sd_rad", self.max_tilt_sd_rad),
+            ("cells.min_incidence_rad", self.min_incidence_rad),
             ("cells.merge_distance_m", self.merge_distance_m),
             ("cells.point_noise_factor", self.point_noise_factor),
             ("cells.point_floor_m", self.point_floor_m),
@@ -184,17 +196,20 @@ impl Moments {
         let v = smallest_eigenvector(&fit.cast::<f32>())?.cast::<f64>().normalize();
         let normal = if v.dot(&centre) > 0.0 { -v } else { v };
         let l0 = normal.dot(&(cov * normal)).max(0.0);
-        // The two larger eigenvalues from the trace and the sum of the principal 2 x 2
-        // minors (c1 = l0 l1 + l0 l2 + l1 l2); the smaller of them, l1, is the spread
-        // across which the normal tilts most easily.
-        let sum12 = (cov.trace() - l0).max(0.0);
-        let c1 = cov[(0, 0)] * cov[(1, 1)] + cov[(0, 0)] * cov[(2, 2)] + cov[(1, 1)] * cov[(2, 2)]
-            - cov[(0, 1)].powi(2)
-            - cov[(0, 2)].powi(2)
-            - cov[(1, 2)].powi(2);
-        let prod12 = (c1 - l0 * sum12).max(0.0);
-        let l1 = (sum12 - (sum12 * sum12 - 4.0 * prod12).max(0.0).sqrt()) / 2.0;
-        let tilt_sd_rad = if l1 > 0.0 { (l0 / (self.n * l1)).sqrt() } else { f64::INFINITY };
+        // The fit's two larger eigenvalues from its trace and the sum of its principal
+        // 2 x 2 minors (c1 = m0 m1 + m0 m2 + m1 m2); the smaller, less the shift, is the
+        // in-plane spread the noise did not make, across which the normal tilts most easily.
+        let m0 = normal.dot(&(fit * normal));
+        let sum12 = fit.trace() - m0;
+        let c1 = fit[(0, 0)] * fit[(1, 1)] + fit[(0, 0)] * fit[(2, 2)] + fit[(1, 1)] * fit[(2, 2)]
+            - fit[(0, 1)].powi(2)
+            - fit[(0, 2)].powi(2)
+            - fit[(1, 2)].powi(2);
+        let prod12 = (c1 - m0 * sum12).max(0.0);
+        let spread_m2 = (sum12 - (sum12 * sum12 - 4.0 * prod12).max(0.0).sqrt()) / 2.0 - noise_var_m2;
+        // Points about a line (no spread across it but the noise's) leave the normal free
+        // to turn about it.
+        let tilt_sd_rad = if spread_m2 > 0.0 { (l0 / (self.n * spread_m2)).sqrt() } else { f64::INFINITY };
         Some(Plane { centre, normal, rms_m: l0.sqrt(), tilt_sd_rad })
     }
 }
@@ -209,7 +224,7 @@ struct Plane {
     rms_m: f64,
     /// Standard deviation of the normal's tilt that the points' scatter about the plane
     /// leaves (least squares: the RMS over the root of the count times the smaller
-    /// in-plane spread), radians.
+    /// in-plane spread, less the scatter), radians.
     tilt_sd_rad: f64,
 }
 
@@ -315,6 +330,24 @@ fn region_of(q: &Vector3<f64>, near: &[Near], planes: &[Plane], noise_m: f64, p:
     (!near.iter().any(behind)).then_some(chosen.region)
 }
 
+/// Whether `f`'s tilt can be judged: within [`CellParams::max_tilt_sd_rad`], and seen at
+/// [`CellParams::min_incidence_rad`] or more. Points about a line have a plane of any tilt;
+/// and a single scan line's points, scattered along their rays by the range noise, lie on
+/// the plane through the sensor that holds those rays, seen edge-on: across a ceiling
+/// 0.6 m above the sensor such a plane is within 14 deg of level, and two of them were taken
+/// for treads 3.3 m up.
+fn is_known(f: &Plane, p: &CellParams) -> bool {
+    let incidence = f.normal.dot(&f.centre).abs() / f.centre.norm().max(1e-9);
+    f.tilt_sd_rad <= p.max_tilt_sd_rad && incidence >= p.min_incidence_rad.sin()
+}
+
+/// Whether `f` may be level: judged ([`is_known`]), its normal within `max_tilt_rad` of
+/// `up` but for [`CellParams::level_sigmas`] standard deviations of its tilt.
+fn is_level(f: &Plane, up: &Vector3<f64>, max_tilt_rad: f64, p: &CellParams) -> bool {
+    let tilt_rad = f.normal.dot(up).clamp(-1.0, 1.0).acos();
+    is_known(f, p) && tilt_rad <= max_tilt_rad + p.level_sigmas * f.tilt_sd_rad
+}
+
 /// The grid's cell rows and columns for `p`.
 fn cell_dims(grid: &ScanGrid, p: &CellParams) -> (usize, usize) {
     (grid.rows().div_ceil(p.rows), grid.beams().div_ceil(p.beams))
@@ -376,11 +409,10 @@ pub fn extract(
                     .then(|| m.plane(noise_var_m2))
                     .flatten()
                     .filter(|f| f.rms_m <= max_rms_m);
-                let steep = plane.filter(|f| {
-                    let tilt_rad = f.normal.dot(&up).clamp(-1.0, 1.0).acos();
-                    tilt_rad > max_tilt_rad + p.level_sigmas * f.tilt_sd_rad
-                });
-                let level = plane.filter(|_| steep.is_none());
+                // A plane of uncertain tilt is neither (see `is_known`).
+                let known = plane.filter(|f| is_known(f, p));
+                let steep = known.filter(|f| !is_level(f, &up, max_tilt_rad, p));
+                let level = known.filter(|_| steep.is_none());
                 let reach_m = if m.n > 0.0 { REACH_DIAGONALS * (hi - lo).norm() } else { 0.0 };
                 Cell { moments: m, level, steep, reach_m }
             })
@@ -393,7 +425,15 @@ pub fn extract(
 
     // 2. Regions.
     let level_cells = cells.iter().filter(|c| c.level.is_some()).count();
-    let (label, planes) = grow(&cells, (crs, cbs), &up, noise_var_m2, p);
+    let (mut label, planes) = grow(&cells, (crs, cbs), &up, noise_var_m2, p);
+    // A region is judged level again on all its points, as its cells were on theirs: a
+    // wall's cells seen at grazing incidence, thin across their rays, each pass within
+    // their wide uncertainty, and grown together make a vertical strip whose columns, at
+    // the wall's mean height, a sole's size and dense, were taken for a tread 2 m up.
+    let steep: Vec<bool> = planes.iter().map(|f| !is_level(f, &up, max_tilt_rad, p)).collect();
+    for l in label.iter_mut().filter(|l| **l != NONE && steep[**l as usize]) {
+        *l = NONE;
+    }
 
     // 3. Points, cell by cell: each to the likeliest of the planes of the cell and its
     // 8-neighbours (regions' and steep cells'), see [`region_of`].
@@ -632,6 +672,33 @@ mod tests {
             }
         }
         assert!(m.plane(0.0).unwrap().normal.z < -0.999, "a ceiling's normal");
+    }
+
+    #[test]
+    fn a_scan_line_seen_edge_on_is_not_judged_level() {
+        // One scan line across a ceiling 0.6 m above the sensor and 2.5 m ahead, 20 mm of
+        // range noise along the rays: the line's plane is anyone's, its tilt unknown.
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let noise = Normal::new(0.0, 0.02).unwrap();
+        let mut m = Moments::default();
+        for j in 0..64 {
+            let q = Vector3::new(2.5, -0.1 + 0.003 * f64::from(j), 0.6);
+            m.add(&(q + q.normalize() * noise.sample(&mut rng)));
+        }
+        let f = m.plane(0.0).unwrap();
+        let p = CellParams::default();
+        let tilt_deg = f.normal.z.abs().acos().to_degrees();
+        assert!(tilt_deg < 15.0, "the line's plane tilts {tilt_deg:.1} deg: the case is not shown");
+        assert!(!is_known(&f, &p) && !is_level(&f, &Vector3::z(), 15f64.to_radians(), &p));
+        // A patch of the ceiling is judged, and is not level: it faces down.
+        let mut m = Moments::default();
+        for i in 0..8 {
+            for j in 0..8 {
+                m.add(&Vector3::new(2.5 + 0.03 * f64::from(i), -0.1 + 0.01 * f64::from(j), 0.6));
+            }
+        }
+        let f = m.plane(0.0).unwrap();
+        assert!(f.tilt_sd_rad < 0.01 && !is_level(&f, &Vector3::z(), 15f64.to_radians(), &p));
     }
 
     #[test]
