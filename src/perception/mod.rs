@@ -688,17 +688,22 @@ fn by_cells(
     let result =
         staircase::from_surfaces(&found.voxels, found.surfaces, counts.planes, &viewpoint, &gravity, p);
     timings.staircase_ms = ms(t);
+    let detail = Detail { voxels: found.voxels, ..Default::default() };
+    finish(Method::Cells, result, timings, counts, detail)
+}
+
+/// The perception of `method` from the staircase's `result`, the phases' times totalled.
+fn finish(
+    method: Method,
+    result: Result<(Vec<PlaneSegment>, usize, f64), PerceptionError>,
+    mut timings: PhaseTimings,
+    mut counts: Counts,
+    detail: Detail,
+) -> Result<Perception, PerceptionError> {
     timings.total_ms = timings.sum();
     let (segments, n_segments, ground_m) = result?;
     counts.segments = n_segments;
-    Ok(Perception {
-        method: Method::Cells,
-        segments,
-        ground_m,
-        timings,
-        counts,
-        detail: Detail { voxels: found.voxels, ..Default::default() },
-    })
+    Ok(Perception { method, segments, ground_m, timings, counts, detail })
 }
 
 /// The pipeline from voxel representatives that already passed Filters 1 and 2 (such as the
@@ -768,15 +773,5 @@ fn from_voxels(
     let t = Instant::now();
     let result = staircase::extract(&voxels, &sv, &clusters, &planes, &viewpoint, &gravity, p);
     timings.staircase_ms = ms(t);
-    timings.total_ms = timings.sum();
-    let (segments, n_segments, ground_m) = result?;
-    counts.segments = n_segments;
-    Ok(Perception {
-        method: Method::Paper,
-        segments,
-        ground_m,
-        timings,
-        counts,
-        detail: Detail { voxels, supervoxels: sv, clusters },
-    })
+    finish(Method::Paper, result, timings, counts, Detail { voxels, supervoxels: sv, clusters })
 }
