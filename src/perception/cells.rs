@@ -145,6 +145,8 @@ fn symmetric(u: &[f64; 6]) -> Matrix3<f64> {
 }
 
 impl Moments {
+    // Inlined, the sums stay in registers over a cell's points.
+    #[inline(always)]
     fn add(&mut self, q: &Vector3<f64>) {
         let (x, y, z) = (q.x, q.y, q.z);
         let o = [x * x, x * y, x * z, y * y, y * z, z * z];
@@ -353,23 +355,28 @@ fn cell_dims(grid: &ScanGrid, p: &CellParams) -> (usize, usize) {
     (grid.rows().div_ceil(p.rows), grid.beams().div_ceil(p.beams))
 }
 
-/// The finite points of cell (`cr`, `cb`): each its index and position from `origin`.
-fn cell_points<'a>(
-    grid: &'a ScanGrid,
-    points: &'a [Point3<f32>],
-    origin: &'a Vector3<f64>,
+/// Calls `f` with each finite point of cell `(cr, cb)`: its index and position from
+/// `origin`, row by row.
+#[inline(always)]
+fn for_cell_points(
+    grid: &ScanGrid,
+    points: &[Point3<f32>],
+    origin: &Vector3<f64>,
     p: &CellParams,
-    cr: usize,
-    cb: usize,
-) -> impl Iterator<Item = (usize, Vector3<f64>)> + 'a {
+    (cr, cb): (usize, usize),
+    mut f: impl FnMut(u32, Vector3<f64>),
+) {
     let beams = grid.beams();
     let (r0, b0) = (cr * p.rows, cb * p.beams);
     let (r1, b1) = ((r0 + p.rows).min(grid.rows()), (b0 + p.beams).min(beams));
-    (r0..r1).flat_map(move |r| grid.cells()[r * beams + b0..r * beams + b1].iter()).filter_map(move |&c| {
-        let q = points.get(c as usize)?.coords;
-        (q.x.is_finite() && q.y.is_finite() && q.z.is_finite())
-            .then(|| (c as usize, q.cast::<f64>() - origin))
-    })
+    for r in r0..r1 {
+        for &c in &grid.cells()[r * beams + b0..r * beams + b1] {
+            let Some(q) = points.get(c as usize) else { continue };
+            if q.x.is_finite() && q.y.is_finite() && q.z.is_finite() {
+                f(c, q.coords.cast::<f64>() - origin);
+            }
+        }
+    }
 }
 
 /// Level planes grown on `cloud`'s scan grid (see the module's doc) with voxel edge
@@ -400,11 +407,11 @@ pub fn extract(
             (0..cbs).map(move |cb| {
                 let mut m = Moments::default();
                 let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
-                for (_, q) in cell_points(grid, points, &origin, p, cr, cb) {
+                for_cell_points(grid, points, &origin, p, (cr, cb), |_, q| {
                     m.add(&q);
                     lo = lo.inf(&q);
                     hi = hi.sup(&q);
-                }
+                });
                 let plane = (m.n >= min_points)
                     .then(|| m.plane(noise_var_m2))
                     .flatten()
@@ -477,11 +484,11 @@ pub fn extract(
                 if own_region != NONE {
                     near.retain(|n| n.region != own_region || n.reach2_m2.is_infinite());
                 }
-                for (i, q) in cell_points(grid, points, &origin, p, cr, cb) {
+                for_cell_points(grid, points, &origin, p, (cr, cb), |i, q| {
                     if let Some(id) = region_of(&q, &near, &planes, noise_m, p) {
-                        out.push((id, i as u32));
+                        out.push((id, i));
                     }
-                }
+                });
             }
             out
         })
