@@ -543,7 +543,7 @@ fn the_cell_method_finds_what_the_papers_pipeline_finds() {
 /// Exp. 2 under twice the data sheet's noise, with the cell method: each tread's back edge
 /// within 15 mm of the riser behind it. The foot of a riser seen through 20 mm of noise
 /// lands on the plane of the tread below it past the tread's end; given to that tread, it
-/// drew the tread 3 to 6 cm too deep. Such points lie behind the riser's plane as their
+/// draws the tread 3 to 6 cm too deep. Such points lie behind the riser's plane as their
 /// ray meets it, and are left to it.
 #[test]
 fn a_risers_foot_seen_through_noise_stays_off_the_tread_below() {

@@ -336,8 +336,8 @@ fn region_of(q: &Vector3<f64>, near: &[Near], planes: &[Plane], noise_m: f64, p:
 /// [`CellParams::min_incidence_rad`] or more. Points about a line have a plane of any tilt;
 /// and a single scan line's points, scattered along their rays by the range noise, lie on
 /// the plane through the sensor that holds those rays, seen edge-on: across a ceiling
-/// 0.6 m above the sensor such a plane is within 14 deg of level, and two of them were taken
-/// for treads 3.3 m up.
+/// 0.6 m above the sensor such a plane is within 14 deg of level and would pass for a tread
+/// (regression `noisy-views-in-pieces-and-turned` from its top landing, with this method).
 fn is_known(f: &Plane, p: &CellParams) -> bool {
     let incidence = f.normal.dot(&f.centre).abs() / f.centre.norm().max(1e-9);
     f.tilt_sd_rad <= p.max_tilt_sd_rad && incidence >= p.min_incidence_rad.sin()
@@ -436,7 +436,7 @@ pub fn extract(
     // A region is judged level again on all its points, as its cells were on theirs: a
     // wall's cells seen at grazing incidence, thin across their rays, each pass within
     // their wide uncertainty, and grown together make a vertical strip whose columns, at
-    // the wall's mean height, a sole's size and dense, were taken for a tread 2 m up.
+    // the wall's mean height, a sole's size and dense, would pass for a tread.
     let steep: Vec<bool> = planes.iter().map(|f| !is_level(f, &up, max_tilt_rad, p)).collect();
     for l in label.iter_mut().filter(|l| **l != NONE && steep[**l as usize]) {
         *l = NONE;
