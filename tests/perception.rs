@@ -540,11 +540,13 @@ fn the_cell_method_finds_what_the_papers_pipeline_finds() {
     }
 }
 
-/// Exp. 2 under twice the data sheet's noise, with the cell method: each tread's back edge
-/// within 15 mm of the riser behind it. The foot of a riser seen through 20 mm of noise
-/// lands on the plane of the tread below it past the tread's end; given to that tread, it
-/// draws the tread 3 to 6 cm too deep. Such points lie behind the riser's plane as their
-/// ray meets it, and are left to it.
+/// Exp. 2 under twice the data sheet's noise, with the cell method: no tread's back edge runs
+/// past the riser behind it by more than 15 mm. The foot of a riser seen through 20 mm of
+/// noise lands on the plane of the tread below it past the tread's end; given to that
+/// tread, it draws the tread 3 to 6 cm too deep. Such points lie behind the riser's plane
+/// as their ray meets it, and are left to it. Nor does the rule eat the tread: its back
+/// stops short of the riser by at most 25 mm (a voxel and a quarter; up to 19 mm in these
+/// draws).
 #[test]
 fn a_risers_foot_seen_through_noise_stays_off_the_tread_below() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
@@ -570,7 +572,7 @@ fn a_risers_foot_seen_through_noise_stays_off_the_tread_below() {
             let back = seg.center().coords.dot(&u) + seg.depth_m() / 2.0;
             let riser = steps[k + 1].corners[0].coords.dot(&u);
             assert!(
-                (back - riser).abs() < 0.015,
+                (-0.025..0.015).contains(&(back - riser)),
                 "seed {seed}, step {}: back {:+.1} mm off the riser",
                 k + 1,
                 (back - riser) * 1e3
