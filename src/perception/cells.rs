@@ -6,20 +6,24 @@
 //! as the paper's (§4.3, [`super::staircase::from_surfaces`]).
 //!
 //! 1. **Cells.** The grid is cut into cells of [`CellParams::rows`] x [`CellParams::beams`];
-//!    a cell holding enough points gets their least-squares plane from its moments. It is a
-//!    plane when its points' RMS distance from that plane is at most
-//!    [`CellParams::planarity_noise_factor`] times the sweep's range noise (measured on the
-//!    sweep, at least [`CellParams::planarity_floor_m`]): a cell across a nose holds tread
-//!    and riser and is not. It is level when its normal passes Filter 1's slope test.
+//!    a cell holding enough points gets their least-squares plane from its moments, less the
+//!    scatter the range noise adds along the rays. It is a plane when its points' RMS
+//!    distance from that plane is at most [`CellParams::planarity_noise_factor`] times the
+//!    sweep's range noise (measured on the sweep, at least [`CellParams::planarity_floor_m`]):
+//!    a cell across a nose holds tread and riser and is not. A plane whose tilt is known
+//!    (`is_known`) is level within Filter 1's slope plus the uncertainty of its tilt
+//!    ([`CellParams::level_sigmas`]), else steep.
 //! 2. **Regions.** From the flattest level cell not yet taken, a region grows over the
 //!    grid's 4-neighbours: a level plane cell joins when its centre lies within
 //!    [`CellParams::merge_distance_m`] of the region's plane, refitted from the summed
 //!    moments as it grows. Two treads meet in the grid where a riser is hidden, a rise apart.
+//!    A region is judged level again on all its points.
 //! 3. **Points.** Each point of a region's cell or of a cell beside one (8-neighbours) goes
-//!    to the nearest such region's plane within [`CellParams::point_noise_factor`] times the
-//!    noise (at least `merge_distance_m`), and within reach of the region's cell it borders
-//!    (grid neighbours across a depth jump are far apart in space). This gives back the
-//!    edges that cells across them lost, point by point, as CAPE's refinement does.
+//!    to the likeliest plane among those cells' regions and steep planes, in its own noise
+//!    (`region_of`): to a region only within its tolerance and within reach of the
+//!    region's cell it borders (grid neighbours across a depth jump are far apart in space),
+//!    and not when it lies behind a steep plane before the region. This gives back the edges
+//!    that cells across them lost, point by point, as CAPE's refinement does.
 //! 4. **Columns.** A region's points are binned into vertical columns of the voxel edge v;
 //!    each column's mean is one "voxel" of the region, as the paper's segments are voxels.
 
@@ -343,7 +347,7 @@ fn is_known(f: &Plane, p: &CellParams) -> bool {
     f.tilt_sd_rad <= p.max_tilt_sd_rad && incidence >= p.min_incidence_rad.sin()
 }
 
-/// Whether `f` may be level: judged ([`is_known`]), its normal within `max_tilt_rad` of
+/// Whether `f` may be level: judged (`is_known`), its normal within `max_tilt_rad` of
 /// `up` but for [`CellParams::level_sigmas`] standard deviations of its tilt.
 fn is_level(f: &Plane, up: &Vector3<f64>, max_tilt_rad: f64, p: &CellParams) -> bool {
     let tilt_rad = f.normal.dot(up).clamp(-1.0, 1.0).acos();
