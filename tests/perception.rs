@@ -490,7 +490,7 @@ dropout_probability = 0.003469116074115104
 /// the same sweeps: the paper's Exp. 1 and Exp. 2 and the 24 cm step, noise-free, at the
 /// data sheet's 10 mm and at twice it, two noise draws each. It finds every step the paper's
 /// pipeline finds, no false segment, each on its true height within 5 mm and with an IoU
-/// at least the paper's less 0.05 (or 0.9).
+/// at least the lower of the paper's less 0.05 and 0.9.
 #[test]
 fn the_cell_method_finds_what_the_papers_pipeline_finds() {
     let paper = PerceptionParams::default();
