@@ -119,46 +119,10 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
     let suite = suite::load(&resolve(suite_arg)?)?;
     let params: ClimbParams = super::climb_params(a.params.as_deref())?;
     let robot = bench_robot(&params.plan.gait)?;
-    let mut all = generate::cases(&suite, &robot)?;
-    if let Some(p) = a.plant {
-        for c in &mut all {
-            c.scenario.plant.preset = p.preset();
-            c.values.insert("plant".into(), suite::Val::Text(p.name().into()));
-        }
-    }
-    let shard = match &a.shard {
-        Some(s) => Some(Shard::parse(s, "--shard")?),
-        None => Shard::from_env(&|k| std::env::var(k).ok(), a.shards)?,
-    };
-    let cases: Vec<generate::Case> =
-        all.iter().filter(|c| shard.is_none_or(|s| s.owns(&c.id))).cloned().collect();
+    let (all, cases) = select_cases(&a, &suite, &robot)?;
     let out = a.out.clone().unwrap_or_else(|| Path::new("out/regress").join(&suite.name));
-    let seeds = a.seeds.unwrap_or(suite.seeds).max(1);
-    let redraws: usize = all.iter().map(|c| c.redraws).sum();
-    println!(
-        "suite {} (seed {}, hash {}): {} cases ({} redrawn {redraws} times in all: the world could not hold them){}; {} here x {seeds} noise draws",
-        suite.name,
-        suite.seed,
-        suite.hash,
-        all.len(),
-        all.iter().filter(|c| c.redraws > 0).count(),
-        shard.map(|s| format!(", shard {s}")).unwrap_or_default(),
-        cases.len()
-    );
     if a.list {
-        runner::write_cases(&out, &cases)?;
-        for c in &cases {
-            let e = c.scenario.expect.as_ref();
-            println!(
-                "{}  {:?}  {}  {}",
-                c.id,
-                e.map(|e| e.outcome),
-                describe(c),
-                e.map(|e| e.reason.as_str()).unwrap_or("")
-            );
-        }
-        println!("case files written to {}", out.join("cases").display());
-        return Ok(ExitCode::SUCCESS);
+        return list(&out, &cases);
     }
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let params_file = match &a.params {
@@ -174,7 +138,7 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
     let opt = Options {
         jobs,
         timeout_s: a.timeout,
-        seeds,
+        seeds: a.seeds.unwrap_or(suite.seeds).max(1),
         out: out.clone(),
         resume: a.resume,
         record_failures: a.record_failures.clone(),
@@ -187,47 +151,10 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
         seed: suite.seed,
         cases_total: all.len(),
     };
-    let bar = super::progress_bar(0, "regress", a.quiet);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{msg} [{bar:30}] {pos}/{len} elapsed {elapsed_precise} eta {eta}",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-        .progress_chars("=> "),
-    );
-    let (passed, failed) = (AtomicUsize::new(0), AtomicUsize::new(0));
+    let progress = Progress::new(a.quiet);
     let started = Instant::now();
-    let quiet = a.quiet;
-    let on_done = |r: &CaseResult, done: usize, total: usize| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-        let counter = if r.pass { &passed } else { &failed };
-        counter.fetch_add(1, Ordering::Relaxed);
-        bar.set_message(format!(
-            "pass {} fail {}",
-            passed.load(Ordering::Relaxed),
-            failed.load(Ordering::Relaxed)
-        ));
-        if !quiet {
-            // A line per run: above the bar on a terminal, as plain lines in a CI log.
-            let line = format!(
-                "{} {} draw {} {:<24} {:>5.1} s  {}",
-                if r.pass { "  ok  " } else { "  FAIL" },
-                r.id,
-                r.seed_index,
-                r.verdict,
-                r.wall_s,
-                if r.pass { String::new() } else { r.message.clone().unwrap_or_default() }
-            );
-            if bar.is_hidden() {
-                println!("{line}");
-            } else {
-                bar.println(line);
-            }
-        }
-    };
-    let results = runner::run(&info, &cases, &opt, &on_done)?;
-    bar.finish_and_clear();
+    let results = runner::run(&info, &cases, &opt, &|r, done, total| progress.done(r, done, total))?;
+    progress.bar.finish_and_clear();
     let elapsed_s = started.elapsed().as_secs_f64();
     print!("{}", summary::text(&results, a.min_rate, Some(elapsed_s), jobs, 10));
     // A grid over two fields other than rise x tread is mapped over them too.
@@ -249,6 +176,112 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
     let failing = summary::by_case(&results).iter().filter(|c| !c.passes(a.min_rate)).count();
     println!("results: {}", out.join("results.jsonl").display());
     Ok(if failing > 0 || regressions > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
+}
+
+/// The suite's cases (all of them, each in `--plant`'s body if given) and those of this
+/// shard; says what was generated.
+fn select_cases(
+    a: &RegressArgs,
+    suite: &suite::Suite,
+    robot: &generate::Robot,
+) -> Result<(Vec<generate::Case>, Vec<generate::Case>)> {
+    let mut all = generate::cases(suite, robot)?;
+    if let Some(p) = a.plant {
+        for c in &mut all {
+            c.scenario.plant.preset = p.preset();
+            c.values.insert("plant".into(), suite::Val::Text(p.name().into()));
+        }
+    }
+    let shard = match &a.shard {
+        Some(s) => Some(Shard::parse(s, "--shard")?),
+        None => Shard::from_env(&|k| std::env::var(k).ok(), a.shards)?,
+    };
+    let cases: Vec<generate::Case> =
+        all.iter().filter(|c| shard.is_none_or(|s| s.owns(&c.id))).cloned().collect();
+    let seeds = a.seeds.unwrap_or(suite.seeds).max(1);
+    let redraws: usize = all.iter().map(|c| c.redraws).sum();
+    println!(
+        "suite {} (seed {}, hash {}): {} cases ({} redrawn {redraws} times in all: the world could not hold them){}; {} here x {seeds} noise draws",
+        suite.name,
+        suite.seed,
+        suite.hash,
+        all.len(),
+        all.iter().filter(|c| c.redraws > 0).count(),
+        shard.map(|s| format!(", shard {s}")).unwrap_or_default(),
+        cases.len()
+    );
+    Ok((all, cases))
+}
+
+/// `--list`: writes the case files and prints a line per case.
+fn list(out: &Path, cases: &[generate::Case]) -> Result<ExitCode> {
+    runner::write_cases(out, cases)?;
+    for c in cases {
+        let e = c.scenario.expect.as_ref();
+        println!(
+            "{}  {:?}  {}  {}",
+            c.id,
+            e.map(|e| e.outcome),
+            describe(c),
+            e.map(|e| e.reason.as_str()).unwrap_or("")
+        );
+    }
+    println!("case files written to {}", out.join("cases").display());
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The progress bar and a line per run as runs end.
+struct Progress {
+    bar: indicatif::ProgressBar,
+    passed: AtomicUsize,
+    failed: AtomicUsize,
+    quiet: bool,
+}
+
+impl Progress {
+    fn new(quiet: bool) -> Self {
+        let bar = super::progress_bar(0, "regress", quiet);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{msg} [{bar:30}] {pos}/{len} elapsed {elapsed_precise} eta {eta}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+        );
+        Self { bar, passed: AtomicUsize::new(0), failed: AtomicUsize::new(0), quiet }
+    }
+
+    /// Run `r` ended, `done` of `total`.
+    fn done(&self, r: &CaseResult, done: usize, total: usize) {
+        let bar = &self.bar;
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+        let counter = if r.pass { &self.passed } else { &self.failed };
+        counter.fetch_add(1, Ordering::Relaxed);
+        bar.set_message(format!(
+            "pass {} fail {}",
+            self.passed.load(Ordering::Relaxed),
+            self.failed.load(Ordering::Relaxed)
+        ));
+        if self.quiet {
+            return;
+        }
+        // A line per run: above the bar on a terminal, as plain lines in a CI log.
+        let line = format!(
+            "{} {} draw {} {:<24} {:>5.1} s  {}",
+            if r.pass { "  ok  " } else { "  FAIL" },
+            r.id,
+            r.seed_index,
+            r.verdict,
+            r.wall_s,
+            if r.pass { String::new() } else { r.message.clone().unwrap_or_default() }
+        );
+        if bar.is_hidden() {
+            println!("{line}");
+        } else {
+            bar.println(line);
+        }
+    }
 }
 
 /// A case's main figures in a line.

@@ -149,6 +149,7 @@ pub fn execute_from(
     // may wait for a late foot (at most its `max_hold_s`), so the steps are counted on it.
     let steps = (traj.duration_s() / dt).round() as usize;
     let last_step = steps + (params.stabilizer.max_hold_s / dt).ceil() as usize + 1;
+    let mut q_now = Vec::new();
     for k in 1..=last_step {
         // The step from k - 1 to k, and where it ends on the plan's clock.
         let t = match control.as_mut() {
@@ -199,7 +200,7 @@ pub fn execute_from(
         });
         let margin_m = mon.margin(world, now, &loads, down, &soles);
         let max_torque_ratio = mon.joints(joints, |a| servos.demand_nm(world, a), |a| world.joint_qd(a), now);
-        let q_now = world.configuration();
+        world.configuration_into(&mut q_now);
         let state = RobotState { q: &q_now, foot_forces_n: loads.force, margin_m, max_torque_ratio };
         observer.event(&Event::State { stamp_s: world.data().time(), state: &state });
         // The planned base carried into the world, where the fall is judged.

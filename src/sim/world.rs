@@ -127,11 +127,22 @@ impl World {
         match self.model_order {
             true => Cow::Borrowed(&self.data.qpos()[..n]),
             false => {
-                let qpos = self.data.qpos();
-                let mut q = qpos[..Q_JOINTS].to_vec();
-                q.extend(self.qpos_adr.iter().map(|&i| qpos[i]));
+                let mut q = Vec::with_capacity(n);
+                self.configuration_into(&mut q);
                 Cow::Owned(q)
             }
+        }
+    }
+
+    /// [`World::configuration`] written into `q` (its earlier contents dropped), for a loop
+    /// that reads it at every physics step without allocating.
+    pub fn configuration_into(&self, q: &mut Vec<f64>) {
+        let qpos = self.data.qpos();
+        q.clear();
+        q.extend_from_slice(&qpos[..Q_JOINTS]);
+        match self.model_order {
+            true => q.extend_from_slice(&qpos[Q_JOINTS..Q_JOINTS + self.qpos_adr.len()]),
+            false => q.extend(self.qpos_adr.iter().map(|&i| qpos[i])),
         }
     }
 
