@@ -24,8 +24,10 @@
 //!    region's cell it borders (grid neighbours across a depth jump are far apart in space),
 //!    and not when it lies behind a steep plane before the region. This gives back the edges
 //!    that cells across them lost, point by point, as CAPE's refinement does.
-//! 4. **Columns.** A region's points are binned into vertical columns of the voxel edge v;
-//!    each column's mean is one "voxel" of the region, as the paper's segments are voxels.
+//! 4. **Columns.** A region's points are binned into vertical columns of the voxel edge v
+//!    as step 3 gives them (a table over the region's box of columns, one per band of cell
+//!    rows, summed at the end); each column's mean is one "voxel" of the region, as the
+//!    paper's segments are voxels.
 
 use super::normals::smallest_eigenvector;
 use super::voxel::VoxelCloud;
@@ -251,6 +253,8 @@ struct Cell {
     steep: Option<Plane>,
     /// Points within this of its centre are near it, metres ([`REACH_DIAGONALS`]).
     reach_m: f64,
+    /// Its points' horizontal bounding box (world x, y), metres: lowest, highest.
+    box_m: [[f32; 2]; 2],
 }
 
 /// A cell's reach, in diagonals of its points' bounding box: its neighbours' points lie
@@ -425,7 +429,8 @@ pub fn extract(
                 let steep = known.filter(|f| !is_level(f, &up, max_tilt_rad, p));
                 let level = known.filter(|_| steep.is_none());
                 let reach_m = if m.n > 0.0 { REACH_DIAGONALS * (hi - lo).norm() } else { 0.0 };
-                Cell { moments: m, level, steep, reach_m }
+                let world = |v: &Vector3<f64>| [(v.x + origin.x) as f32, (v.y + origin.y) as f32];
+                Cell { moments: m, level, steep, reach_m, box_m: [world(&lo), world(&hi)] }
             })
         })
         .collect();
@@ -447,66 +452,31 @@ pub fn extract(
     }
 
     // 3. Points, cell by cell: each to the likeliest of the planes of the cell and its
-    // 8-neighbours (regions' and steep cells'), see [`region_of`].
-    let assigned: Vec<Vec<(u32, u32)>> = (0..crs)
+    // 8-neighbours (regions' and steep cells'), see [`region_of`]; 4. binned on the way
+    // into its region's columns, each band of cell rows into tables of its own.
+    let tables = ColumnTables::new(&cells, &label, &planes, (crs, cbs), voxel_m);
+    let bands = rayon::current_num_threads().clamp(1, crs.max(1));
+    let binned: Vec<Binned> = (0..bands)
         .into_par_iter()
-        .map(|cr| {
-            let mut out = Vec::new();
+        .map(|band| {
+            let mut out = tables.empty();
             let mut near: Vec<Near> = Vec::with_capacity(18);
-            for cb in 0..cbs {
-                near.clear();
-                let mut any_region = false;
-                for dr in -1i64..=1 {
-                    for db in -1i64..=1 {
-                        let (r, b) = (cr as i64 + dr, cb as i64 + db);
-                        if r < 0 || b < 0 || r >= crs as i64 || b >= cbs as i64 {
-                            continue;
+            for cr in band * crs / bands..(band + 1) * crs / bands {
+                for cb in 0..cbs {
+                    if !near_planes(&cells, &label, &planes, (crs, cbs), (cr, cb), &mut near) {
+                        continue;
+                    }
+                    for_cell_points(grid, points, &origin, p, (cr, cb), |i, q| {
+                        if let Some(id) = region_of(&q, &near, &planes, noise_m, p) {
+                            tables.add(&mut out, id, i, &points[i as usize]);
                         }
-                        let q = r as usize * cbs + b as usize;
-                        let c = &cells[q];
-                        let (plane, region) = match (label[q], c.steep) {
-                            (NONE, Some(f)) => (f, NONE),
-                            (NONE, None) => continue,
-                            (id, _) => (planes[id as usize], id),
-                        };
-                        any_region |= region != NONE;
-                        let own = dr == 0 && db == 0;
-                        near.push(Near {
-                            normal: plane.normal,
-                            offset_m: plane.normal.dot(&plane.centre),
-                            region,
-                            cell_centre: c.moments.centre(),
-                            reach2_m2: if own { f64::INFINITY } else { c.reach_m * c.reach_m },
-                        });
-                    }
+                    });
                 }
-                if !any_region {
-                    continue;
-                }
-                // The points' own cell's region reaches them all: its other cells add nothing.
-                let own_region = label[cr * cbs + cb];
-                if own_region != NONE {
-                    near.retain(|n| n.region != own_region || n.reach2_m2.is_infinite());
-                }
-                for_cell_points(grid, points, &origin, p, (cr, cb), |i, q| {
-                    if let Some(id) = region_of(&q, &near, &planes, noise_m, p) {
-                        out.push((id, i));
-                    }
-                });
             }
             out
         })
         .collect();
-
-    // 4. Columns per region.
-    let mut by_region: Vec<Vec<u32>> = vec![Vec::new(); planes.len()];
-    let mut points_in_regions = 0;
-    for (id, i) in assigned.into_iter().flatten() {
-        by_region[id as usize].push(i);
-        points_in_regions += 1;
-    }
-    let columns: Vec<Vec<(Point3<f32>, u32)>> =
-        by_region.par_iter().map(|members| columns_of(points, members, voxel_m)).collect();
+    let (columns, points_in_regions) = tables.finish(binned, points);
     let mut voxels = VoxelCloud { resolution_m: voxel_m as f32, ..Default::default() };
     let mut surfaces = Vec::with_capacity(planes.len());
     for (cols, plane) in columns.into_iter().zip(&planes) {
@@ -527,6 +497,217 @@ pub fn extract(
     }
     let regions_ms = start.elapsed().as_secs_f64() * 1e3;
     Some(Regions { voxels, surfaces, cells: fitted, level_cells, points_in_regions, cells_ms, regions_ms })
+}
+
+/// Fills `near` with the planes beside cell `(cr, cb)` for step 3: its own and its
+/// 8-neighbours' regions' and steep cells'. False when none is a region's (its points
+/// join none).
+fn near_planes(
+    cells: &[Cell],
+    label: &[u32],
+    planes: &[Plane],
+    (crs, cbs): (usize, usize),
+    (cr, cb): (usize, usize),
+    near: &mut Vec<Near>,
+) -> bool {
+    near.clear();
+    let mut any_region = false;
+    for dr in -1i64..=1 {
+        for db in -1i64..=1 {
+            let (r, b) = (cr as i64 + dr, cb as i64 + db);
+            if r < 0 || b < 0 || r >= crs as i64 || b >= cbs as i64 {
+                continue;
+            }
+            let q = r as usize * cbs + b as usize;
+            let c = &cells[q];
+            let (plane, region) = match (label[q], c.steep) {
+                (NONE, Some(f)) => (f, NONE),
+                (NONE, None) => continue,
+                (id, _) => (planes[id as usize], id),
+            };
+            any_region |= region != NONE;
+            let own = dr == 0 && db == 0;
+            near.push(Near {
+                normal: plane.normal,
+                offset_m: plane.normal.dot(&plane.centre),
+                region,
+                cell_centre: c.moments.centre(),
+                reach2_m2: if own { f64::INFINITY } else { c.reach_m * c.reach_m },
+            });
+        }
+    }
+    if !any_region {
+        return false;
+    }
+    // The points' own cell's region reaches them all: its other cells add nothing.
+    let own_region = label[cr * cbs + cb];
+    if own_region != NONE {
+        near.retain(|n| n.region != own_region || n.reach2_m2.is_infinite());
+    }
+    true
+}
+
+/// floor(), without the library call that x86-64's baseline makes of it.
+#[inline(always)]
+fn floor_i32(t: f32) -> i32 {
+    let i = t as i32;
+    i - i32::from((i as f32) > t)
+}
+
+/// Where step 3's points are binned into their regions' columns (vertical, the voxel edge
+/// on a side, world-aligned): a table over each region's box of columns, from the boxes of
+/// the cells whose points may join it; a region whose box is mostly empty (spread far for
+/// its points) keeps its points' indices instead, binned by [`columns_of`].
+struct ColumnTables {
+    inv_m: f32,
+    voxel_m: f64,
+    /// Per region: its box's lowest column and size, and the corner its sums are taken
+    /// from (in f32: centimetres over a few metres keep 0.1 mm); `None` when sparse.
+    boxes: Vec<Option<ColumnBox>>,
+}
+
+/// A column's mean point and its count of points.
+type Column = (Point3<f32>, u32);
+
+/// A region's columns so far: the lowest and highest column (x, y) and the points of the
+/// cells that reach it.
+type Extent = ((i32, i32), (i32, i32), f64);
+
+#[derive(Clone, Copy)]
+struct ColumnBox {
+    lo: (i32, i32),
+    ny: usize,
+    len: usize,
+    corner: Vector3<f32>,
+}
+
+/// One band's binning: per region, its table of column sums and counts, or the points'
+/// indices for a sparse region (allocated when a point first comes).
+struct Binned {
+    tables: Vec<Vec<([f32; 3], u32)>>,
+    members: Vec<Vec<u32>>,
+}
+
+impl ColumnTables {
+    fn new(
+        cells: &[Cell],
+        label: &[u32],
+        planes: &[Plane],
+        (crs, cbs): (usize, usize),
+        voxel_m: f64,
+    ) -> Self {
+        let inv_m = (1.0 / voxel_m) as f32;
+        // Per region: its columns' box over the cells whose points may join it (each cell
+        // beside one of its cells), and those cells' points.
+        let mut extent: Vec<Option<Extent>> = vec![None; planes.len()];
+        for cr in 0..crs {
+            for cb in 0..cbs {
+                let c = &cells[cr * cbs + cb];
+                if c.moments.n == 0.0 {
+                    continue;
+                }
+                let [lo, hi] = c.box_m.map(|[x, y]| (floor_i32(x * inv_m), floor_i32(y * inv_m)));
+                let mut seen = [NONE; 9];
+                for (k, (r, b)) in (cr.saturating_sub(1)..(cr + 2).min(crs))
+                    .flat_map(|r| (cb.saturating_sub(1)..(cb + 2).min(cbs)).map(move |b| (r, b)))
+                    .enumerate()
+                {
+                    let id = label[r * cbs + b];
+                    if id == NONE || seen[..k].contains(&id) {
+                        continue;
+                    }
+                    seen[k] = id;
+                    let e = extent[id as usize].get_or_insert((lo, hi, 0.0));
+                    e.0 = (e.0 .0.min(lo.0), e.0 .1.min(lo.1));
+                    e.1 = (e.1 .0.max(hi.0), e.1 .1.max(hi.1));
+                    e.2 += c.moments.n;
+                }
+            }
+        }
+        let boxes = extent
+            .iter()
+            .zip(planes)
+            .map(|(e, plane)| {
+                let (lo, hi, n) = (*e)?;
+                let (nx, ny) = ((hi.0 - lo.0) as usize + 1, (hi.1 - lo.1) as usize + 1);
+                // Mostly empty: sorted by column instead of a table (as `columns_of` does).
+                if nx.saturating_mul(ny) > 4 * n as usize + 1024 {
+                    return None;
+                }
+                let corner = Vector3::new(lo.0 as f32 / inv_m, lo.1 as f32 / inv_m, plane.centre.z as f32);
+                Some(ColumnBox { lo, ny, len: nx * ny, corner })
+            })
+            .collect();
+        Self { inv_m, voxel_m, boxes }
+    }
+
+    /// A band's binning, nothing in it yet.
+    fn empty(&self) -> Binned {
+        Binned { tables: vec![Vec::new(); self.boxes.len()], members: vec![Vec::new(); self.boxes.len()] }
+    }
+
+    /// Point `i` (at `q`, world) into region `id`'s columns.
+    #[inline(always)]
+    fn add(&self, out: &mut Binned, id: u32, i: u32, q: &Point3<f32>) {
+        let id = id as usize;
+        let Some(b) = &self.boxes[id] else {
+            out.members[id].push(i);
+            return;
+        };
+        let table = &mut out.tables[id];
+        if table.is_empty() {
+            table.resize(b.len, ([0.0; 3], 0));
+        }
+        let (x, y) = (floor_i32(q.x * self.inv_m) - b.lo.0, floor_i32(q.y * self.inv_m) - b.lo.1);
+        // A point's column lies in its cell's box, and the box holds every such cell's.
+        let at = x as usize * b.ny + y as usize;
+        if let Some(s) = table.get_mut(at) {
+            let d = q.coords - b.corner;
+            s.0[0] += d.x;
+            s.0[1] += d.y;
+            s.0[2] += d.z;
+            s.1 += 1;
+        }
+    }
+
+    /// Each region's columns (mean point and count) from the bands' binnings, and the
+    /// points binned in all.
+    fn finish(&self, binned: Vec<Binned>, points: &[Point3<f32>]) -> (Vec<Vec<Column>>, usize) {
+        let mut bands = binned.into_iter();
+        let Some(mut all) = bands.next() else { return (vec![Vec::new(); self.boxes.len()], 0) };
+        for band in bands {
+            for (into, from) in all.tables.iter_mut().zip(band.tables) {
+                if into.is_empty() {
+                    *into = from;
+                } else if !from.is_empty() {
+                    for (a, b) in into.iter_mut().zip(from) {
+                        a.0[0] += b.0[0];
+                        a.0[1] += b.0[1];
+                        a.0[2] += b.0[2];
+                        a.1 += b.1;
+                    }
+                }
+            }
+            for (into, from) in all.members.iter_mut().zip(band.members) {
+                into.extend(from);
+            }
+        }
+        let mut count = 0;
+        let columns = (all.tables.into_par_iter().zip(all.members).zip(&self.boxes))
+            .map(|((table, members), b)| match b {
+                Some(b) => table
+                    .into_iter()
+                    .filter(|s| s.1 > 0)
+                    .map(|(s, n)| (Point3::from(Vector3::from(s) / n as f32 + b.corner), n))
+                    .collect(),
+                None => columns_of(points, &members, self.voxel_m),
+            })
+            .collect::<Vec<Vec<_>>>();
+        for cols in &columns {
+            count += cols.iter().map(|c| c.1 as usize).sum::<usize>();
+        }
+        (columns, count)
+    }
 }
 
 /// Step 2: regions grown over the level cells of a `dims.0` x `dims.1` grid of `cells`,
@@ -582,14 +763,9 @@ fn grow(
 
 /// The columns (vertical, `v` on a side, world-aligned) of the points `members`: each
 /// occupied one's mean point and point count.
-fn columns_of(points: &[Point3<f32>], members: &[u32], v: f64) -> Vec<(Point3<f32>, u32)> {
+fn columns_of(points: &[Point3<f32>], members: &[u32], v: f64) -> Vec<Column> {
     let inv = (1.0 / v) as f32;
-    // floor(), without the library call that x86-64's baseline makes of it.
-    let floor = |t: f32| {
-        let i = t as i32;
-        i - i32::from((i as f32) > t)
-    };
-    let col = |q: &Point3<f32>| (floor(q.x * inv), floor(q.y * inv));
+    let col = |q: &Point3<f32>| (floor_i32(q.x * inv), floor_i32(q.y * inv));
     let Some(&first) = members.first() else { return Vec::new() };
     let (mut lo, mut hi) = (col(&points[first as usize]), col(&points[first as usize]));
     for &i in members {
@@ -635,6 +811,7 @@ fn columns_of(points: &[Point3<f32>], members: &[u32], v: f64) -> Vec<(Point3<f3
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::seq::SliceRandom;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, Normal};
@@ -710,6 +887,81 @@ mod tests {
         }
         let f = m.plane(0.0).unwrap();
         assert!(f.tilt_sd_rad < 0.01 && !is_level(&f, &Vector3::z(), 15f64.to_radians(), &p));
+    }
+
+    #[test]
+    fn the_tables_bin_as_columns_of_does_over_bands_dense_or_sparse() {
+        // Two cells of one region side by side, and a third cell far off joining a second
+        // region alone with two points 3 m apart (its box mostly empty: sparse).
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let mut pts: Vec<Point3<f32>> = (0..400)
+            .map(|i| {
+                let x = f64::from(i % 20) * 0.013 + if i < 200 { 0.0 } else { 0.26 };
+                Point3::new(x as f32, (f64::from(i / 20) * 0.017) as f32, 0.2 + 0.001 * (i % 7) as f32)
+            })
+            .collect();
+        pts.push(Point3::new(5.0, 5.0, 0.6));
+        pts.push(Point3::new(8.0, 2.0, 0.6));
+        let cell = |members: std::ops::Range<usize>| {
+            let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+            for q in &pts[members] {
+                lo = [lo[0].min(q.x), lo[1].min(q.y)];
+                hi = [hi[0].max(q.x), hi[1].max(q.y)];
+            }
+            Cell {
+                moments: Moments { n: 2.0, ..Default::default() },
+                level: None,
+                steep: None,
+                reach_m: 0.0,
+                box_m: [lo, hi],
+            }
+        };
+        // A 1 x 5 grid of cells: region 0, region 0, empty, empty, region 1.
+        let empty = Cell {
+            moments: Moments::default(),
+            level: None,
+            steep: None,
+            reach_m: 0.0,
+            box_m: [[0.0; 2]; 2],
+        };
+        let cells = [cell(0..200), cell(200..400), empty, empty, cell(400..402)];
+        let label = [0, 0, NONE, NONE, 1];
+        let plane = |z: f64| Plane {
+            centre: Vector3::new(0.0, 0.0, z),
+            normal: Vector3::z(),
+            rms_m: 0.0,
+            tilt_sd_rad: 0.0,
+        };
+        let tables = ColumnTables::new(&cells, &label, &[plane(0.2), plane(0.6)], (1, 5), 0.02);
+        assert!(tables.boxes[0].is_some() && tables.boxes[1].is_none(), "dense, then sparse");
+        // Points in random order over three bands.
+        let mut order: Vec<u32> = (0..pts.len() as u32).collect();
+        order.shuffle(&mut rng);
+        let binned: Vec<Binned> = order
+            .chunks(150)
+            .map(|chunk| {
+                let mut out = tables.empty();
+                for &i in chunk {
+                    tables.add(&mut out, u32::from(i >= 400), i, &pts[i as usize]);
+                }
+                out
+            })
+            .collect();
+        let (columns, count) = tables.finish(binned, &pts);
+        assert_eq!(count, pts.len());
+        let members: [Vec<u32>; 2] = [(0..400).collect(), vec![400, 401]];
+        for (got, members) in columns.into_iter().zip(members) {
+            let key = |c: &Column| (floor_i32(c.0.x * 50.0), floor_i32(c.0.y * 50.0));
+            let mut want = columns_of(&pts, &members, 0.02);
+            let mut got = got;
+            want.sort_by_key(key);
+            got.sort_by_key(key);
+            assert_eq!(got.len(), want.len());
+            for (g, w) in got.iter().zip(&want) {
+                assert_eq!(g.1, w.1);
+                assert!((g.0 - w.0).norm() < 1e-5, "{:?} against {:?}", g.0, w.0);
+            }
+        }
     }
 
     #[test]

@@ -25,27 +25,64 @@ pub fn range_noise_m(cloud: &PointCloud) -> Option<f64> {
         let r = (p - v).norm();
         r.is_finite().then_some(f64::from(r))
     };
-    let mut second: Vec<f64> = grid
-        .cells()
-        .par_chunks(grid.beams())
-        .flat_map_iter(|row| {
-            let ranges: Vec<Option<f64>> = row.iter().map(|&c| range(c)).collect();
-            let second: Vec<f64> = ranges
-                .windows(3)
-                .filter_map(|w| match *w {
-                    [Some(a), Some(b), Some(c)] => Some((a - 2.0 * b + c).abs()),
-                    _ => None,
-                })
-                .collect();
-            second
+    // Each row's second differences in its own slice, NaN where a beam of the three is
+    // missing.
+    let width = grid.beams().saturating_sub(2);
+    let mut second = vec![f64::NAN; grid.rows() * width];
+    if width > 0 {
+        second.par_chunks_mut(width).zip(grid.cells().par_chunks(grid.beams())).for_each(|(out, row)| {
+            let (mut a, mut b) = (range(row[0]), range(row[1]));
+            for (o, &cell) in out.iter_mut().zip(&row[2..]) {
+                let c = range(cell);
+                if let (Some(a), Some(b), Some(c)) = (a, b, c) {
+                    *o = (a - 2.0 * b + c).abs();
+                }
+                (a, b) = (b, c);
+            }
+        });
+    }
+    let median = median_of_non_negative(&second, MIN_SAMPLES)?;
+    Some(1.4826 * median / 6f64.sqrt())
+}
+
+/// The median (the element at rank `n / 2` of the `n` that are not NaN) of `values`, all
+/// non-negative or NaN, found in two parallel passes (a histogram on the top 16 bits, then
+/// a selection among the values of the bin that holds it) where a selection over all of
+/// them is serial: for non-negative floats the bits order as the values do. `None` with
+/// fewer than `min_count` values.
+fn median_of_non_negative(values: &[f64], min_count: usize) -> Option<f64> {
+    const SHIFT: u32 = 48;
+    let bin = |x: f64| (x.to_bits() >> SHIFT) as usize;
+    let chunk = values.len().div_ceil(rayon::current_num_threads().max(1)).max(1);
+    let histogram = values
+        .par_chunks(chunk)
+        .map(|c| {
+            let mut h = vec![0u32; 1 << (64 - SHIFT)];
+            for &x in c.iter().filter(|x| !x.is_nan()) {
+                h[bin(x)] += 1;
+            }
+            h
         })
-        .collect();
-    if second.len() < MIN_SAMPLES {
+        .reduce_with(|mut a, b| {
+            a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+            a
+        })?;
+    let n: usize = histogram.iter().map(|&c| c as usize).sum();
+    if n < min_count {
         return None;
     }
-    let mid = second.len() / 2;
-    let (_, median, _) = second.select_nth_unstable_by(mid, f64::total_cmp);
-    Some(1.4826 * *median / 6f64.sqrt())
+    let mut rank = n / 2;
+    let mut at = 0;
+    for (i, &c) in histogram.iter().enumerate() {
+        if rank < c as usize {
+            at = i;
+            break;
+        }
+        rank -= c as usize;
+    }
+    let mut in_bin: Vec<f64> = values.par_iter().copied().filter(|&x| !x.is_nan() && bin(x) == at).collect();
+    let (_, median, _) = in_bin.select_nth_unstable_by(rank, f64::total_cmp);
+    Some(*median)
 }
 
 /// The neighbours of the normal estimation for a sweep of range noise `noise_m`: `k` (the
@@ -108,6 +145,33 @@ mod tests {
         assert!(range_noise_m(&floor_sweep(0.0)).expect("a measure") < 1e-3, "a noise-free sweep");
         let unorganized = PointCloud::unorganized(vec![Point3::origin(); 500], Point3::origin());
         assert_eq!(range_noise_m(&unorganized), None, "no scan rows, no measure");
+    }
+
+    #[test]
+    fn the_median_in_bins_is_the_selections_median() {
+        let mut seed = 3u64;
+        let mut next = move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for n in [1usize, 2, 3, 100, 1001, 50_000] {
+            // Values over many octaves, some equal, some NaN.
+            let values: Vec<f64> = (0..n)
+                .map(|i| match i % 17 {
+                    0 => f64::NAN,
+                    1 => 0.25,
+                    2 => 0.0,
+                    _ => next().powi(6) * 3.0,
+                })
+                .collect();
+            let mut finite: Vec<f64> = values.iter().copied().filter(|x| !x.is_nan()).collect();
+            let expected = (!finite.is_empty()).then(|| {
+                let mid = finite.len() / 2;
+                *finite.select_nth_unstable_by(mid, f64::total_cmp).1
+            });
+            assert_eq!(median_of_non_negative(&values, 1), expected, "{n} values");
+        }
+        assert_eq!(median_of_non_negative(&[1.0, f64::NAN], 2), None, "fewer than the least count");
     }
 
     #[test]
