@@ -307,22 +307,25 @@ fn region_of(q: &Vector3<f64>, near: &[Near], planes: &[Plane], noise_m: f64, p:
     let range_m = q.norm();
     let inv_range = 1.0 / range_m;
     let floor_sd_m = p.point_floor_m / p.point_noise_factor;
-    let mut best: Option<(f64, &Near)> = None;
+    // The likeliest so far: its distance and its noise as seen (`d / sd` compared by
+    // cross-multiplying, with no division per plane).
+    let mut best: Option<(f64, f64, &Near)> = None;
     for n in near {
-        let d = (n.normal.dot(q) - n.offset_m).abs();
-        let seen_sd_m = noise_m * (n.normal.dot(q) * inv_range).abs();
-        let z = d / seen_sd_m.max(floor_sd_m);
-        if best.is_some_and(|(bz, _)| bz <= z) {
+        let along = n.normal.dot(q);
+        let d = (along - n.offset_m).abs();
+        let seen_sd_m = noise_m * (along * inv_range).abs();
+        let sd_m = seen_sd_m.max(floor_sd_m);
+        if best.is_some_and(|(bd, bsd, _)| bd * sd_m <= d * bsd) {
             continue;
         }
         let joins = n.region == NONE
             || (d <= (p.point_noise_factor * seen_sd_m).max(p.point_floor_m)
                 && (q - n.cell_centre).norm_squared() <= n.reach2_m2);
         if joins {
-            best = Some((z, n));
+            best = Some((d, sd_m, n));
         }
     }
-    let (_, chosen) = best?;
+    let (_, _, chosen) = best?;
     if chosen.region == NONE {
         return None;
     }
@@ -479,21 +482,31 @@ pub fn extract(
     let (columns, points_in_regions) = tables.finish(binned, points);
     let mut voxels = VoxelCloud { resolution_m: voxel_m as f32, ..Default::default() };
     let mut surfaces = Vec::with_capacity(planes.len());
+    let total: usize = columns.iter().map(Vec::len).sum();
+    voxels.keys.reserve(total);
+    voxels.positions.reserve(total);
+    voxels.normals.reserve(total);
+    voxels.counts.reserve(total);
+    voxels.adjacency.resize(total, 0);
+    // floor(), as i32, without the library call that x86-64's baseline makes of it.
+    let key = |v: f32| {
+        let t = f64::from(v) / voxel_m;
+        let i = t as i32;
+        i - i32::from(f64::from(i) > t)
+    };
     for (cols, plane) in columns.into_iter().zip(&planes) {
         if cols.is_empty() {
             continue;
         }
-        let first = voxels.len() as u32;
+        let first = voxels.positions.len() as u32;
         let normal = plane.normal.cast::<f32>();
         for (pos, count) in cols {
-            let key = [pos.x, pos.y, pos.z].map(|v| (f64::from(v) / voxel_m).floor() as i32);
-            voxels.keys.push(key);
+            voxels.keys.push([key(pos.x), key(pos.y), key(pos.z)]);
             voxels.positions.push(pos);
             voxels.normals.push(normal);
             voxels.counts.push(count);
-            voxels.adjacency.push(0);
         }
-        surfaces.push(((first..voxels.len() as u32).collect(), plane.normal));
+        surfaces.push(((first..voxels.positions.len() as u32).collect(), plane.normal));
     }
     let regions_ms = start.elapsed().as_secs_f64() * 1e3;
     Some(Regions { voxels, surfaces, cells: fitted, level_cells, points_in_regions, cells_ms, regions_ms })

@@ -23,6 +23,7 @@ use super::voxel::VoxelCloud;
 use super::{NoStaircase, PerceptionError, PerceptionParams, PlaneSegment};
 use crate::geom2d::{self, P2};
 use nalgebra::{Point3, Unit, Vector3};
+use rayon::prelude::*;
 
 /// A candidate plane segment.
 struct Candidate {
@@ -91,8 +92,9 @@ pub fn from_surfaces(
     p: &PerceptionParams,
 ) -> Result<(Vec<PlaneSegment>, usize, f64), PerceptionError> {
     let up = -gravity.into_inner();
+    // Each surface on its own (in parallel: the floor's is most of the work).
     let parts = surfaces
-        .into_iter()
+        .into_par_iter()
         .filter(|(voxels, _)| surface_height_extent_m(&vc.positions, voxels, &up) <= p.max_height_extent_m)
         .filter_map(|(voxels, normal)| candidate(vc, voxels, normal))
         .collect();
