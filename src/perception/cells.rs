@@ -418,10 +418,17 @@ pub fn extract(
             (0..cbs).map(move |cb| {
                 let mut m = Moments::default();
                 let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
-                for_cell_points(grid, points, &origin, p, (cr, cb), |_, q| {
+                // The box in the points' own coordinates, as step 4 bins them.
+                let mut box_m = [[f32::INFINITY; 2], [f32::NEG_INFINITY; 2]];
+                for_cell_points(grid, points, &origin, p, (cr, cb), |i, q| {
                     m.add(&q);
                     lo = lo.inf(&q);
                     hi = hi.sup(&q);
+                    let w = &points[i as usize];
+                    box_m = [
+                        [box_m[0][0].min(w.x), box_m[0][1].min(w.y)],
+                        [box_m[1][0].max(w.x), box_m[1][1].max(w.y)],
+                    ];
                 });
                 let plane = (m.n >= min_points)
                     .then(|| m.plane(noise_var_m2))
@@ -432,8 +439,7 @@ pub fn extract(
                 let steep = known.filter(|f| !is_level(f, &up, max_tilt_rad, p));
                 let level = known.filter(|_| steep.is_none());
                 let reach_m = if m.n > 0.0 { REACH_DIAGONALS * (hi - lo).norm() } else { 0.0 };
-                let world = |v: &Vector3<f64>| [(v.x + origin.x) as f32, (v.y + origin.y) as f32];
-                Cell { moments: m, level, steep, reach_m, box_m: [world(&lo), world(&hi)] }
+                Cell { moments: m, level, steep, reach_m, box_m }
             })
         })
         .collect();
@@ -457,7 +463,7 @@ pub fn extract(
     // 3. Points, cell by cell: each to the likeliest of the planes of the cell and its
     // 8-neighbours (regions' and steep cells'), see [`region_of`]; 4. binned on the way
     // into its region's columns, each band of cell rows into tables of its own.
-    let tables = ColumnTables::new(&cells, &label, &planes, (crs, cbs), voxel_m);
+    let tables = ColumnTables::new(&cells, &label, &planes, (crs, cbs), voxel_m, &origin);
     let bands = rayon::current_num_threads().clamp(1, crs.max(1));
     let binned: Vec<Binned> = (0..bands)
         .into_par_iter()
@@ -602,12 +608,15 @@ struct Binned {
 }
 
 impl ColumnTables {
+    /// The tables for regions `planes` (their centres from `origin`, the viewpoint) grown
+    /// over `cells` (`label`: each cell's region) of a `dims.0` x `dims.1` grid.
     fn new(
         cells: &[Cell],
         label: &[u32],
         planes: &[Plane],
         (crs, cbs): (usize, usize),
         voxel_m: f64,
+        origin: &Vector3<f64>,
     ) -> Self {
         let inv_m = (1.0 / voxel_m) as f32;
         // Per region: its columns' box over the cells whose points may join it (each cell
@@ -647,7 +656,11 @@ impl ColumnTables {
                 if nx.saturating_mul(ny) > 4 * n as usize + 1024 {
                     return None;
                 }
-                let corner = Vector3::new(lo.0 as f32 / inv_m, lo.1 as f32 / inv_m, plane.centre.z as f32);
+                let corner = Vector3::new(
+                    lo.0 as f32 / inv_m,
+                    lo.1 as f32 / inv_m,
+                    (plane.centre.z + origin.z) as f32,
+                );
                 Some(ColumnBox { lo, ny, len: nx * ny, corner })
             })
             .collect();
@@ -672,9 +685,12 @@ impl ColumnTables {
             table.resize(b.len, ([0.0; 3], 0));
         }
         let (x, y) = (floor_i32(q.x * self.inv_m) - b.lo.0, floor_i32(q.y * self.inv_m) - b.lo.1);
-        // A point's column lies in its cell's box, and the box holds every such cell's.
-        let at = x as usize * b.ny + y as usize;
-        if let Some(s) = table.get_mut(at) {
+        // A point's column lies in its cell's box (taken on the same f32 coordinates), and
+        // the region's box holds the box of every cell whose points may join it.
+        let inside = x >= 0 && y >= 0 && (y as usize) < b.ny && (x as usize) < b.len / b.ny;
+        debug_assert!(inside, "a point's column outside its region's box");
+        if inside {
+            let s = &mut table[x as usize * b.ny + y as usize];
             let d = q.coords - b.corner;
             s.0[0] += d.x;
             s.0[1] += d.y;
@@ -945,7 +961,8 @@ mod tests {
             rms_m: 0.0,
             tilt_sd_rad: 0.0,
         };
-        let tables = ColumnTables::new(&cells, &label, &[plane(0.2), plane(0.6)], (1, 5), 0.02);
+        let tables =
+            ColumnTables::new(&cells, &label, &[plane(0.2), plane(0.6)], (1, 5), 0.02, &Vector3::zeros());
         assert!(tables.boxes[0].is_some() && tables.boxes[1].is_none(), "dense, then sparse");
         // Points in random order over three bands.
         let mut order: Vec<u32> = (0..pts.len() as u32).collect();
