@@ -129,6 +129,9 @@ struct LeanWatch {
     true_tilt_rad: f64,
     /// Per tick: when (simulated seconds), the lean, the IMU's tilt, the true tilt.
     ticks: Vec<(f64, f64, f64, f64)>,
+    /// The IMU's tilt less the true tilt over each plan's first 50 ms (its first tick left
+    /// out: the truth is read after each physics step, and none has run yet), radians.
+    plan_start_errors_rad: Vec<f64>,
 }
 
 impl stairbench::climb::Observer for LeanWatch {
@@ -140,6 +143,9 @@ impl stairbench::climb::Observer for LeanWatch {
             }
             stairbench::climb::Event::Control { stamp_s, tick } => {
                 self.ticks.push((*stamp_s, tick.lean_m.xy().norm(), tick.tilt_rad, self.true_tilt_rad));
+                if tick.t_s > 0.0 && tick.t_s <= 0.05 {
+                    self.plan_start_errors_rad.push(tick.tilt_rad - self.true_tilt_rad);
+                }
             }
             _ => {}
         }
@@ -205,6 +211,28 @@ fn the_stabilizer_reads_the_true_tilt_and_sees_the_lean() {
         lean(&soft),
         lean(&rigid)
     );
+}
+
+/// The IMU's tilt filter is the robot's, not a plan's: it carries on from plan to plan and
+/// runs while the robot settles between them, so a plan starts with the tilt it has had all
+/// along. Over Exp. 1 (seed 3) each plan's first 50 ms read 0.059 deg off MuJoCo's tilt at
+/// the median and 0.112 deg at most; a filter started afresh at each plan from its first
+/// reading read 0.087 and 0.189 deg (the bound sits between the two). Carried on without
+/// the start's averaging and the readings near g only, the first plan began 8 deg off: the
+/// robot set down at the start shakes the accelerometer.
+#[test]
+fn the_tilt_filter_carries_on_from_plan_to_plan() {
+    let w = watch_lean(&Scenario { seed: 3, ..Scenario::default() });
+    let errors: Vec<f64> = w.plan_start_errors_rad.iter().map(|e| e.abs()).collect();
+    assert!(errors.len() >= 40, "{} ticks at the plans' starts", errors.len());
+    let (median, high) = (quantile(errors.clone(), 0.5), quantile(errors, 1.0));
+    eprintln!(
+        "at the plans' starts: off by {:.3} deg median, {:.3} deg at most",
+        median.to_degrees(),
+        high.to_degrees()
+    );
+    assert!(median < 0.1f64.to_radians(), "{} deg at the median", median.to_degrees());
+    assert!(high < 0.15f64.to_radians(), "{} deg at most", high.to_degrees());
 }
 
 /// `scene --resolved` writes the body's every error out, the preset's and the file's.

@@ -7,7 +7,7 @@
 //! what the body bends between its joints' set points and the ground (a compliant ankle,
 //! servos yielding under load); the IMU does not.
 
-use super::measurement::Imu;
+use super::measurement::{Imu, GRAVITY_M_S2};
 use nalgebra::{Point3, UnitQuaternion, Vector3};
 
 /// Up in the base's frame, filtered.
@@ -15,27 +15,39 @@ use nalgebra::{Point3, UnitQuaternion, Vector3};
 pub struct TiltFilter {
     up_base: Option<Vector3<f64>>,
     time_s: f64,
+    accel_tolerance: f64,
+    /// Time since its first reading, seconds.
+    age_s: f64,
 }
 
 impl TiltFilter {
     /// A filter pulled toward the accelerometer with time constant `time_s` (seconds; 0
-    /// takes each accelerometer reading as it is). It starts on its first reading, whose
-    /// noise it forgets over `time_s`.
-    pub fn new(time_s: f64) -> Self {
-        Self { up_base: None, time_s: time_s.max(0.0) }
+    /// takes each accelerometer reading as it is), by the readings whose magnitude is within
+    /// `accel_tolerance` (a fraction) of gravity's: one farther off is mostly the body's own
+    /// acceleration (a foot's impact, the robot set down) and says little of where up is; the
+    /// gyro alone carries the filter over it. It starts on its first such reading and
+    /// averages the readings while it is younger than `time_s` (each as much as the ones
+    /// before it), so a filter started at rest is as good as its readings' mean from the
+    /// start, not one reading's noise forgotten over `time_s`.
+    pub fn new(time_s: f64, accel_tolerance: f64) -> Self {
+        Self { up_base: None, time_s: time_s.max(0.0), accel_tolerance, age_s: 0.0 }
     }
 
     /// Takes the IMU's reading over the `dt_s` since the last: up in the base's frame
-    /// (`None` while no reading has shown a direction: a zero or non-finite specific force).
+    /// (`None` while no reading has shown a direction: a zero or non-finite specific force,
+    /// or one too far from gravity's magnitude).
     pub fn update(&mut self, imu: &Imu, dt_s: f64) -> Option<Vector3<f64>> {
-        let measured = imu.accel_m_s2.try_normalize(1e-6).filter(|v| v.iter().all(|c| c.is_finite()));
+        let near_g = (imu.accel_m_s2.norm() - GRAVITY_M_S2).abs() <= self.accel_tolerance * GRAVITY_M_S2;
+        let measured =
+            imu.accel_m_s2.try_normalize(1e-6).filter(|v| near_g && v.iter().all(|c| c.is_finite()));
         let gyro =
             if imu.gyro_rad_s.iter().all(|c| c.is_finite()) { imu.gyro_rad_s } else { Vector3::zeros() };
         self.up_base = match (self.up_base, measured) {
             (None, m) => m,
             (Some(up), m) => {
                 let carried = UnitQuaternion::from_scaled_axis(-gyro * dt_s) * up;
-                let blend = dt_s / (self.time_s + dt_s);
+                self.age_s += dt_s;
+                let blend = dt_s / (self.time_s.min(self.age_s) + dt_s);
                 let pulled = match m {
                     Some(m) if blend.is_finite() => carried + (m - carried) * blend,
                     _ => carried,
@@ -83,7 +95,7 @@ mod tests {
     #[test]
     fn a_base_at_rest_reads_its_own_tilt() {
         let tilt = UnitQuaternion::from_euler_angles(0.03, -0.05, 0.4);
-        let mut f = TiltFilter::new(0.5);
+        let mut f = TiltFilter::new(0.5, 0.1);
         for _ in 0..10 {
             f.update(&at_rest(&tilt), 0.005);
         }
@@ -102,7 +114,7 @@ mod tests {
     #[test]
     fn the_gyro_carries_a_turn_and_the_accelerometer_corrects_a_push() {
         let dt = 0.005;
-        let mut f = TiltFilter::new(0.5);
+        let mut f = TiltFilter::new(0.5, 0.1);
         f.update(&at_rest(&UnitQuaternion::identity()), dt);
         // Pitching at 0.1 rad/s for 1 s, the accelerometer agreeing: up follows the turn.
         let rate = Vector3::new(0.0, 0.1, 0.0);
@@ -133,7 +145,7 @@ mod tests {
     #[test]
     fn a_forward_pitch_leans_the_com_forward() {
         let pitch = UnitQuaternion::from_euler_angles(0.0, 0.05, 0.0);
-        let mut f = TiltFilter::new(2.0);
+        let mut f = TiltFilter::new(2.0, 0.1);
         f.update(&at_rest(&pitch), 0.005);
         let lean = f.lean(&UnitQuaternion::identity());
         let pivot = Point3::new(0.3, -0.1, 0.2);
@@ -144,7 +156,7 @@ mod tests {
 
     #[test]
     fn no_direction_no_lean() {
-        let mut f = TiltFilter::new(0.5);
+        let mut f = TiltFilter::new(0.5, 0.1);
         assert!(f.update(&Imu::default(), 0.005).is_none());
         assert_eq!(f.lean(&UnitQuaternion::identity()), UnitQuaternion::identity());
     }

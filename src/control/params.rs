@@ -98,6 +98,12 @@ pub struct StabilizerParams {
     /// figures with `--nocapture`); at 0.5 s it does not.
     /// A gyro bias `b` offsets it by `b` times this: 0.02 deg at a MEMS gyro's 0.01 deg/s.
     pub tilt_filter_time_s: f64,
+    /// The tilt filter takes the accelerometer's direction for up only from readings whose
+    /// magnitude is within this fraction of gravity's ([`super::attitude::TiltFilter`]). A
+    /// quasi-static climb accelerates the base by a few per cent of g; a foot's impact, or
+    /// the robot set down at the start, by far more, and a filter started on such a reading
+    /// was 8 deg off after the first settling (test `the_tilt_filter_carries_on_from_plan_to_plan`).
+    pub tilt_accel_tolerance: f64,
 }
 
 impl Default for StabilizerParams {
@@ -130,6 +136,7 @@ impl Default for StabilizerParams {
             max_hold_s: 2.0,
             max_seek_m: 0.03,
             tilt_filter_time_s: 2.0,
+            tilt_accel_tolerance: 0.1,
         }
     }
 }

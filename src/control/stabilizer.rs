@@ -129,9 +129,22 @@ impl<'m> Stabilizer<'m> {
             held_s: 0.0,
             pressed_ticks: [0; 2],
             q_est: q0,
-            tilt: TiltFilter::new(p.tilt_filter_time_s),
+            tilt: TiltFilter::new(p.tilt_filter_time_s, p.tilt_accel_tolerance),
             record: TickRecord::default(),
         })
+    }
+
+    /// The stabilizer with `tilt` as its IMU's tilt filter, carried on from before the plan
+    /// (from its first reading, else).
+    #[must_use]
+    pub fn with_tilt(mut self, tilt: TiltFilter) -> Self {
+        self.tilt = tilt;
+        self
+    }
+
+    /// Its IMU's tilt filter, to carry on into the next plan.
+    pub fn tilt(&self) -> &TiltFilter {
+        &self.tilt
     }
 
     /// The control period, seconds.

@@ -10,6 +10,7 @@ use super::sensors::SimSensors;
 use super::world::{SimError, World};
 use crate::cancel::Cancel;
 use crate::climb::{ControlCost, Event, Execution, Executor, Observer, RobotState, Watch};
+use crate::control::attitude::TiltFilter;
 use crate::control::Stabilizer;
 use crate::estimate::Odometry;
 use crate::planning::gait::Swing;
@@ -82,12 +83,13 @@ pub fn execute(
     observer: &mut dyn Observer,
     cancel: &Cancel,
 ) -> Result<Execution, SimError> {
-    execute_from(world, model, scene, plan, &Isometry3::identity(), params, observer, cancel)
+    execute_from(world, model, scene, plan, &Isometry3::identity(), params, None, observer, cancel)
 }
 
 /// [`execute`] of a plan made in a frame that lies at `plan_to_world` in the true world (the
 /// robot's own estimate when the plan began): the touchdowns are judged against their
-/// targets carried into the world ([`Monitor::plan_to_world`]).
+/// targets carried into the world ([`Monitor::plan_to_world`]). With `tilt`, the
+/// stabilizer's IMU tilt filter carries on from it and is left there for the next plan.
 #[allow(clippy::too_many_arguments)]
 pub fn execute_from(
     world: &mut World,
@@ -96,6 +98,7 @@ pub fn execute_from(
     plan: &Plan,
     plan_to_world: &Isometry3<f64>,
     params: &SimParams,
+    tilt: Option<&mut TiltFilter>,
     observer: &mut dyn Observer,
     cancel: &Cancel,
 ) -> Result<Execution, SimError> {
@@ -131,7 +134,13 @@ pub fn execute_from(
     let mut q = vec![0.0; model.nq()];
     let mut control = match params.stabilizer.enabled {
         true => Some(Control {
-            stabilizer: Stabilizer::new(model, plan, &params.plan, &params.stabilizer)?,
+            stabilizer: {
+                let s = Stabilizer::new(model, plan, &params.plan, &params.stabilizer)?;
+                match tilt.as_deref() {
+                    Some(t) => s.with_tilt(t.clone()),
+                    None => s,
+                }
+            },
             sensors: SimSensors::new(world, [hrp4::R_SOLE, hrp4::L_SOLE], &params.sensors)?,
             from: plan.trajectory.sample_at(0.0).q.clone(),
             to: plan.trajectory.sample_at(0.0).q.clone(),
@@ -223,6 +232,9 @@ pub fn execute_from(
     }
     mon.ex.sim_s = now;
     if let Some(c) = control {
+        if let Some(t) = tilt {
+            *t = c.stabilizer.tilt().clone();
+        }
         mon.ex.control = Some(ControlCost { ticks: c.ticks, wall_s: c.wall_s });
     }
     Ok(mon.ex)
@@ -288,9 +300,15 @@ impl Control<'_> {
 
 /// Holds the robot at its commanded posture for `seconds`.
 pub fn settle(world: &mut World, seconds: f64) {
+    settle_watched(world, seconds, &mut |_| {});
+}
+
+/// [`settle`], `on_step` called after each physics step.
+fn settle_watched(world: &mut World, seconds: f64, on_step: &mut dyn FnMut(&World)) {
     let n = (seconds / world.model().opt().timestep).round() as usize;
     for _ in 0..n {
         world.step();
+        on_step(world);
     }
 }
 
@@ -303,6 +321,17 @@ fn base_speed_m_s(world: &World) -> f64 {
 /// `speed_m_s` for `still_s` seconds in a row (a sway's turning point is slow for an
 /// instant only), for at most `max_s` seconds; the time it stood, seconds.
 pub fn settle_until_still(world: &mut World, speed_m_s: f64, still_s: f64, max_s: f64) -> f64 {
+    settle_until_still_watched(world, speed_m_s, still_s, max_s, &mut |_| {})
+}
+
+/// [`settle_until_still`], `on_step` called after each physics step.
+fn settle_until_still_watched(
+    world: &mut World,
+    speed_m_s: f64,
+    still_s: f64,
+    max_s: f64,
+    on_step: &mut dyn FnMut(&World),
+) -> f64 {
     let dt = world.model().opt().timestep;
     let (mut t_s, mut still_from_s) = (0.0, 0.0);
     while t_s + dt / 2.0 < max_s {
@@ -312,6 +341,7 @@ pub fn settle_until_still(world: &mut World, speed_m_s: f64, still_s: f64, max_s
             break;
         }
         world.step();
+        on_step(world);
         t_s += dt;
     }
     t_s
@@ -327,6 +357,10 @@ pub struct SimRobot<'a> {
     params: SimParams,
     /// The robot's own estimate of its pose, when `params.estimate` enables it.
     odometry: Option<Odometry<'a>>,
+    /// The stabilizer's IMU tilt filter, carried from plan to plan and fed while the robot
+    /// settles between them (as the real robot's runs all along), by `imu`.
+    tilt: TiltFilter,
+    imu: SimSensors,
 }
 
 impl<'a> SimRobot<'a> {
@@ -343,7 +377,10 @@ impl<'a> SimRobot<'a> {
             true => Some(Odometry::new(model, &world.borrow().configuration(), &params.estimate)?),
             false => None,
         };
-        Ok(Self { world, model, scene, params: params.clone(), odometry })
+        let imu = SimSensors::new(&world.borrow(), [hrp4::R_SOLE, hrp4::L_SOLE], &params.sensors)?;
+        let tilt =
+            TiltFilter::new(params.stabilizer.tilt_filter_time_s, params.stabilizer.tilt_accel_tolerance);
+        Ok(Self { world, model, scene, params: params.clone(), odometry, tilt, imu })
     }
 }
 
@@ -385,9 +422,21 @@ impl Executor for SimRobot<'_> {
     /// [`RunParams::max_settle_s`]: crate::climb::RunParams::max_settle_s
     fn settle(&mut self, seconds: f64) -> Result<(), SimError> {
         let world = &mut self.world.borrow_mut();
-        settle(world, seconds);
+        // The tilt filter fed at the stabilizer's rate.
+        let period_s = 1.0 / self.params.stabilizer.rate_hz;
+        let (mut since_s, dt) = (0.0, world.model().opt().timestep);
+        let (imu, tilt) = (&mut self.imu, &mut self.tilt);
+        let mut feed = |w: &World| {
+            since_s += dt;
+            if since_s >= period_s - dt / 2.0 {
+                tilt.update(&imu.read(w).imu, since_s);
+                since_s = 0.0;
+            }
+        };
+        settle_watched(world, seconds, &mut feed);
         let run = &self.params.run;
-        settle_until_still(world, run.still_speed_m_s, run.still_s, (run.max_settle_s - seconds).max(0.0));
+        let max_s = (run.max_settle_s - seconds).max(0.0);
+        settle_until_still_watched(world, run.still_speed_m_s, run.still_s, max_s, &mut feed);
         Ok(())
     }
 
@@ -398,8 +447,20 @@ impl Executor for SimRobot<'_> {
         cancel: &Cancel,
     ) -> Result<Execution, SimError> {
         let mut world = self.world.borrow_mut();
+        let tilt = Some(&mut self.tilt);
         let Some(odo) = self.odometry.as_mut() else {
-            return execute(&mut world, self.model, self.scene, plan, &self.params, observer, cancel);
+            let identity = Isometry3::identity();
+            return execute_from(
+                &mut world,
+                self.model,
+                self.scene,
+                plan,
+                &identity,
+                &self.params,
+                tilt,
+                observer,
+                cancel,
+            );
         };
         // The plan's frame in the world: the true base against the estimated one, now.
         let truth = world.configuration().to_vec();
@@ -423,6 +484,7 @@ impl Executor for SimRobot<'_> {
             plan,
             &plan_to_world,
             &self.params,
+            tilt,
             &mut odometry,
             cancel,
         )?;
