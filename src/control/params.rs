@@ -101,8 +101,8 @@ pub struct StabilizerParams {
     /// The tilt filter takes the accelerometer's direction for up only from readings whose
     /// magnitude is within this fraction of gravity's ([`super::attitude::TiltFilter`]). A
     /// quasi-static climb accelerates the base by a few per cent of g; a foot's impact, or
-    /// the robot set down at the start, by far more, and a filter started on such a reading
-    /// was 8 deg off after the first settling (test `the_tilt_filter_carries_on_from_plan_to_plan`).
+    /// the robot set down at the start, by far more, and its direction then says little of
+    /// where up is (test `the_tilt_filter_carries_on_from_plan_to_plan`).
     pub tilt_accel_tolerance: f64,
 }
 
