@@ -119,7 +119,8 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
     let suite = suite::load(&resolve(suite_arg)?)?;
     let params: ClimbParams = super::climb_params(a.params.as_deref())?;
     let robot = bench_robot(&params.plan.gait)?;
-    let (all, cases) = select_cases(&a, &suite, &robot)?;
+    let seeds = a.seeds.unwrap_or(suite.seeds).max(1);
+    let (all, cases) = select_cases(&a, &suite, &robot, seeds)?;
     let out = a.out.clone().unwrap_or_else(|| Path::new("out/regress").join(&suite.name));
     if a.list {
         return list(&out, &cases);
@@ -138,7 +139,7 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
     let opt = Options {
         jobs,
         timeout_s: a.timeout,
-        seeds: a.seeds.unwrap_or(suite.seeds).max(1),
+        seeds,
         out: out.clone(),
         resume: a.resume,
         record_failures: a.record_failures.clone(),
@@ -179,11 +180,12 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
 }
 
 /// The suite's cases (all of them, each in `--plant`'s body if given) and those of this
-/// shard; says what was generated.
+/// shard; says what was generated, each to be run `seeds` times.
 fn select_cases(
     a: &RegressArgs,
     suite: &suite::Suite,
     robot: &generate::Robot,
+    seeds: usize,
 ) -> Result<(Vec<generate::Case>, Vec<generate::Case>)> {
     let mut all = generate::cases(suite, robot)?;
     if let Some(p) = a.plant {
@@ -198,7 +200,6 @@ fn select_cases(
     };
     let cases: Vec<generate::Case> =
         all.iter().filter(|c| shard.is_none_or(|s| s.owns(&c.id))).cloned().collect();
-    let seeds = a.seeds.unwrap_or(suite.seeds).max(1);
     let redraws: usize = all.iter().map(|c| c.redraws).sum();
     println!(
         "suite {} (seed {}, hash {}): {} cases ({} redrawn {redraws} times in all: the world could not hold them){}; {} here x {seeds} noise draws",
