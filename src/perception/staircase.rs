@@ -72,7 +72,7 @@ pub fn extract(
                 continue;
             }
             let voxels: Vec<u32> = svs.iter().flat_map(|&s| members[s as usize].iter().copied()).collect();
-            parts.extend(candidate(vc, voxels, plane.normal.cast()));
+            parts.extend(candidate(vc, voxels, plane.normal.cast(), p));
         }
     }
     from_parts(vc, parts, planes.len(), viewpoint, gravity, p)
@@ -96,7 +96,7 @@ pub fn from_surfaces(
     let parts = surfaces
         .into_par_iter()
         .filter(|(voxels, _)| surface_height_extent_m(&vc.positions, voxels, &up) <= p.max_height_extent_m)
-        .filter_map(|(voxels, normal)| candidate(vc, voxels, normal))
+        .filter_map(|(voxels, normal)| candidate(vc, voxels, normal, p))
         .collect();
     from_parts(vc, parts, planes, viewpoint, gravity, p)
 }
@@ -331,7 +331,7 @@ fn join_touching(vc: &VoxelCloud, parts: Vec<Candidate>, p: &PerceptionParams) -
             _ => {
                 let normal = group.iter().map(|c| c.normal * c.voxels.len() as f64).sum::<Vector3<f64>>();
                 let voxels: Vec<u32> = group.into_iter().flat_map(|c| c.voxels).collect();
-                candidate(vc, voxels, normal.normalize()).into_iter().collect()
+                candidate(vc, voxels, normal.normalize(), p).into_iter().collect()
             }
         })
         .collect()
@@ -342,12 +342,24 @@ fn join_touching(vc: &VoxelCloud, parts: Vec<Candidate>, p: &PerceptionParams) -
 /// a few dozen for a tread, and under 15 mm of range noise it can come out tilted by
 /// degrees where the plane of the tread's hundreds of voxels is within half a degree
 /// (regression `tilted-tread-and-sunk-landing`).
-fn candidate(vc: &VoxelCloud, voxels: Vec<u32>, normal: Vector3<f64>) -> Option<Candidate> {
+fn candidate(
+    vc: &VoxelCloud,
+    voxels: Vec<u32>,
+    normal: Vector3<f64>,
+    p: &PerceptionParams,
+) -> Option<Candidate> {
     let up = normal.cast::<f32>();
     let normal = super::ransac::refit(&vc.positions, &voxels, &up).map_or(normal, |(n, _)| n.cast());
     let xy: Vec<P2> = voxels.iter().map(|&v| vc.positions[v as usize].xy().coords.cast::<f64>()).collect();
     let hull = geom2d::convex_hull(&xy);
-    let (axis, ra, rb) = geom2d::min_area_rect_of_hull(&hull)?;
+    let (axis, _, _) = geom2d::min_area_rect_of_hull(&hull)?;
+    // The shape compared with other segments' is that of the rectangle the segment would
+    // give as a step: without strays beyond an empty row ([`dense_extent`]). One stray
+    // column 12 cm past a tread's side made it 1.80 m wide beside its like steps' 1.68 m,
+    // a shape apart, and a level of clutter was taken for the staircase (regression
+    // `stray-column-split-the-flight`).
+    let ra = dense_extent(&xy, &axis, p.voxel_resolution_m, p.min_edge_row_fill);
+    let rb = dense_extent(&xy, &P2::new(-axis.y, axis.x), p.voxel_resolution_m, p.min_edge_row_fill);
     let (a, b) = (ra[1] - ra[0], rb[1] - rb[0]);
     let height = voxels.iter().map(|&v| vc.positions[v as usize].z as f64).sum::<f64>() / voxels.len() as f64;
     let centroid = xy.iter().sum::<P2>() / xy.len() as f64;
@@ -566,7 +578,8 @@ mod tests {
             counts: vec![1; n],
             adjacency: vec![1; n],
         };
-        candidate(&vc, (0..n as u32).collect(), Vector3::z()).expect("a candidate")
+        candidate(&vc, (0..n as u32).collect(), Vector3::z(), &PerceptionParams::default())
+            .expect("a candidate")
     }
 
     /// A tread 0.3 by 1 m, every voxel seen or one row in two and one in three across (a
@@ -805,6 +818,58 @@ mod tests {
             flight_deg < 0.67 * rect_deg,
             "the flight's ascent is {flight_deg:.2} deg off (rms), the rectangles' {rect_deg:.2}"
         );
+    }
+
+    /// Regression `stray-column-split-the-flight` (`regress wide` case wide-0035 with the
+    /// cell method, the loop's first view): step 2 carried one column 12 cm past the
+    /// flight's side, step 3 was half hidden, and with the shapes taken from the hulls the
+    /// three steps were three shapes apart; two clutter boxes beside the robot, one level,
+    /// tied with them and were nearer, and the clutter's top (0.557 m) was taken for the
+    /// staircase. The shapes compared are those of the steps' rectangles, strays left out.
+    #[test]
+    fn a_stray_column_does_not_split_the_flight() {
+        let p = PerceptionParams::default();
+        let g = 0.02f32;
+        // Voxels every 2 cm over x0..x1, y0..y1 at height z.
+        let patch = |x0: f32, x1: f32, y0: f32, y1: f32, z: f32| -> Vec<Point3<f32>> {
+            let (nx, ny) = (((x1 - x0) / g).round() as usize, ((y1 - y0) / g).round() as usize);
+            (0..nx)
+                .flat_map(|i| {
+                    (0..ny).map(move |j| Point3::new(x0 + (i as f32 + 0.5) * g, y0 + (j as f32 + 0.5) * g, z))
+                })
+                .collect()
+        };
+        let mut step_2 = patch(1.28, 1.56, -0.84, 0.84, 0.342);
+        step_2.extend([Point3::new(1.41, 0.97, 0.342)]);
+        let surfaces = [
+            patch(-1.0, 0.9, -1.0, 1.0, 0.0),
+            patch(1.0, 1.28, -0.84, 0.84, 0.171),
+            step_2,
+            patch(1.56, 1.84, -0.84, 0.67, 0.514),
+            patch(-0.4, 0.3, 0.6, 1.16, 0.557),
+            patch(-0.4, 0.3, -1.22, -0.66, 0.557),
+        ];
+        let mut positions = Vec::new();
+        let mut parts = Vec::new();
+        for s in &surfaces {
+            let first = positions.len() as u32;
+            positions.extend_from_slice(s);
+            parts.push(((first..positions.len() as u32).collect::<Vec<u32>>(), Vector3::z()));
+        }
+        let n = positions.len();
+        let vc = VoxelCloud {
+            resolution_m: 0.02,
+            keys: vec![[0, 0, 0]; n],
+            positions,
+            normals: vec![Vector3::z(); n],
+            counts: vec![1; n],
+            adjacency: vec![1; n],
+        };
+        let gravity = Unit::new_normalize(-Vector3::z());
+        let (steps, _, _) =
+            from_surfaces(&vc, parts, 6, &Point3::new(0.0, 0.0, 1.5), &gravity, &p).expect("steps");
+        let heights: Vec<f64> = steps.iter().map(|s| (s.height_m() * 1000.0).round() / 1000.0).collect();
+        assert_eq!(heights, [0.171, 0.342, 0.514], "the staircase found");
     }
 
     #[test]
