@@ -356,8 +356,8 @@ fn candidate(
     // The shape compared with other segments' is that of the rectangle the segment would
     // give as a step: without strays beyond an empty row ([`dense_extent`]). One stray
     // column 12 cm past a tread's side made it 1.80 m wide beside its like steps' 1.68 m,
-    // a shape apart, and a level of clutter was taken for the staircase (regression
-    // `stray-column-split-the-flight`).
+    // a shape apart, and a level of clutter was taken for the staircase (`regress wide`
+    // case wide-0035 with the cell method; test `a_stray_column_does_not_split_the_flight`).
     let ra = dense_extent(&xy, &axis, p.voxel_resolution_m, p.min_edge_row_fill);
     let rb = dense_extent(&xy, &P2::new(-axis.y, axis.x), p.voxel_resolution_m, p.min_edge_row_fill);
     let (a, b) = (ra[1] - ra[0], rb[1] - rb[0]);
@@ -820,8 +820,8 @@ mod tests {
         );
     }
 
-    /// Regression `stray-column-split-the-flight` (`regress wide` case wide-0035 with the
-    /// cell method, the loop's first view): step 2 carried one column 12 cm past the
+    /// `regress wide` case wide-0035 with the cell method, the loop's first view (not in
+    /// the `regressions` suite, which runs the default method): step 2 carried one column 12 cm past the
     /// flight's side, step 3 was half hidden, and with the shapes taken from the hulls the
     /// three steps were three shapes apart; two clutter boxes beside the robot, one level,
     /// tied with them and were nearer, and the clutter's top (0.557 m) was taken for the
