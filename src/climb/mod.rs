@@ -164,7 +164,8 @@ pub fn run<E: Executor>(
         // A view under the estimate's drift is moved onto the known steps, and the estimate
         // with it (the robot's own; a robot that keeps none is not moved, nor is its view).
         let (mut correction_m, mut correction_yaw_rad) = (None, None);
-        let seen = match map.register(&seen, p.step_map) {
+        let viewpoint = nalgebra::Point3::from(sweep.mount_to_world.translation.vector);
+        let seen = match map.register(&seen, &viewpoint, p.step_map) {
             Some(offset) if robot.correct(&offset) => {
                 let before = q[..3].to_vec();
                 q = robot.configuration();

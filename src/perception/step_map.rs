@@ -128,8 +128,14 @@ impl StepMap {
     ///
     /// A turn under `register_min_rad` and a shift under `register_min_m` are left at zero;
     /// a view that matches nothing, asks for a turn over 10 times `register_min_rad` or a
-    /// shift over `register_max_m`, gives `None` (a mismatch, not drift).
-    pub fn register(&self, seen: &[PlaneSegment], p: &StepMapParams) -> Option<Isometry3<f64>> {
+    /// shift over `register_max_m`, or would move the robot (at `viewpoint`, where the view
+    /// was taken) by more than `register_max_m`, gives `None` (a mismatch, not drift).
+    pub fn register(
+        &self,
+        seen: &[PlaneSegment],
+        viewpoint: &nalgebra::Point3<f64>,
+        p: &StepMapParams,
+    ) -> Option<Isometry3<f64>> {
         let along = self.ascent()?;
         let front = |r: &PlaneSegment| (r.center() - r.along() * (r.depth_m() / 2.0)).coords.dot(&along);
         // A pair further apart in height than half the flight's least rise is as near another
@@ -182,7 +188,15 @@ impl StepMap {
         if [d_along, d_across, dz].iter().any(|d| d.abs() > p.register_max_m) {
             return None;
         }
-        (turn != 0.0 || shift != Vector3::zeros()).then(|| nalgebra::Translation3::from(shift) * turned)
+        let correction = nalgebra::Translation3::from(shift) * turned;
+        // The turn is about the steps' middle: far from the robot, a turn within its bound
+        // moves the robot farther than odometry drifts (ci-0195: near-square treads of a
+        // 0.45 m flight read 28.8 deg turned moved the robot 0.72 m, each shift within
+        // bounds). The robot, where the view was taken, moves by at most `register_max_m`.
+        if (correction * viewpoint - viewpoint).norm() > p.register_max_m {
+            return None;
+        }
+        (turn != 0.0 || shift != Vector3::zeros()).then_some(correction)
     }
 
     /// The least rise between two known steps of different heights (more than
@@ -461,6 +475,7 @@ mod tests {
     #[test]
     fn a_view_under_odometry_drift_is_registered_before_it_is_merged() {
         let p = StepMapParams::default();
+        let origin = Point3::new(0.3, 0.0, 1.4);
         let truth = [(0.735, 0.2), (1.005, 0.4), (1.275, 0.6)];
         let known: Vec<PlaneSegment> =
             truth.iter().map(|&(x, z)| step(x, z, 0.27).with_front_on_riser(true)).collect();
@@ -469,7 +484,7 @@ mod tests {
         let seen: Vec<PlaneSegment> = known.iter().map(|k| k.clone().moved(&drift)).collect();
         let naive = merge(&known, seen.clone(), &p);
         assert!(naive.iter().all(|r| (r.depth_m() - 0.31).abs() < 1e-9), "merged as it came: 4 cm deeper");
-        let correction = map.register(&seen, &p).expect("a correction");
+        let correction = map.register(&seen, &origin, &p).expect("a correction");
         assert!((correction.translation.vector + drift).norm() < 1e-9, "{correction:?}");
         let registered: Vec<PlaneSegment> = seen.into_iter().map(|s| s.transformed(&correction)).collect();
         let merged = merge(&known, registered, &p);
@@ -480,10 +495,10 @@ mod tests {
         // Under a centimetre (a view's own error), or a step away (a mismatch): nothing.
         let small: Vec<PlaneSegment> =
             known.iter().map(|k| k.clone().moved(&Vector3::new(0.01, 0.0, 0.005))).collect();
-        assert_eq!(map.register(&small, &p), None);
+        assert_eq!(map.register(&small, &origin, &p), None);
         let far: Vec<PlaneSegment> =
             known.iter().map(|k| k.clone().moved(&Vector3::new(0.27, 0.0, 0.0))).collect();
-        assert_eq!(map.register(&far, &p), None, "a step's depth away is not drift");
+        assert_eq!(map.register(&far, &origin, &p), None, "a step's depth away is not drift");
     }
 
     /// `regress envelope` case envelope-0005 on the robot's estimate: 10 cm rises, the view
@@ -494,18 +509,45 @@ mod tests {
     #[test]
     fn a_strip_by_the_next_front_is_not_matched_a_rise_away() {
         let p = StepMapParams::default();
+        let origin = Point3::new(0.5, 0.0, 1.5);
         let known: Vec<PlaneSegment> = [(0.74, 0.1), (1.02, 0.2), (1.30, 0.3)]
             .iter()
             .map(|&(x, z)| step(x, z, 0.28).with_front_on_riser(true))
             .collect();
         let map = StepMap { known };
         let seen = vec![step(1.128, 0.199, 0.067), step(1.30, 0.299, 0.28).with_front_on_riser(true)];
-        assert_eq!(map.register(&seen, &p), None);
+        assert_eq!(map.register(&seen, &origin, &p), None);
         // Drift of 2.5 cm in height is still found on such a flight.
         let drifted: Vec<PlaneSegment> =
             seen.iter().map(|s| s.clone().moved(&Vector3::new(0.0, 0.0, -0.025))).collect();
-        let dz = map.register(&drifted, &p).expect("a correction").translation.vector.z;
+        let dz = map.register(&drifted, &origin, &p).expect("a correction").translation.vector.z;
         assert!((dz - 0.026).abs() < 1e-9, "{dz}");
+    }
+
+    /// `regress ci` case ci-0195, third draw, on the robot's estimate: a 0.45 m wide
+    /// flight's near-square treads read 28.8 deg turned, and the turn, within its bound, about
+    /// the steps' middle 1.4 m away, moved the robot 0.72 m (the estimate 655 mm off). A
+    /// correction that would move the robot farther than `register_max_m` is a mismatch; the
+    /// same view seen from beside the steps' middle is still turned back.
+    #[test]
+    fn a_turn_that_would_carry_the_robot_off_is_not_drift() {
+        let p = StepMapParams::default();
+        let known: Vec<PlaneSegment> = [(1.2, 0.17), (1.48, 0.34), (1.76, 0.51)]
+            .iter()
+            .map(|&(x, z)| {
+                level(Point3::new(x, 0.0, z), Vector3::x(), 0.28, 0.45, 10).with_front_on_riser(true)
+            })
+            .collect();
+        let map = StepMap { known: known.clone() };
+        let middle = nalgebra::Translation3::new(1.48, 0.0, 0.0);
+        let turned: Isometry3<f64> = middle
+            * nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 25f64.to_radians())
+            * middle.inverse();
+        let seen: Vec<PlaneSegment> = known.iter().map(|k| k.clone().transformed(&turned)).collect();
+        assert_eq!(map.register(&seen, &Point3::new(0.0, 0.0, 1.4), &p), None, "from the floor, 1.5 m off");
+        let beside = map.register(&seen, &Point3::new(1.48, 0.05, 1.4), &p).expect("a correction");
+        let yaw_deg = beside.rotation.euler_angles().2.to_degrees();
+        assert!((yaw_deg + 25.0).abs() < 1e-6, "turned back by {yaw_deg} deg");
     }
 
     #[test]

@@ -184,7 +184,9 @@ pub fn replay(
         };
         // On the robot's own estimate the loop registered each view on the step map and moved
         // it (the robot with it: the recorded plan starts there): so does the replay.
-        if let Some(offset) = params.estimate.enabled.then(|| map.register(&seen, &params.step_map)).flatten()
+        let viewpoint = nalgebra::Point3::from(sweep.mount_to_world.translation.vector);
+        if let Some(offset) =
+            params.estimate.enabled.then(|| map.register(&seen, &viewpoint, &params.step_map)).flatten()
         {
             let (moved, moved_cloud) = moved_view(&offset, seen, &mut sweep.clone());
             seen = moved;
