@@ -354,10 +354,9 @@ fn candidate(
     let hull = geom2d::convex_hull(&xy);
     let (axis, _, _) = geom2d::min_area_rect_of_hull(&hull)?;
     // The shape compared with other segments' is that of the rectangle the segment would
-    // give as a step: without strays beyond an empty row ([`dense_extent`]). One stray
-    // column 12 cm past a tread's side made it 1.80 m wide beside its like steps' 1.68 m,
-    // a shape apart, and a level of clutter was taken for the staircase (`regress wide`
-    // case wide-0035 with the cell method; test `a_stray_column_does_not_split_the_flight`).
+    // give as a step: without strays beyond an empty row ([`dense_extent`]). A stray column
+    // past a tread's side made it a shape apart from its like steps, and a level of clutter
+    // was taken for the staircase (test `a_stray_column_does_not_split_the_flight`).
     let ra = dense_extent(&xy, &axis, p.voxel_resolution_m, p.min_edge_row_fill);
     let rb = dense_extent(&xy, &P2::new(-axis.y, axis.x), p.voxel_resolution_m, p.min_edge_row_fill);
     let (a, b) = (ra[1] - ra[0], rb[1] - rb[0]);

@@ -139,8 +139,9 @@ impl StepMap {
         let along = self.ascent()?;
         let front = |r: &PlaneSegment| (r.center() - r.along() * (r.depth_m() / 2.0)).coords.dot(&along);
         // A pair further apart in height than half the flight's least rise is as near another
-        // step as its own: no drift, a mismatch (a strip of step 2 past the legs, its "front"
-        // mid-tread, next to step 3's front, matched step 3 and asked for half a 10 cm rise).
+        // step as its own: no drift, a mismatch (a strip of a step seen past the legs has its
+        // "front" mid-tread, by the next step's; test
+        // `a_strip_by_the_next_front_is_not_matched_a_rise_away`).
         let max_dz_m = p.register_max_m.min(self.least_rise_m() / 2.0);
         let pairs: Vec<(&PlaneSegment, PlaneSegment)> = seen
             .iter()
@@ -190,9 +191,9 @@ impl StepMap {
         }
         let correction = nalgebra::Translation3::from(shift) * turned;
         // The turn is about the steps' middle: far from the robot, a turn within its bound
-        // moves the robot farther than odometry drifts (ci-0195: near-square treads of a
-        // 0.45 m flight read 28.8 deg turned moved the robot 0.72 m, each shift within
-        // bounds). The robot, where the view was taken, moves by at most `register_max_m`.
+        // (near-square treads read turned) moves the robot farther than odometry drifts. The
+        // robot, where the view was taken, moves by at most `register_max_m` (test
+        // `a_turn_that_would_carry_the_robot_off_is_not_drift`).
         if (correction * viewpoint - viewpoint).norm() > p.register_max_m {
             return None;
         }
