@@ -568,17 +568,22 @@ mod tests {
 
     /// Voxels at `at`, as a candidate (normal hint: up).
     fn candidate_on(at: &[Point3<f32>]) -> Candidate {
-        let n = at.len();
-        let vc = VoxelCloud {
+        let vc = voxel_cloud(at.to_vec());
+        candidate(&vc, (0..at.len() as u32).collect(), Vector3::z(), &PerceptionParams::default())
+            .expect("a candidate")
+    }
+
+    /// 2 cm voxels at `positions`, their normals up.
+    fn voxel_cloud(positions: Vec<Point3<f32>>) -> VoxelCloud {
+        let n = positions.len();
+        VoxelCloud {
             resolution_m: 0.02,
             keys: vec![[0, 0, 0]; n],
-            positions: at.to_vec(),
+            positions,
             normals: vec![Vector3::z(); n],
             counts: vec![1; n],
             adjacency: vec![1; n],
-        };
-        candidate(&vc, (0..n as u32).collect(), Vector3::z(), &PerceptionParams::default())
-            .expect("a candidate")
+        }
     }
 
     /// A tread 0.3 by 1 m, every voxel seen or one row in two and one in three across (a
@@ -820,8 +825,8 @@ mod tests {
     }
 
     /// `regress wide` case wide-0035 with the cell method, the loop's first view (not in
-    /// the `regressions` suite, which runs the default method): step 2 carried one column 12 cm past the
-    /// flight's side, step 3 was half hidden, and with the shapes taken from the hulls the
+    /// the `regressions` suite, which runs the default method): step 2 carried one column
+    /// 12 cm past the flight's side, step 3 was half hidden, and with the shapes taken from the hulls the
     /// three steps were three shapes apart; two clutter boxes beside the robot, one level,
     /// tied with them and were nearer, and the clutter's top (0.557 m) was taken for the
     /// staircase. The shapes compared are those of the steps' rectangles, strays left out.
@@ -855,15 +860,7 @@ mod tests {
             positions.extend_from_slice(s);
             parts.push(((first..positions.len() as u32).collect::<Vec<u32>>(), Vector3::z()));
         }
-        let n = positions.len();
-        let vc = VoxelCloud {
-            resolution_m: 0.02,
-            keys: vec![[0, 0, 0]; n],
-            positions,
-            normals: vec![Vector3::z(); n],
-            counts: vec![1; n],
-            adjacency: vec![1; n],
-        };
+        let vc = voxel_cloud(positions);
         let gravity = Unit::new_normalize(-Vector3::z());
         let (steps, _, _) =
             from_surfaces(&vc, parts, 6, &Point3::new(0.0, 0.0, 1.5), &gravity, &p).expect("steps");
