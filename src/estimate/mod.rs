@@ -23,8 +23,10 @@ use nalgebra::{Isometry3, UnitQuaternion};
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct EstimateParams {
-    /// The loop plans from the robot's own estimate (this odometry) instead of the
-    /// simulator's true pose. The checks and the report keep judging in the true world.
+    /// The loop plans from the robot's own estimate (this odometry), as the real robot must;
+    /// `false` plans from the simulator's true pose (the bench's view before the estimate, a
+    /// reference to compare against). The checks and the report judge in the true world
+    /// either way. Default on: a rehearsal knows only what the robot's sensors say.
     pub enabled: bool,
     /// Share of the feet's summed normal load above which a foot becomes the anchor (over 0.5,
     /// at most 1; at 0.5 equal loads would swap the anchor at every step): 0.6 switches once the new foot clearly carries the robot, after the weight's
@@ -37,7 +39,7 @@ pub struct EstimateParams {
 
 impl Default for EstimateParams {
     fn default() -> Self {
-        Self { enabled: false, switch_load_fraction: 0.6, min_load_n: 40.0 }
+        Self { enabled: true, switch_load_fraction: 0.6, min_load_n: 40.0 }
     }
 }
 
