@@ -294,6 +294,7 @@ pub struct PlaneSegment {
     height_m: f64,
     voxel_count: usize,
     front_on_riser: bool,
+    nosing_m: f64,
 }
 
 /// A [`PlaneSegment`]'s fields as written, before they are checked.
@@ -306,6 +307,9 @@ struct PlaneSegmentData {
     /// Absent from recordings made before fronts were placed on risers.
     #[serde(default)]
     front_on_riser: bool,
+    /// Absent from recordings made before a nosing's projection was kept.
+    #[serde(default)]
+    nosing_m: f64,
 }
 
 impl TryFrom<PlaneSegmentData> for PlaneSegment {
@@ -314,7 +318,8 @@ impl TryFrom<PlaneSegmentData> for PlaneSegment {
     fn try_from(d: PlaneSegmentData) -> Result<Self, String> {
         let finite = d.corners.iter().all(|c| c.coords.iter().all(|v| v.is_finite()))
             && d.normal.iter().all(|v| v.is_finite())
-            && d.height_m.is_finite();
+            && d.height_m.is_finite()
+            && d.nosing_m.is_finite();
         if !finite {
             return Err("a step rectangle has a non-finite figure".into());
         }
@@ -334,6 +339,7 @@ impl TryFrom<PlaneSegmentData> for PlaneSegment {
             height_m: d.height_m,
             voxel_count: d.voxel_count,
             front_on_riser: d.front_on_riser,
+            nosing_m: d.nosing_m,
         })
     }
 }
@@ -359,7 +365,7 @@ impl PlaneSegment {
         let left = Vector3::new(-along.y, along.x, 0.0);
         let (a, b) = (along * depth_m / 2.0, left * width_m / 2.0);
         let corners = [center - a - b, center + a - b, center + a + b, center - a + b];
-        Some(Self { corners, normal, height_m: center.z, voxel_count, front_on_riser: false })
+        Some(Self { corners, normal, height_m: center.z, voxel_count, front_on_riser: false, nosing_m: 0.0 })
     }
 
     /// Corners counter-clockwise seen from above: front-right, back-right, back-left,
@@ -414,6 +420,20 @@ impl PlaneSegment {
         self.front_on_riser
     }
 
+    /// How far the front edge, placed on a nose, stands past the riser below it, metres (0
+    /// for a front on its riser or from voxels): the riser is `nosing_m` up the ascent from
+    /// the front. Views see a nosing's nose differently (from afar its top's returns spread
+    /// along the tread), its riser alike.
+    pub fn nosing_m(&self) -> f64 {
+        self.nosing_m
+    }
+
+    /// Where the riser under the front edge is along `along` (a unit horizontal direction
+    /// near the ascent): the front edge's middle, moved up the ascent by the nosing.
+    pub fn riser_along(&self, along: &Vector3<f64>) -> f64 {
+        (self.center() - self.along() * (self.depth_m() / 2.0 - self.nosing_m)).coords.dot(along)
+    }
+
     /// A level tread 1 m wide ascending along x, its nose at `front_m`, its top at `z_m`
     /// (for tests).
     #[cfg(test)]
@@ -447,6 +467,12 @@ impl PlaneSegment {
     /// The same rectangle, its front edge marked as placed on the riser (or not).
     pub fn with_front_on_riser(mut self, on: bool) -> Self {
         self.front_on_riser = on;
+        self
+    }
+
+    /// The same rectangle, its front edge `nosing_m` past the riser below it (a nose).
+    pub fn with_nosing_m(mut self, nosing_m: f64) -> Self {
+        self.nosing_m = nosing_m;
         self
     }
 }

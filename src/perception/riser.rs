@@ -137,7 +137,7 @@ pub fn place_fronts(
     let mut moved = 0;
     for (s, f) in segments.iter_mut().zip(found) {
         if let Some(placed) = f.and_then(|(riser, _)| with_front(s, riser + nosing_m)) {
-            *s = placed;
+            *s = placed.with_nosing_m(nosing_m);
             moved += 1;
         }
     }

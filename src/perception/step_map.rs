@@ -137,7 +137,12 @@ impl StepMap {
         p: &StepMapParams,
     ) -> Option<Isometry3<f64>> {
         let along = self.ascent()?;
-        let front = |r: &PlaneSegment| (r.center() - r.along() * (r.depth_m() / 2.0)).coords.dot(&along);
+        // Along the ascent, views are matched and moved by their risers, not their fronts: a
+        // front on a nose stands a nosing past its riser, and views see a nose differently
+        // (from afar its top's returns spread along the tread and the nose reads centimetres
+        // out; from near, under the nosing, the riser alone is seen): regression
+        // `nose-read-from-afar-moved-the-estimate`, test `a_nose_seen_from_afar_is_not_drift`.
+        let front = |r: &PlaneSegment| r.riser_along(&along);
         // A pair further apart in height than half the flight's least rise is as near another
         // step as its own: no drift, a mismatch (a strip of a step seen past the legs has its
         // "front" mid-tread, by the next step's; test
@@ -384,14 +389,18 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
     // A front on its riser is the riser's median across the tread, its middle: no inward
     // bound for a turned view (see `surely_seen`).
     let fronts = [&fuller, &other].map(|r| match r.front_on_riser() {
-        true => ((r.center() - r.along() * (r.depth_m() / 2.0) - c).dot(&along), true),
-        false => (surely_seen(r, &c, &along, -1.0), false),
+        true => ((r.center() - r.along() * (r.depth_m() / 2.0) - c).dot(&along), true, r.nosing_m()),
+        false => (surely_seen(r, &c, &along, -1.0), false, 0.0),
     });
     // A front placed on its riser is the nose, and stands against one from voxels, which
-    // errs by centimetres under noise (perception's `riser`); of two alike, the farther out.
-    let (front, on_riser) = match fronts {
-        [(f, true), (_, false)] | [(_, false), (f, true)] => (f, true),
-        [(a, on), (b, _)] => (a.min(b), on),
+    // errs by centimetres under noise (perception's `riser`); of two alike, the farther out
+    // (with its nosing).
+    let (front, on_riser, nosing_m) = match fronts {
+        [f @ (_, true, _), (_, false, _)] | [(_, false, _), f @ (_, true, _)] => f,
+        [a, b] => match a.0 <= b.0 {
+            true => a,
+            false => b,
+        },
     };
     let back = surely_seen(&fuller, &c, &along, 1.0).max(surely_seen(&other, &c, &along, 1.0));
     PlaneSegment::new(
@@ -402,7 +411,7 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
         fuller.normal().into_inner(),
         fuller.voxel_count(),
     )
-    .map(|m| m.with_front_on_riser(on_riser))
+    .map(|m| m.with_front_on_riser(on_riser).with_nosing_m(nosing_m))
     .unwrap_or(fuller)
 }
 
@@ -523,6 +532,37 @@ mod tests {
             seen.iter().map(|s| s.clone().moved(&Vector3::new(0.0, 0.0, -0.025))).collect();
         let dz = map.register(&drifted, &origin, &p).expect("a correction").translation.vector.z;
         assert!((dz - 0.026).abs() < 1e-9, "{dz}");
+    }
+
+    /// Regression `nose-read-from-afar-moved-the-estimate` (19 mm nosings, 15 mm of noise):
+    /// views from the floor read the noses 2-3 cm out past their risers (a nose's top returns
+    /// spread along the tread from afar), and the view from the first riser saw the risers
+    /// alone; the fronts differed by 2.6 cm, and the estimate was moved by that (32 mm off
+    /// the truth, a foot's force beyond its friction cone two steps on). The risers agree:
+    /// nothing is corrected, and a 4 cm drift is still found.
+    #[test]
+    fn a_nose_seen_from_afar_is_not_drift() {
+        let p = StepMapParams::default();
+        let origin = Point3::new(0.3, 0.0, 1.4);
+        let risers = [(0.60, 0.18), (0.88, 0.36), (1.16, 0.54)];
+        let nose_out_m = 0.035;
+        let known: Vec<PlaneSegment> = risers
+            .iter()
+            .map(|&(x, z)| {
+                let depth_m = 0.28 + nose_out_m;
+                step(x - nose_out_m + depth_m / 2.0, z, depth_m)
+                    .with_front_on_riser(true)
+                    .with_nosing_m(nose_out_m)
+            })
+            .collect();
+        let map = StepMap { known };
+        let seen: Vec<PlaneSegment> =
+            risers.iter().map(|&(x, z)| step(x + 0.14, z, 0.28).with_front_on_riser(true)).collect();
+        assert_eq!(map.register(&seen, &origin, &p), None);
+        let drifted: Vec<PlaneSegment> =
+            seen.iter().map(|s| s.clone().moved(&Vector3::new(-0.04, 0.0, 0.0))).collect();
+        let dx = map.register(&drifted, &origin, &p).expect("a correction").translation.vector.x;
+        assert!((dx - 0.04).abs() < 1e-9, "{dx}");
     }
 
     /// `regress ci` case ci-0195, third draw, on the robot's estimate: a 0.45 m wide
