@@ -32,8 +32,9 @@ pub struct RunArgs {
     stabilizer: Option<OnOff>,
     /// The robot's own estimate of its pose: `on` (the default), the loop plans from
     /// odometry (encoders and the support foot) and assembles each view where it believes its
-    /// head is; `off`, from the simulator's true pose. The checks judge in the true world either way, and the
-    /// report gives the estimate's error. Overrides [estimate] enabled of --params.
+    /// head is; `off`, from the simulator's true pose. The checks judge in the true world
+    /// either way, and the report gives the estimate's error. Overrides [estimate] enabled of
+    /// --params.
     #[arg(long, value_name = "on|off")]
     estimate: Option<OnOff>,
     #[command(flatten)]

@@ -116,12 +116,13 @@ impl StepMap {
     /// Where a new view lies against the known steps: the rigid motion that moves the view's
     /// rectangles onto the known ones, when the robot's estimate of its pose (the view's
     /// frame) has drifted. Each of the view's steps is matched to the known step nearest in
-    /// height whose front is within `register_max_m` of its own (along the known ascent).
+    /// height whose riser (under its front) is within `register_max_m` of its own (along the
+    /// known ascent).
     /// Then, each the median over the matched steps:
     /// - the turn about the vertical, from the treads' axes, of the steps whose fronts both
     ///   views placed on their risers (a riser is a long straight edge), about the view's
     ///   matched steps' middle;
-    /// - along the ascent, from those fronts (where the flight is);
+    /// - along the ascent, from those steps' risers (where the flight is);
     /// - across it, from the treads' middles, of the steps both views saw as wide (within
     ///   `register_min_m`; a view's side is the side it saw, not the tread's, otherwise);
     /// - in height, from the treads' heights.
@@ -142,7 +143,7 @@ impl StepMap {
         // (from afar its top's returns spread along the tread and the nose reads centimetres
         // out; from near, under the nosing, the riser alone is seen): regression
         // `nose-read-from-afar-moved-the-estimate`, test `a_nose_seen_from_afar_is_not_drift`.
-        let front = |r: &PlaneSegment| r.riser_along(&along);
+        let riser = |r: &PlaneSegment| r.riser_along(&along);
         // A pair further apart in height than half the flight's least rise is as near another
         // step as its own: no drift, a mismatch (a strip of a step seen past the legs has its
         // "front" mid-tread, by the next step's; test
@@ -155,7 +156,7 @@ impl StepMap {
                 let k = self
                     .known
                     .iter()
-                    .filter(|k| (front(k) - front(&s)).abs() < p.register_max_m)
+                    .filter(|k| (riser(k) - riser(&s)).abs() < p.register_max_m)
                     .min_by(|a, b| {
                         (a.height_m() - s.height_m()).abs().total_cmp(&(b.height_m() - s.height_m()).abs())
                     })?;
@@ -183,7 +184,7 @@ impl StepMap {
         let across = Vector3::z().cross(&along);
         let keep = |d: f64| if d.abs() < p.register_min_m { 0.0 } else { d };
         let dz = keep(median(pairs.iter().map(|(k, s)| k.height_m() - s.height_m())));
-        let d_along = keep(median(pairs.iter().filter(on_risers).map(|(k, s)| front(k) - front(s))));
+        let d_along = keep(median(pairs.iter().filter(on_risers).map(|(k, s)| riser(k) - riser(s))));
         let d_across = keep(median(
             pairs
                 .iter()
@@ -534,12 +535,10 @@ mod tests {
         assert!((dz - 0.026).abs() < 1e-9, "{dz}");
     }
 
-    /// Regression `nose-read-from-afar-moved-the-estimate` (19 mm nosings, 15 mm of noise):
-    /// views from the floor read the noses 2-3 cm out past their risers (a nose's top returns
-    /// spread along the tread from afar), and the view from the first riser saw the risers
-    /// alone; the fronts differed by 2.6 cm, and the estimate was moved by that (32 mm off
-    /// the truth, a foot's force beyond its friction cone two steps on). The risers agree:
-    /// nothing is corrected, and a 4 cm drift is still found.
+    /// Regression `nose-read-from-afar-moved-the-estimate`: known steps whose fronts were read
+    /// on their noses from afar, centimetres past their risers, and a view from near that saw
+    /// the risers alone. The risers agree: nothing is corrected, and a 4 cm drift is still
+    /// found.
     #[test]
     fn a_nose_seen_from_afar_is_not_drift() {
         let p = StepMapParams::default();
