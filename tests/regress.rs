@@ -246,6 +246,13 @@ fn a_run_killed_mid_suite_resumes_to_every_case_once() {
     let unique: BTreeSet<(String, usize)> = keys(&after).into_iter().collect();
     assert_eq!((after.len(), unique.len()), (4, 4), "every case once");
     assert_eq!(read(&results).unwrap().len(), 4, "the file holds every case once");
+    // Its rate counts only the runs it made: the resumed ones took none of its wall time.
+    let text = String::from_utf8_lossy(&o.stdout);
+    let made = 4 - before;
+    assert!(
+        text.contains(&format!("{made} runs in ")) && text.contains(&format!("({before} more resumed")),
+        "the rate names the {made} runs made and the {before} resumed:\n{text}"
+    );
 }
 
 #[test]

@@ -154,10 +154,11 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
     };
     let progress = Progress::new(a.quiet);
     let started = Instant::now();
-    let results = runner::run(&info, &cases, &opt, &|r, done, total| progress.done(r, done, total))?;
+    let ran = runner::run(&info, &cases, &opt, &|r, done, total| progress.done(r, done, total))?;
     progress.bar.finish_and_clear();
-    let elapsed_s = started.elapsed().as_secs_f64();
-    print!("{}", summary::text(&results, a.min_rate, Some(elapsed_s), jobs, 10));
+    let pace = summary::Pace { runs: ran.ran_here, elapsed_s: started.elapsed().as_secs_f64(), jobs };
+    let results = ran.results;
+    print!("{}", summary::text(&results, a.min_rate, Some(pace), 10));
     // A grid over two fields other than rise x tread is mapped over them too.
     let mut maps = a.map.clone();
     if let [(x, _), (y, _)] = suite.grid.as_slice() {
@@ -378,7 +379,7 @@ fn merge(m: MergeArgs) -> Result<ExitCode> {
         junit::write(path, &suite, &merged, &scenario_of).map_err(anyhow::Error::msg)?;
         println!("JUnit: {}", path.display());
     }
-    print!("{}", summary::text(&merged, m.min_rate, None, 1, 10));
+    print!("{}", summary::text(&merged, m.min_rate, None, 10));
     let failing = summary::by_case(&merged).iter().filter(|c| !c.passes(m.min_rate)).count();
     Ok(if failing > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }

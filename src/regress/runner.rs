@@ -104,14 +104,25 @@ pub struct SuiteInfo {
     pub cases_total: usize,
 }
 
+/// What [`run`] leaves: every result of the suite's runs here, and how many of them it ran.
+#[derive(Debug, Clone)]
+pub struct Ran {
+    /// Every result, the resumed ones (read back from `results.jsonl`) included, in case
+    /// and draw order.
+    pub results: Vec<CaseResult>,
+    /// How many of `results` this call ran (the rest were resumed): a rate of runs per hour
+    /// counts only these against its wall time.
+    pub ran_here: usize,
+}
+
 /// Runs `cases` (this shard's) under `opt`; `on_done(result, done, total)` sees each run as it
-/// ends. Returns every result of the suite's runs here, the resumed ones included.
+/// ends.
 pub fn run(
     info: &SuiteInfo,
     cases: &[Case],
     opt: &Options,
     on_done: &(dyn Fn(&CaseResult, usize, usize) + Sync),
-) -> Result<Vec<CaseResult>, RunError> {
+) -> Result<Ran, RunError> {
     std::fs::create_dir_all(&opt.out).map_err(io(&opt.out))?;
     write_cases(&opt.out, cases)?;
     let results_path = opt.out.join("results.jsonl");
@@ -164,9 +175,11 @@ pub fn run(
     if let Some(e) = write_error.into_inner().unwrap_or(None) {
         return Err(e);
     }
-    done.extend(finished.into_inner().unwrap_or_default());
+    let finished = finished.into_inner().unwrap_or_default();
+    let ran_here = finished.len();
+    done.extend(finished);
     done.sort_by_key(|r| (r.index, r.seed_index));
-    Ok(done)
+    Ok(Ran { results: done, ran_here })
 }
 
 /// The command that reproduces a run alone.

@@ -73,15 +73,21 @@ pub fn counts(results: &[CaseResult]) -> BTreeMap<Verdict, usize> {
     c
 }
 
-/// The terminal summary; `elapsed_s` is the run's wall time (for cases per hour), `jobs` the
-/// climbs run at once.
-pub fn text(
-    results: &[CaseResult],
-    min_rate: f64,
-    elapsed_s: Option<f64>,
-    jobs: usize,
-    worst: usize,
-) -> String {
+/// How fast a `regress` process ran its runs: the runs it made itself (not those resumed
+/// from an earlier process), its wall time, and the climbs it ran at once.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pace {
+    /// Runs made by this process.
+    pub runs: usize,
+    /// Its wall time, seconds.
+    pub elapsed_s: f64,
+    /// Climbs run at once.
+    pub jobs: usize,
+}
+
+/// The terminal summary of `results`; `pace` (none for merged shards) gives the runs per
+/// hour, and the `worst` failing cases are listed.
+pub fn text(results: &[CaseResult], min_rate: f64, pace: Option<Pace>, worst: usize) -> String {
     let mut t = String::new();
     let cases = by_case(results);
     let passing = cases.iter().filter(|c| c.passes(min_rate)).count();
@@ -159,12 +165,20 @@ pub fn text(
             per_stair.len()
         );
     }
-    if let Some(e) = elapsed_s.filter(|&e| e > 0.0) {
+    if let Some(p) = pace.filter(|p| p.elapsed_s > 0.0 && p.runs > 0) {
+        let resumed = results.len().saturating_sub(p.runs);
         let _ = writeln!(
             t,
-            "{} runs in {e:.0} s with {jobs} at once: {:.0} runs per hour",
-            results.len(),
-            results.len() as f64 * 3600.0 / e
+            "{} runs in {:.0} s with {} at once: {:.0} runs per hour{}",
+            p.runs,
+            p.elapsed_s,
+            p.jobs,
+            p.runs as f64 * 3600.0 / p.elapsed_s,
+            if resumed > 0 {
+                format!(" ({resumed} more resumed from the results already there)")
+            } else {
+                String::new()
+            }
         );
     }
     t
