@@ -80,6 +80,10 @@ fn exp1_is_climbed_to_the_top_with_no_check_violated() {
     assert_climbed(&r, &Scenario::default(), &p.checks);
     let steps: Vec<Footing> = r.cycles.iter().map(|c| c.to).filter(|t| *t != Footing::Floor).collect();
     assert_eq!(steps, [Footing::Step(1), Footing::Step(2), Footing::Step(3)], "one cycle per step");
+    // Where the execution's wall time went: the physics and the stabilizer are parts of it.
+    let t = r.stage_times();
+    assert!(t.physics_s > 0.0 && t.control_s > 0.0, "both measured: {t:?}");
+    assert!(t.physics_s + t.control_s <= t.execute_s, "parts of the execution's time: {t:?}");
 }
 
 /// The default scenario must not pass by the luck of its noise draw. Seeds 1 and 2 (the

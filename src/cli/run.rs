@@ -300,9 +300,14 @@ fn print_summary(r: &ClimbReport) {
         println!("seconds per stair: {s:.1} s of motion per cycle that went up a step (the stand and the sweep before each not counted)");
     }
     if !r.cycles.is_empty() {
+        let st = r.stage_times();
         println!(
-            "speed: the simulation with its checks ran {:.1} x real time; perception + planning took at most {:.2} s per cycle",
+            "speed: the simulation with its checks ran {:.1} x real time (of its {:.1} s of wall time: physics {:.1} s, stabilizer {:.1} s, checks and the loop {:.1} s); perception + planning took at most {:.2} s per cycle",
             r.execution_speed(),
+            st.execute_s,
+            st.physics_s,
+            st.control_s,
+            st.execute_s - st.physics_s - st.control_s,
             r.worst_think_s()
         );
         let (ticks, tick_s) = r

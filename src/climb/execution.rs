@@ -49,6 +49,9 @@ pub struct Execution {
     pub cancelled: bool,
     /// The stabilizer's cost, when it ran.
     pub control: Option<ControlCost>,
+    /// Wall time of the physics alone (MuJoCo's steps), seconds: the execution's wall time
+    /// less this and the stabilizer's is the checks' and the loop's own.
+    pub physics_wall_s: f64,
 }
 
 /// What the stabilizer cost over an execution.
@@ -78,6 +81,7 @@ impl Execution {
             unstable: None,
             cancelled: false,
             control: None,
+            physics_wall_s: 0.0,
         }
     }
 

@@ -115,8 +115,15 @@ pub struct StageTimes {
     pub perceive_s: f64,
     /// Planning.
     pub plan_s: f64,
-    /// Execution with its checks.
+    /// Execution with its checks: the physics, the stabilizer, and the checks with the
+    /// rest of the loop.
     pub execute_s: f64,
+    /// Of `execute_s`, MuJoCo's steps (0 in results written before it was kept).
+    #[serde(default)]
+    pub physics_s: f64,
+    /// Of `execute_s`, the stabilizer's ticks (0 likewise, and without the stabilizer).
+    #[serde(default)]
+    pub control_s: f64,
 }
 
 impl ClimbReport {
@@ -165,6 +172,8 @@ impl ClimbReport {
             perceive_s: t.perceive_s + c.perceive_s,
             plan_s: t.plan_s + c.plan_s,
             execute_s: t.execute_s + c.execute_s,
+            physics_s: t.physics_s + c.execution.physics_wall_s,
+            control_s: t.control_s + c.execution.control.map_or(0.0, |k| k.wall_s),
         })
     }
 

@@ -142,14 +142,18 @@ pub fn text(results: &[CaseResult], min_rate: f64, pace: Option<Pace>, worst: us
         sum(|r| r.stage_times.execute_s),
         sum(|r| r.wall_s),
     );
+    let (physics, control) = (sum(|r| r.stage_times.physics_s), sum(|r| r.stage_times.control_s));
     let pct = |x: f64| 100.0 * x / wall.max(1e-9);
     let _ = writeln!(
         t,
-        "\nwall time {wall:.0} s over the runs: scan {:.0} %, perceive {:.0} %, plan {:.0} %, simulate with checks {:.0} %, other {:.0} %; {:.0} s simulated",
+        "\nwall time {wall:.0} s over the runs: scan {:.0} %, perceive {:.0} %, plan {:.0} %, simulate with checks {:.0} % (physics {:.0} %, stabilizer {:.0} %, checks and the loop {:.0} %), other {:.0} %; {:.0} s simulated",
         pct(scan),
         pct(perceive),
         pct(plan),
         pct(execute),
+        pct(physics),
+        pct(control),
+        pct(execute - physics - control),
         pct(wall - scan - perceive - plan - execute),
         sum(|r| r.sim_s)
     );

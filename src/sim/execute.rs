@@ -175,7 +175,9 @@ pub fn execute_from(
             break;
         }
         servos.command(world, &q, dt);
+        let physics = std::time::Instant::now();
         world.step();
+        mon.ex.physics_wall_s += physics.elapsed().as_secs_f64();
         let now = world.data().time() - t_start;
         if mon.warnings(world, now).is_some() {
             break;
