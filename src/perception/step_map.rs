@@ -398,10 +398,13 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
     // (with its nosing).
     let (front, on_riser, nosing_m) = match fronts {
         [f @ (_, true, _), (_, false, _)] | [(_, false, _), f @ (_, true, _)] => f,
-        [a, b] => match a.0 <= b.0 {
-            true => a,
-            false => b,
-        },
+        [a, b] => {
+            if a.0 <= b.0 {
+                a
+            } else {
+                b
+            }
+        }
     };
     let back = surely_seen(&fuller, &c, &along, 1.0).max(surely_seen(&other, &c, &along, 1.0));
     PlaneSegment::new(
