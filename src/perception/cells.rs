@@ -827,15 +827,18 @@ fn body(cols: Vec<Column>, v: f64, min_share: f64) -> Vec<Column> {
     if nx.saturating_mul(ny) > 64 * cols.len() + 4096 {
         return cols;
     }
+    let place = |(x, y): (i32, i32)| (x - lo.0) as usize * ny + (y - lo.1) as usize;
     let mut at = vec![NONE; nx * ny];
-    for (i, &(x, y)) in keys.iter().enumerate() {
-        at[(x - lo.0) as usize * ny + (y - lo.1) as usize] = i as u32;
+    for (i, &k) in keys.iter().enumerate() {
+        at[place(k)] = i as u32;
     }
+    // Parts grow over the columns that hold their place; a column whose mean rounded onto
+    // another's place (at a column's edge, in f32) joins that one's part below.
     let mut part = vec![NONE; cols.len()];
     let mut sizes: Vec<usize> = Vec::new();
     let mut stack: Vec<usize> = Vec::new();
     for start in 0..cols.len() {
-        if part[start] != NONE {
+        if part[start] != NONE || at[place(keys[start])] != start as u32 {
             continue;
         }
         let id = sizes.len() as u32;
@@ -860,6 +863,12 @@ fn body(cols: Vec<Column>, v: f64, min_share: f64) -> Vec<Column> {
             }
         }
         sizes.push(size);
+    }
+    for i in 0..cols.len() {
+        if part[i] == NONE {
+            part[i] = part[at[place(keys[i])] as usize];
+            sizes[part[i] as usize] += 1;
+        }
     }
     if sizes.len() == 1 {
         return cols;
@@ -1097,6 +1106,10 @@ mod tests {
         // Parts that touch (one empty column between) are one part, however small.
         let touching: Vec<Column> = columns(0..88, 0..15).into_iter().chain(columns(89..90, 0..1)).collect();
         assert_eq!(body(touching.clone(), 0.02, 0.1), touching);
+        // Two columns on one place (a mean rounded onto a column's edge) stay with it.
+        let mut twice = tread.clone();
+        twice.push(tread[20]);
+        assert_eq!(body(twice.clone(), 0.02, 0.1), twice);
     }
 
     #[test]
