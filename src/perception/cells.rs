@@ -808,7 +808,9 @@ fn grow(
 
 /// The parts of a region's columns `cols` (edge `v`) that touch (within two columns) with at
 /// least `min_share` of the biggest part's columns: its body, without the strays a gap
-/// away (see [`CellParams::min_part_share`]). The columns keep their order.
+/// away (see [`CellParams::min_part_share`]). The columns keep their order. The parts are
+/// joined in one pass over the region's table of columns, each column with the columns
+/// before it within reach (union-find).
 fn body(cols: Vec<Column>, v: f64, min_share: f64) -> Vec<Column> {
     const TOUCH: i32 = 2;
     if cols.len() < 2 || min_share <= 0.0 {
@@ -827,54 +829,76 @@ fn body(cols: Vec<Column>, v: f64, min_share: f64) -> Vec<Column> {
     if nx.saturating_mul(ny) > 64 * cols.len() + 4096 {
         return cols;
     }
-    let place = |(x, y): (i32, i32)| (x - lo.0) as usize * ny + (y - lo.1) as usize;
-    let mut at = vec![NONE; nx * ny];
+    // The table has a border of TOUCH empty places all round: no place's reach leaves it.
+    let (t, stride) = (TOUCH as usize, ny + 2 * TOUCH as usize);
+    let place = |(x, y): (i32, i32)| ((x - lo.0) as usize + t) * stride + (y - lo.1) as usize + t;
+    let mut at = vec![NONE; (nx + 2 * t) * stride];
     for (i, &k) in keys.iter().enumerate() {
         at[place(k)] = i as u32;
     }
-    // Parts grow over the columns that hold their place; a column whose mean rounded onto
-    // another's place (at a column's edge, in f32) joins that one's part below.
-    let mut part = vec![NONE; cols.len()];
-    let mut sizes: Vec<usize> = Vec::new();
-    let mut stack: Vec<usize> = Vec::new();
-    for start in 0..cols.len() {
-        if part[start] != NONE || at[place(keys[start])] != start as u32 {
-            continue;
-        }
-        let id = sizes.len() as u32;
-        let mut size = 0;
-        part[start] = id;
-        stack.push(start);
-        while let Some(i) = stack.pop() {
-            size += 1;
-            let (x, y) = (keys[i].0 - lo.0, keys[i].1 - lo.1);
-            for dx in -TOUCH..=TOUCH {
-                for dy in -TOUCH..=TOUCH {
-                    let (a, b) = (x + dx, y + dy);
-                    if a < 0 || b < 0 || a as usize >= nx || b as usize >= ny {
-                        continue;
-                    }
-                    let j = at[a as usize * ny + b as usize];
-                    if j != NONE && part[j as usize] == NONE {
-                        part[j as usize] = id;
-                        stack.push(j as usize);
-                    }
-                }
+    // The places before a place (in the table's order) within reach, as offsets back.
+    let mut back: Vec<usize> = Vec::with_capacity(12);
+    for dx in 0..=TOUCH as isize {
+        for dy in -TOUCH as isize..=TOUCH as isize {
+            if dx > 0 || dy < 0 {
+                back.push((dx * stride as isize - dy) as usize);
             }
         }
-        sizes.push(size);
     }
-    for i in 0..cols.len() {
-        if part[i] == NONE {
-            part[i] = part[at[place(keys[i])] as usize];
-            sizes[part[i] as usize] += 1;
+    // With the place just before it taken, a place's reach adds to that one's only the
+    // place itself and the farthest ahead in each earlier row: the rest of its reach is
+    // within that one's, already joined to it.
+    let after: Vec<usize> = std::iter::once(1)
+        .chain((1..=TOUCH as isize).map(|dx| (dx * stride as isize - TOUCH as isize) as usize))
+        .collect();
+    let mut parent: Vec<u32> = (0..cols.len() as u32).collect();
+    let find = |parent: &mut [u32], mut i: u32| {
+        while parent[i as usize] != i {
+            parent[i as usize] = parent[parent[i as usize] as usize];
+            i = parent[i as usize];
+        }
+        i
+    };
+    for p in (t * stride)..((nx + t) * stride) {
+        let i = at[p];
+        if i == NONE {
+            continue;
+        }
+        // Most of the places in reach already hang straight from this one's root.
+        let mut root = find(&mut parent, i);
+        let reach = if at[p - 1] == NONE { &back } else { &after };
+        for &d in reach {
+            let j = at[p - d];
+            if j == NONE || parent[j as usize] == root {
+                continue;
+            }
+            let other = find(&mut parent, j);
+            if other != root {
+                parent[root.max(other) as usize] = root.min(other);
+                root = root.min(other);
+            }
         }
     }
-    if sizes.len() == 1 {
+    // A column whose mean rounded onto another's place (at a column's edge, in f32) is in
+    // that one's part.
+    for (i, &k) in keys.iter().enumerate() {
+        let owner = at[place(k)];
+        if owner != i as u32 {
+            let (a, b) = (find(&mut parent, i as u32), find(&mut parent, owner));
+            parent[a.max(b) as usize] = a.min(b);
+        }
+    }
+    let roots: Vec<u32> = (0..cols.len() as u32).map(|i| find(&mut parent, i)).collect();
+    let mut sizes = vec![0usize; cols.len()];
+    for &r in &roots {
+        sizes[r as usize] += 1;
+    }
+    let biggest = sizes.iter().copied().max().unwrap_or(0);
+    if biggest == cols.len() {
         return cols;
     }
-    let least = min_share * sizes.iter().copied().max().unwrap_or(0) as f64;
-    cols.into_iter().zip(part).filter(|(_, k)| sizes[*k as usize] as f64 >= least).map(|(c, _)| c).collect()
+    let least = min_share * biggest as f64;
+    cols.into_iter().zip(roots).filter(|(_, r)| sizes[*r as usize] as f64 >= least).map(|(c, _)| c).collect()
 }
 
 /// The columns (vertical, `v` on a side, world-aligned) of the points `members`: each
@@ -1110,6 +1134,56 @@ mod tests {
         let mut twice = tread.clone();
         twice.push(tread[20]);
         assert_eq!(body(twice.clone(), 0.02, 0.1), twice);
+    }
+
+    /// `body` against a plain search: random columns over a 30 x 30 grid, the parts found
+    /// by breadth-first search over every pair within two columns.
+    #[test]
+    fn the_body_is_the_parts_a_plain_search_finds() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        for trial in 0..200 {
+            let fill = 0.05 + 0.6 * (trial as f64 / 200.0);
+            let places: Vec<(i32, i32)> = (0..30)
+                .flat_map(|x| (0..30).map(move |y| (x, y)))
+                .filter(|_| rand::Rng::random_bool(&mut rng, fill))
+                .collect();
+            if places.is_empty() {
+                continue;
+            }
+            let cols: Vec<Column> = places
+                .iter()
+                .map(|&(x, y)| (Point3::new(x as f32 * 0.02 + 0.01, y as f32 * 0.02 + 0.01, 0.5), 1))
+                .collect();
+            let mut part = vec![usize::MAX; places.len()];
+            let mut sizes = Vec::new();
+            for s in 0..places.len() {
+                if part[s] != usize::MAX {
+                    continue;
+                }
+                let (id, mut queue, mut size) = (sizes.len(), vec![s], 0);
+                part[s] = id;
+                while let Some(i) = queue.pop() {
+                    size += 1;
+                    for j in 0..places.len() {
+                        let near =
+                            (places[i].0 - places[j].0).abs() <= 2 && (places[i].1 - places[j].1).abs() <= 2;
+                        if near && part[j] == usize::MAX {
+                            part[j] = id;
+                            queue.push(j);
+                        }
+                    }
+                }
+                sizes.push(size);
+            }
+            let biggest = sizes.iter().copied().max().unwrap_or(0) as f64;
+            let want: Vec<Column> = cols
+                .iter()
+                .zip(&part)
+                .filter(|(_, k)| sizes[**k] as f64 >= 0.3 * biggest)
+                .map(|(c, _)| *c)
+                .collect();
+            assert_eq!(body(cols, 0.02, 0.3), want, "trial {trial}, fill {fill:.2}");
+        }
     }
 
     #[test]
