@@ -88,9 +88,10 @@ pub struct CellParams {
     /// parts), and a part with fewer columns than this share of the region's biggest is not
     /// the region's. Step 3 gives a tread the returns of a wall beside the flight at the
     /// tread's height (they lie in its plane, within reach of its edge cell): a few columns
-    /// a gap away that widened the tread by the gap and turned the flight's axis (wide-0003
-    /// under 22 mm of noise: 12 cm, 3.5 deg). A tread cut in two by a leg's shadow, or seen
-    /// one scan line in three, keeps its parts: each is a like share of the whole.
+    /// a gap away, which widen the tread by the gap, and under 20 mm of noise turn the line
+    /// through the treads' middles, the flight's axis, by degrees. A tread cut in two by a
+    /// leg's shadow, or seen one scan line in three, keeps its parts: each is a like share
+    /// of the whole.
     pub min_part_share: f64,
 }
 
