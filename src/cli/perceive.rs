@@ -217,15 +217,19 @@ fn print_tables(r: &Perception, score: Option<&metrics::Score>) {
             sc.steps.len(),
             sc.false_segments
         );
-        println!("true step  found  IoU    dz (mm)  corners (mm)  area p (Eq. 3)  coverage");
+        println!(
+            "true step  found  IoU    dz (mm)  corners (mm)  front (mm)  back (mm)  area p (Eq. 3)  coverage"
+        );
         for s in &sc.steps {
             println!(
-                "{:>9}  {:>5}  {:.2}  {:>7.1}  {:>12.1}  {:>12.1} %  {:>6.1} %",
+                "{:>9}  {:>5}  {:.2}  {:>7.1}  {:>12.1}  {:>10.1}  {:>9.1}  {:>12.1} %  {:>6.1} %",
                 s.index + 1,
                 if s.found { "yes" } else { "no" },
                 s.iou,
                 s.height_error_m * 1e3,
                 s.corner_error_m * 1e3,
+                s.front_error_m * 1e3,
+                s.back_error_m * 1e3,
                 s.area_percent,
                 s.coverage_percent
             );

@@ -295,6 +295,7 @@ pub struct PlaneSegment {
     voxel_count: usize,
     front_on_riser: bool,
     nosing_m: f64,
+    back_on_riser: bool,
 }
 
 /// A [`PlaneSegment`]'s fields as written, before they are checked.
@@ -310,6 +311,9 @@ struct PlaneSegmentData {
     /// Absent from recordings made before a nosing's projection was kept.
     #[serde(default)]
     nosing_m: f64,
+    /// Absent from recordings made before backs were placed on risers.
+    #[serde(default)]
+    back_on_riser: bool,
 }
 
 impl TryFrom<PlaneSegmentData> for PlaneSegment {
@@ -340,6 +344,7 @@ impl TryFrom<PlaneSegmentData> for PlaneSegment {
             voxel_count: d.voxel_count,
             front_on_riser: d.front_on_riser,
             nosing_m: d.nosing_m,
+            back_on_riser: d.back_on_riser,
         })
     }
 }
@@ -365,7 +370,15 @@ impl PlaneSegment {
         let left = Vector3::new(-along.y, along.x, 0.0);
         let (a, b) = (along * depth_m / 2.0, left * width_m / 2.0);
         let corners = [center - a - b, center + a - b, center + a + b, center - a + b];
-        Some(Self { corners, normal, height_m: center.z, voxel_count, front_on_riser: false, nosing_m: 0.0 })
+        Some(Self {
+            corners,
+            normal,
+            height_m: center.z,
+            voxel_count,
+            front_on_riser: false,
+            nosing_m: 0.0,
+            back_on_riser: false,
+        })
     }
 
     /// Corners counter-clockwise seen from above: front-right, back-right, back-left,
@@ -420,6 +433,12 @@ impl PlaneSegment {
         self.front_on_riser
     }
 
+    /// Whether the back edge (corners 1 and 2) was placed on the riser above it
+    /// ([`riser::place_backs`]) rather than taken from the tread's voxels or cells.
+    pub fn back_on_riser(&self) -> bool {
+        self.back_on_riser
+    }
+
     /// How far the front edge, placed on a nose, stands past the riser below it, metres (0
     /// for a front on its riser or from voxels): the riser is `nosing_m` up the ascent from
     /// the front. Views see a nosing's nose differently (from afar its top's returns spread
@@ -467,6 +486,12 @@ impl PlaneSegment {
     /// The same rectangle, its front edge marked as placed on the riser (or not).
     pub fn with_front_on_riser(mut self, on: bool) -> Self {
         self.front_on_riser = on;
+        self
+    }
+
+    /// The same rectangle, its back edge marked as placed on the riser above it (or not).
+    pub fn with_back_on_riser(mut self, on: bool) -> Self {
+        self.back_on_riser = on;
         self
     }
 
@@ -560,6 +585,9 @@ pub struct Counts {
     /// Steps whose front edge was placed on the riser below it ([`riser`]).
     #[serde(default)]
     pub riser_fronts: usize,
+    /// Steps whose back edge was placed on the riser above it ([`riser::place_backs`]).
+    #[serde(default)]
+    pub riser_backs: usize,
     /// [`Method::Cells`]: cells with enough points to fit.
     #[serde(default)]
     pub cells: usize,
@@ -638,6 +666,8 @@ pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, 
         noise_m,
         &p.riser,
     );
+    found.counts.riser_backs =
+        riser::place_backs(&mut found.segments, cloud.points(), &cloud.viewpoint(), &p.riser);
     let riser_ms = ms(t);
     found.timings.staircase_ms += riser_ms;
     found.timings.total_ms += riser_ms;

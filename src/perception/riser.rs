@@ -1,4 +1,5 @@
-//! Beyond the paper: a tread's front edge placed on the riser below it.
+//! Beyond the paper: a tread's front edge placed on the riser below it, and its back edge
+//! on the riser above it.
 //!
 //! §4 finds the treads as level segments, and a rectangle's edges come from its voxels. Under
 //! range noise those edges err by centimetres: the nose's returns scatter along the rays, and
@@ -15,7 +16,10 @@
 //! shadowed top: a view over the nose, or a partial view of the floor below it) leaves the
 //! edge as it was. A tread whose own returns
 //! run on past its riser has a nosing: its front is then the nose, not the riser (a foot on
-//! the tread below keeps its toes behind the nose, not under it).
+//! the tread below keeps its toes behind the nose, not under it). A tread's back edge errs
+//! the other way: the foot of the riser above, seen through noise, lands on the tread's
+//! plane past it, and the rectangle runs on past the riser by centimetres; that riser, seen
+//! whole across the tread, is its back ([`place_backs`]).
 
 use super::PlaneSegment;
 use crate::stats::median;
@@ -47,6 +51,20 @@ pub struct RiserParams {
     /// Least share of those returns in each half of the band (upper, lower): a riser seen
     /// whole. A riser seen in part, a strip of returns at one height, is not believed.
     pub min_half_share: f64,
+    /// Whether each tread's back edge is placed on the riser above it too (`false`: as its
+    /// voxels, or the cells, give it).
+    pub backs: bool,
+    /// How far inside a tread's back edge the riser above it is looked for, metres (out past
+    /// the edge: `half_window_m`). Under 20-25 mm of noise the foot of the riser above lands
+    /// on the tread's plane past the riser, and the tread's rectangle runs up to about 7 cm
+    /// past it (`perceive --json`'s `back_error_m`; the top treads seen from the floor).
+    pub back_inward_m: f64,
+    /// Least share of the tread's width (in strips `WIDTH_STRIP_M` wide, inside
+    /// `side_margin_m`) in which the riser above shows returns, for it to place the back: a
+    /// riser spans the flight, a thing left on the tread spans part of it (the `real`
+    /// suite's shoe, parcel, bag or person: at most 0.5 m across, on treads 0.8 m wide or
+    /// more).
+    pub min_width_share: f64,
 }
 
 impl Default for RiserParams {
@@ -58,6 +76,9 @@ impl Default for RiserParams {
             side_margin_m: 0.05,
             min_returns: 30,
             min_half_share: 0.3,
+            backs: true,
+            back_inward_m: 0.10,
+            min_width_share: 0.8,
         }
     }
 }
@@ -77,6 +98,12 @@ impl RiserParams {
         }
         if !(self.min_half_share.is_finite() && (0.0..=0.5).contains(&self.min_half_share)) {
             return Some(("riser.min_half_share", "must be in [0, 0.5]"));
+        }
+        if !pos(self.back_inward_m) {
+            return Some(("riser.back_inward_m", "must be > 0"));
+        }
+        if !(self.min_width_share.is_finite() && (0.0..=1.0).contains(&self.min_width_share)) {
+            return Some(("riser.min_width_share", "must be in [0, 1]"));
         }
         None
     }
@@ -147,23 +174,67 @@ pub fn place_fronts(
 /// The riser's distance from `s`'s centre toward its front (against its ascent), metres,
 /// when the returns in `band` (heights) and the window about the front show one whole.
 fn riser_along(s: &PlaneSegment, points: &[Point3<f32>], band: [f64; 2], p: &RiserParams) -> Option<f64> {
+    let front = s.depth_m() / 2.0;
+    let look = Look {
+        out: -s.along(),
+        window_m: [front - p.half_window_m, front + p.half_window_m],
+        band_m: band,
+        nose_outward: true,
+        foot_suffices: false,
+    };
+    riser_seen(s, points, &look, p).map(|r| r.at_m)
+}
+
+/// Where a riser is looked for about one edge of a tread.
+struct Look {
+    /// Unit horizontal direction from the tread's centre toward the edge.
+    out: Vector3<f64>,
+    /// The window along `out`, metres from the centre: [inner, outer].
+    window_m: [f64; 2],
+    /// The band of heights its returns are taken in, metres: [low, high]. Its lower half
+    /// is the riser's alone; in its upper half a nosing's face may stand before it.
+    band_m: [f64; 2],
+    /// Whether that nosing stands outward of the riser along `out` (the tread's own, under
+    /// its front) or inward (the next tread's, over its back).
+    nose_outward: bool,
+    /// Whether the riser's returns in the band's lower half alone show it: above a tread,
+    /// the riser's foot is where the riser rises from it, however little of the riser the
+    /// sweep reaches above (the top tread seen from afar: its riser runs out of the sweep).
+    foot_suffices: bool,
+}
+
+/// A riser seen whole about an edge.
+struct Seen {
+    /// Its distance from the tread's centre along the look's `out`, metres.
+    at_m: f64,
+    /// Of the strips across the tread (`WIDTH_STRIP_M` wide, inside the side margin) in
+    /// which the window shows returns in the band, the share with returns on the riser.
+    width_share: f64,
+}
+
+/// Width of the strips across a tread in which a riser's returns are counted, metres
+/// (about a foot's width; under its least share a thing left on the tread, not a riser).
+const WIDTH_STRIP_M: f64 = 0.05;
+
+/// The riser about an edge of `s` as `look` says where, when the returns show one whole.
+fn riser_seen(s: &PlaneSegment, points: &[Point3<f32>], look: &Look, p: &RiserParams) -> Option<Seen> {
+    let band = look.band_m;
     if band[1] - band[0] < p.band_m[0] {
         return None;
     }
-    let out = -s.along();
+    let out = look.out;
     let side = Vector3::new(-out.y, out.x, 0.0);
     let c = s.center();
-    let front = s.depth_m() / 2.0;
     let half_width = s.width_m() / 2.0 - p.side_margin_m;
-    // (distance toward the front from the centre, height) of each return in the box.
-    let near: Vec<(f64, f64)> = points
+    // (distance along `out` from the centre, height, across) of each return in the box.
+    let near: Vec<(f64, f64, f64)> = points
         .iter()
         .map(|q| q.cast::<f64>())
         .filter(|q| q.z > band[0] && q.z < band[1])
         .map(|q| (q - c, q.z))
         .filter(|(d, _)| d.dot(&side).abs() < half_width)
-        .map(|(d, z)| (d.dot(&out), z))
-        .filter(|(t, _)| (t - front).abs() < p.half_window_m && t.is_finite())
+        .map(|(d, z)| (d.dot(&out), z, d.dot(&side)))
+        .filter(|(t, _, _)| *t > look.window_m[0] && *t < look.window_m[1] && t.is_finite())
         .collect();
     if near.len() < p.min_returns {
         return None;
@@ -184,11 +255,103 @@ fn riser_along(s: &PlaneSegment, points: &[Point3<f32>], band: [f64; 2], p: &Ris
     // its own or a nosing's face before it (which shadows the riser's top from near:
     // regression `riser-under-a-nosing-not-believed`).
     let at_riser = |t: f64| (t - at).abs() < p.half_window_m / 4.0;
+    let by_nose = |t: f64| if look.nose_outward { t > at } else { t < at };
+    let lower_all = near.iter().filter(|r| r.1 < mid).count();
     let lower = near.iter().filter(|r| r.1 < mid && at_riser(r.0)).count();
-    let upper = near.iter().filter(|r| r.1 >= mid && (at_riser(r.0) || r.0 > at)).count();
+    let upper = near.iter().filter(|r| r.1 >= mid && (at_riser(r.0) || by_nose(r.0))).count();
     let least = (p.min_half_share * (lower + upper) as f64).ceil() as usize;
-    let whole = lower + upper >= p.min_returns && upper >= least && lower >= least;
-    whole.then_some(at)
+    let whole = match look.foot_suffices {
+        // The riser's foot is a peak: at least twice the share of the lower half's returns
+        // that a spread even along the window would put about it (under noise a tread's
+        // strays reach the band too, spread thin along it: an open riser's tread seen from
+        // near, the `real` suite's `open-risers-noisy`, about a sixth; a riser's foot under
+        // 24 mm of noise, 40-95 %).
+        // And it stands: the upper half of the lower half holds its share of them (a
+        // tread's strays thin out with height above it).
+        true => {
+            let even_share = (p.half_window_m / 2.0) / (look.window_m[1] - look.window_m[0]);
+            let quarter = (band[0] + mid) / 2.0;
+            let risen = near.iter().filter(|r| r.1 >= quarter && r.1 < mid && at_riser(r.0)).count();
+            lower >= p.min_returns
+                && lower as f64 >= 2.0 * even_share * lower_all as f64
+                && risen as f64 >= p.min_half_share * lower as f64
+        }
+        false => lower + upper >= p.min_returns && upper >= least && lower >= least,
+    };
+    if !whole {
+        return None;
+    }
+    // Of the strips across the tread where the window shows anything in the band, those
+    // where that is the riser: a strip the sweep did not reach says nothing either way.
+    let strips = ((2.0 * half_width / WIDTH_STRIP_M).ceil() as usize).max(1);
+    let (mut seen, mut on_riser) = (vec![false; strips], vec![false; strips]);
+    for r in &near {
+        let k = (((r.2 + half_width) / WIDTH_STRIP_M) as usize).min(strips - 1);
+        seen[k] = true;
+        on_riser[k] |= at_riser(r.0);
+    }
+    let count = |v: &[bool]| v.iter().filter(|b| **b).count() as f64;
+    let width_share = count(&on_riser) / count(&seen);
+    Some(Seen { at_m: at, width_share })
+}
+
+/// Places each tread's back edge (its end up its ascent) on the riser rising from it,
+/// where `points` show that riser whole, across at least `min_width_share` of the tread's
+/// width, within `back_inward_m` inside the edge or `half_window_m` past it: the returns
+/// in a band above the tread's top (from `band_m[0]` to `band_m[1]` up, and `band_m[0]`
+/// short of the next tread up), their lower half taken, as for a front (see
+/// [`place_fronts`]). A tread's back from its voxels or cells runs past the riser above
+/// where that riser's foot, seen through range noise, lands on the tread's plane; the top
+/// tread seen is then as deep as its foot's place allows, and more (a foot put in its
+/// middle stands against the riser). The segment keeps its front edge (and whether it was
+/// placed), width, height and normal, and is marked [`PlaneSegment::back_on_riser`]. Left
+/// as they are: a segment whose back the sensor stands at or past, and a lone segment
+/// deeper than wide (see [`place_fronts`]). Returns how many backs moved.
+pub fn place_backs(
+    segments: &mut [PlaneSegment],
+    points: &[Point3<f32>],
+    viewpoint: &Point3<f64>,
+    p: &RiserParams,
+) -> usize {
+    if !(p.enabled && p.backs) {
+        return 0;
+    }
+    let heights: Vec<f64> = segments.iter().map(|s| s.height_m()).collect();
+    let lone = segments.len() == 1;
+    let found: Vec<Option<f64>> = segments
+        .par_iter()
+        .map(|s| {
+            let back = s.depth_m() / 2.0;
+            let edge = s.center() + s.along() * back;
+            if (viewpoint - edge).dot(&s.along()) >= 0.0 || (lone && s.depth_m() > s.width_m()) {
+                return None;
+            }
+            let top = s.height_m();
+            // The lowest tread above this one (a rise of more than twice the band's near end).
+            let above = heights
+                .iter()
+                .copied()
+                .filter(|&h| h > top + 2.0 * p.band_m[0])
+                .fold(f64::INFINITY, f64::min);
+            let look = Look {
+                out: s.along(),
+                window_m: [back - p.back_inward_m, back + p.half_window_m],
+                band_m: [top + p.band_m[0], (top + p.band_m[1]).min(above - p.band_m[0])],
+                nose_outward: false,
+                foot_suffices: true,
+            };
+            let seen = riser_seen(s, points, &look, p)?;
+            (seen.width_share >= p.min_width_share).then_some(seen.at_m)
+        })
+        .collect();
+    let mut moved = 0;
+    for (s, f) in segments.iter_mut().zip(found) {
+        if let Some(placed) = f.and_then(|riser| with_back(s, riser)) {
+            *s = placed;
+            moved += 1;
+        }
+    }
+    moved
 }
 
 /// The nose of a tread that projects past its riser (a nosing: IRC R311.7.5.3 asks for 19
@@ -270,7 +433,26 @@ fn with_front(s: &PlaneSegment, front_m: f64) -> Option<PlaneSegment> {
     }
     let centre = s.center() + out * (front_m + back_m) / 2.0;
     PlaneSegment::new(centre, s.along(), depth_m, s.width_m(), s.normal().into_inner(), s.voxel_count())
-        .map(|placed| placed.with_front_on_riser(true))
+        .map(|placed| placed.with_front_on_riser(true).with_back_on_riser(s.back_on_riser()))
+}
+
+/// `s` with its back `back_m` from its old centre up its ascent, its front kept (and
+/// whether it is on its riser, with its nosing); `None` when that leaves no depth.
+fn with_back(s: &PlaneSegment, back_m: f64) -> Option<PlaneSegment> {
+    let front_m = -s.depth_m() / 2.0;
+    let depth_m = back_m - front_m;
+    if depth_m <= 0.0 {
+        return None;
+    }
+    let centre = s.center() + s.along() * (front_m + back_m) / 2.0;
+    PlaneSegment::new(centre, s.along(), depth_m, s.width_m(), s.normal().into_inner(), s.voxel_count()).map(
+        |placed| {
+            placed
+                .with_front_on_riser(s.front_on_riser())
+                .with_nosing_m(s.nosing_m())
+                .with_back_on_riser(true)
+        },
+    )
 }
 
 #[cfg(test)]
@@ -432,5 +614,87 @@ mod tests {
             0,
             "the strays outnumber the riser"
         );
+    }
+
+    /// Where `s`'s front and back edges are along x.
+    fn edges(s: &PlaneSegment) -> (f64, f64) {
+        (s.center().x - s.depth_m() / 2.0, s.center().x + s.depth_m() / 2.0)
+    }
+
+    /// `pts` without those whose y lies in `y`.
+    fn beside(pts: Vec<Point3<f32>>, y: [f64; 2]) -> Vec<Point3<f32>> {
+        pts.into_iter().filter(|q| !(y[0]..y[1]).contains(&(q.y as f64))).collect()
+    }
+
+    /// A face standing on the tread at `x`, across `y`, from `z0` to `z1` (every 5 mm up,
+    /// 1 cm across).
+    fn face(x: f64, y: [f64; 2], z0: f64, z1: f64) -> Vec<Point3<f32>> {
+        let (mut v, mut z) = (Vec::new(), z0);
+        while z < z1 {
+            let mut w = y[0];
+            while w < y[1] {
+                v.push(Point3::new(x as f32, w as f32, z as f32));
+                w += 0.01;
+            }
+            z += 0.005;
+        }
+        v
+    }
+
+    #[test]
+    fn a_back_moves_onto_the_riser_above_seen_across_the_tread() {
+        let eye = Point3::new(0.0, 0.0, 1.4);
+        let p = RiserParams::default();
+        // A tread 0.3 m up from its nose at 1.0 m, its rectangle running 6 cm past the
+        // riser above it at 1.28 m (that riser's foot, seen through noise, on its plane).
+        let seg = tread(1.0, 0.3, 0.34).with_front_on_riser(true);
+        let mut cloud = wall(1.28, 0.3, 0.45);
+        cloud.extend(patch(1.0, 1.28, 0.3));
+        let mut one = [seg.clone()];
+        assert_eq!(place_backs(&mut one, &cloud, &eye, &p), 1);
+        let (front, back) = edges(&one[0]);
+        assert!((back - 1.28).abs() < 1e-3, "back at {back:.4}");
+        assert!((front - 1.0).abs() < 1e-9, "the front kept: {front:.4}");
+        assert!(one[0].back_on_riser() && one[0].front_on_riser());
+        assert_eq!((one[0].height_m(), one[0].width_m()), (0.3, 1.0));
+        // Its foot alone, the sweep ending 4.5 cm above the tread: the riser all the same.
+        let mut foot = [seg.clone()];
+        assert_eq!(place_backs(&mut foot, &wall(1.28, 0.3, 0.345), &eye, &p), 1);
+        assert!((edges(&foot[0]).1 - 1.28).abs() < 1e-3);
+        // A tread's own strays in the band, spread along it (an open riser: no riser
+        // above), are no riser.
+        let mut strays = [seg.clone()];
+        assert_eq!(place_backs(&mut strays, &patch(1.18, 1.34, 0.325), &eye, &p), 0);
+        assert_eq!(strays[0], seg);
+        // The sensor past the back edge; backs not asked for: left as they are.
+        let mut past = [seg.clone()];
+        assert_eq!(place_backs(&mut past, &cloud, &Point3::new(1.4, 0.0, 1.4), &p), 0);
+        let mut off = [seg.clone()];
+        assert_eq!(place_backs(&mut off, &cloud, &eye, &RiserParams { backs: false, ..p.clone() }), 0);
+        assert_eq!((past[0].clone(), off[0].clone()), (seg.clone(), seg));
+    }
+
+    #[test]
+    fn a_thing_left_by_the_riser_is_not_the_riser() {
+        let eye = Point3::new(0.0, 0.0, 1.4);
+        let p = RiserParams::default();
+        let seg = tread(1.0, 0.3, 0.34);
+        // A shoe (12 cm across, 11 cm tall) or a person (0.5 m across) 3 cm before the riser
+        // above at 1.28 m, their face seen more densely than the riser it hides: the back
+        // goes on the riser or stays, never onto the face (a person's spans most of the
+        // width seen, but not the tread's).
+        for (across, tall) in [([-0.06, 0.06], 0.11), ([-0.25, 0.25], 0.5)] {
+            let mut cloud = beside(wall(1.28, 0.3, 0.45), across);
+            for _ in 0..4 {
+                cloud.extend(face(1.25, across, 0.3, 0.3 + tall));
+            }
+            let mut one = [seg.clone()];
+            place_backs(&mut one, &cloud, &eye, &p);
+            let back = edges(&one[0]).1;
+            assert!(
+                (back - 1.28).abs() < 1e-3 || (back - 1.34).abs() < 1e-9,
+                "{across:?}: back at {back:.4}"
+            );
+        }
     }
 }

@@ -374,7 +374,8 @@ fn side_by_side(a: &PlaneSegment, b: &PlaneSegment, p: &StepMapParams) -> bool {
 /// gives no edges ([`StepMapParams::max_view_turn_rad`]). The rest is the fuller view's,
 /// since a view of part of a tread gets it wrong: its height (regression
 /// `tilted-tread-and-sunk-landing`), direction (regression `partial-view-turned-a-step`),
-/// sides (regression `side-view-narrowed-a-step`) and plane.
+/// sides (regression `side-view-narrowed-a-step`) and plane. An edge placed on its riser
+/// (perception's `riser`) outranks one from voxels.
 fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSegment {
     let (fuller, other) = if k.voxel_count() > s.voxel_count() { (k, s) } else { (s, k) };
     // Which of its axes is the ascent, a view of one tread only guesses (see
@@ -406,7 +407,22 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
             }
         }
     };
-    let back = surely_seen(&fuller, &c, &along, 1.0).max(surely_seen(&other, &c, &along, 1.0));
+    // Likewise a back placed on the riser above it stands against one from voxels or cells,
+    // which runs past that riser under noise (perception's `riser::place_backs`).
+    let backs = [&fuller, &other].map(|r| match r.back_on_riser() {
+        true => ((r.center() + r.along() * (r.depth_m() / 2.0) - c).dot(&along), true),
+        false => (surely_seen(r, &c, &along, 1.0), false),
+    });
+    let (back, back_on_riser) = match backs {
+        [b @ (_, true), (_, false)] | [(_, false), b @ (_, true)] => b,
+        [a, b] => {
+            if a.0 >= b.0 {
+                a
+            } else {
+                b
+            }
+        }
+    };
     PlaneSegment::new(
         c + along * ((front + back) / 2.0),
         along,
@@ -415,7 +431,7 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
         fuller.normal().into_inner(),
         fuller.voxel_count(),
     )
-    .map(|m| m.with_front_on_riser(on_riser).with_nosing_m(nosing_m))
+    .map(|m| m.with_front_on_riser(on_riser).with_nosing_m(nosing_m).with_back_on_riser(back_on_riser))
     .unwrap_or(fuller)
 }
 
@@ -645,6 +661,26 @@ mod tests {
         // Both from voxels: the farther out, as before.
         let merged = merge(std::slice::from_ref(&step(1.005, 0.4, 0.27)), vec![out], &p);
         assert!((front(&merged[0]) - 0.85).abs() < 1e-9 && !merged[0].front_on_riser());
+    }
+
+    /// Likewise a back placed on the riser above it stands against a view's from voxels
+    /// farther out (the top tread seen from afar ran 6-9 cm past that riser, and the farther
+    /// of two views' backs had kept it: `wide-0003`, refused with the riser in the sole's
+    /// way), whichever view is the fuller; two from voxels, the farther, as before.
+    #[test]
+    fn a_back_on_its_riser_stands_against_one_from_voxels() {
+        let p = StepMapParams::default();
+        let back = |r: &PlaneSegment| r.center().x + r.depth_m() / 2.0;
+        // Known: the back at 1.14 on its riser; seen again, 6 cm past it, from voxels, fuller.
+        let on_riser = step(1.005, 0.4, 0.27).with_front_on_riser(true).with_back_on_riser(true);
+        let past = level(Point3::new(1.035, 0.0, 0.4), Vector3::x(), 0.33, 0.5, 40);
+        for (known, seen) in [(&on_riser, &past), (&past, &on_riser)] {
+            let merged = merge(std::slice::from_ref(known), vec![seen.clone()], &p);
+            assert!((back(&merged[0]) - 1.14).abs() < 1e-9, "{}", back(&merged[0]));
+            assert!(merged[0].back_on_riser() && merged[0].front_on_riser());
+        }
+        let merged = merge(std::slice::from_ref(&step(1.005, 0.4, 0.27)), vec![past], &p);
+        assert!((back(&merged[0]) - 1.2).abs() < 1e-9 && !merged[0].back_on_riser());
     }
 
     #[test]
