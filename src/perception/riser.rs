@@ -31,22 +31,26 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RiserParams {
-    /// Whether the fronts are placed on the risers (`false`: the rectangles as §4 gives
-    /// them).
+    /// Whether the fronts (and, with `backs`, the backs) are placed on the risers (`false`:
+    /// the rectangles as §4 gives them).
     pub enabled: bool,
     /// Half the window, along the ascent about the segment's front edge, in which the riser
-    /// is looked for, metres: the edges err by up to about 4 cm under 25 mm of noise.
+    /// is looked for, metres: the edges err by up to about 4 cm under 25 mm of noise. For a
+    /// back edge, how far past it the riser above is looked for.
     pub half_window_m: f64,
     /// The band below the tread's top in which a return may be the riser's, metres below
     /// the top: [nearest, farthest]. Its near end keeps the tread's own returns out (they
     /// scatter about 1-2 cm in height under 10-25 mm of noise), its far end the tread or
     /// floor below (a rise is 10 cm or more: building codes, the generated suites); for a
-    /// step with a tread below it the band also ends `band_m[0]` above that tread.
+    /// step with a tread below it the band also ends `band_m[0]` above that tread. The
+    /// riser above a tread is looked for as far above its top, the band ending `band_m[0]`
+    /// short of the tread above.
     pub band_m: [f64; 2],
     /// Returns this far inside the segment's sides only, metres (a wall or a rail beside
     /// the flight is no riser).
     pub side_margin_m: f64,
-    /// Least returns on the riser (about the median) for it to place the front.
+    /// Least returns on the riser (about the median) for it to place the front; for a back,
+    /// on the riser's foot (the band's lower half).
     pub min_returns: usize,
     /// Least share of those returns in each half of the band (upper, lower): a riser seen
     /// whole. A riser seen in part, a strip of returns at one height, is not believed.
@@ -59,11 +63,15 @@ pub struct RiserParams {
     /// on the tread's plane past the riser, and the tread's rectangle runs up to about 7 cm
     /// past it (`perceive --json`'s `back_error_m`; the top treads seen from the floor).
     pub back_inward_m: f64,
-    /// Least share of the tread's width (in strips `WIDTH_STRIP_M` wide, inside
-    /// `side_margin_m`) in which the riser above shows returns, for it to place the back: a
-    /// riser spans the flight, a thing left on the tread spans part of it (the `real`
-    /// suite's shoe, parcel, bag or person: at most 0.5 m across, on treads 0.8 m wide or
-    /// more).
+    /// Least share, of the strips across the tread (`WIDTH_STRIP_M` wide, inside
+    /// `side_margin_m`) in which the back's window shows returns in the band, of those in
+    /// which they are the riser's, for it to place the back: a riser spans the flight, a
+    /// thing left on the tread before it spans part (the `real` suite's shoe, parcel, bag
+    /// or person: at most 0.5 m across, on treads 0.8 m wide or more), and the riser is
+    /// seen beside it. A strip the sweep did not reach says nothing either way (the riser
+    /// above the top tread seen is often reached across part of the tread only); so where
+    /// nothing but such a thing stands in the window (an open riser behind it), its face
+    /// is taken for the riser, and the tread ends before it.
     pub min_width_share: f64,
 }
 
@@ -195,7 +203,8 @@ struct Look {
     /// is the riser's alone; in its upper half a nosing's face may stand before it.
     band_m: [f64; 2],
     /// Whether that nosing stands outward of the riser along `out` (the tread's own, under
-    /// its front) or inward (the next tread's, over its back).
+    /// its front) or inward (the next tread's, over its back); weighed only where the foot
+    /// alone does not suffice.
     nose_outward: bool,
     /// Whether the riser's returns in the band's lower half alone show it: above a tread,
     /// the riser's foot is where the riser rises from it, however little of the riser the
@@ -295,12 +304,13 @@ fn riser_seen(s: &PlaneSegment, points: &[Point3<f32>], look: &Look, p: &RiserPa
     Some(Seen { at_m: at, width_share })
 }
 
-/// Places each tread's back edge (its end up its ascent) on the riser rising from it,
-/// where `points` show that riser whole, across at least `min_width_share` of the tread's
-/// width, within `back_inward_m` inside the edge or `half_window_m` past it: the returns
-/// in a band above the tread's top (from `band_m[0]` to `band_m[1]` up, and `band_m[0]`
-/// short of the next tread up), their lower half taken, as for a front (see
-/// [`place_fronts`]). A tread's back from its voxels or cells runs past the riser above
+/// Places each tread's back edge (its end up its ascent) on the riser rising from it, where
+/// `points` show that riser's foot, within `back_inward_m` inside the edge or
+/// `half_window_m` past it: the returns in a band above the tread's top (from `band_m[0]`
+/// to `band_m[1]` up, and `band_m[0]` short of the next tread up), its lower half, in which
+/// the riser's are a peak (twice the share an even spread would give), stand (the upper
+/// half of that half holds `min_half_share` of them) and span `min_width_share` of the
+/// width seen (see [`RiserParams::min_width_share`]). A tread's back from its voxels or cells runs past the riser above
 /// where that riser's foot, seen through range noise, lands on the tread's plane; the top
 /// tread seen is then as deep as its foot's place allows, and more (a foot put in its
 /// middle stands against the riser). The segment keeps its front edge (and whether it was

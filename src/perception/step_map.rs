@@ -289,7 +289,7 @@ pub fn without_partial_top(mut ahead: Vec<PlaneSegment>, min_tread_m: f64) -> Ne
 /// matches. Where a new rectangle matches a known one, the two views are merged
 /// ([`merge_view`]): the one on more voxels, reaching to the other's front and back edges
 /// where they are farther out (each view misses part of a tread: its front close to the
-/// riser, its back from afar). New rectangles that are one step, once merged (a view that
+/// riser, its back from afar), or where they were placed on their risers. New rectangles that are one step, once merged (a view that
 /// split a tread in two), are one: two at one height would leave the first no depth up to
 /// the "next" one's front, and its foot on the nose (regression
 /// `tread-split-in-two-under-20mm`).
@@ -664,9 +664,9 @@ mod tests {
     }
 
     /// Likewise a back placed on the riser above it stands against a view's from voxels
-    /// farther out (the top tread seen from afar ran 6-9 cm past that riser, and the farther
-    /// of two views' backs had kept it: `wide-0003`, refused with the riser in the sole's
-    /// way), whichever view is the fuller; two from voxels, the farther, as before.
+    /// farther out (under noise those run past that riser, and the farther of two views'
+    /// backs would keep a tread deeper than it is: a foot in its middle against the riser),
+    /// whichever view is the fuller; two from voxels, the farther.
     #[test]
     fn a_back_on_its_riser_stands_against_one_from_voxels() {
         let p = StepMapParams::default();
