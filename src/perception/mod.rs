@@ -658,7 +658,7 @@ pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, 
         Method::Paper | Method::Cells => by_paper(cloud, noise_m, noise_ms, p, counts)?,
     };
     let t = Instant::now();
-    found.counts.riser_fronts = riser::place_fronts(
+    (found.counts.riser_fronts, found.counts.riser_backs) = riser::place_edges(
         &mut found.segments,
         cloud.points(),
         &cloud.viewpoint(),
@@ -666,8 +666,6 @@ pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, 
         noise_m,
         &p.riser,
     );
-    found.counts.riser_backs =
-        riser::place_backs(&mut found.segments, cloud.points(), &cloud.viewpoint(), &p.riser);
     let riser_ms = ms(t);
     found.timings.staircase_ms += riser_ms;
     found.timings.total_ms += riser_ms;

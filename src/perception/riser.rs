@@ -117,6 +117,101 @@ impl RiserParams {
     }
 }
 
+/// The points about some heights ordered by height, in bins of `BIN_M`, so that the searches
+/// about a tread's edges, each in a band a few centimetres high about its top, read the
+/// points of their band's bins only, not the whole cloud (a sweep holds about 260 000
+/// points, and each step's front, nosing and back look at it).
+pub struct ByHeight {
+    /// The lowest bin's floor, metres.
+    z0_m: f64,
+    /// Bin height, metres.
+    bin_m: f64,
+    /// Where each bin's points start in `points` (one more entry than bins).
+    starts: Vec<usize>,
+    /// The points kept, bin by bin.
+    points: Vec<Point3<f32>>,
+}
+
+/// Height of a bin of [`ByHeight`], metres: the bands are 4-6 cm high.
+const BIN_M: f64 = 0.01;
+/// The most bins (points spanning more than this many `BIN_M`s get taller bins).
+const MAX_BINS: usize = 4096;
+/// Points read by one thread at a time when [`ByHeight`] picks its points.
+const CHUNK: usize = 1 << 14;
+
+impl ByHeight {
+    /// Those of `points` within `reach_m` of one of the heights `about_m` (and of a finite
+    /// height), binned by height.
+    pub fn new(points: &[Point3<f32>], about_m: &[f64], reach_m: f64) -> Self {
+        let near = |z: f32| z.is_finite() && about_m.iter().any(|h| (f64::from(z) - h).abs() <= reach_m);
+        let picked: Vec<Vec<Point3<f32>>> =
+            points.par_chunks(CHUNK).map(|c| c.iter().filter(|q| near(q.z)).copied().collect()).collect();
+        let (lo, hi) = picked
+            .iter()
+            .flatten()
+            .map(|q| f64::from(q.z))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), z| (lo.min(z), hi.max(z)));
+        if lo > hi {
+            return Self { z0_m: 0.0, bin_m: BIN_M, starts: vec![0, 0], points: Vec::new() };
+        }
+        let bins = (((hi - lo) / BIN_M) as usize + 1).min(MAX_BINS);
+        let bin_m = ((hi - lo) / bins as f64).max(BIN_M);
+        let index = Self { z0_m: lo, bin_m, starts: Vec::new(), points: Vec::new() };
+        let mut starts = vec![0usize; bins + 1];
+        for q in picked.iter().flatten() {
+            starts[index.bin(f64::from(q.z), bins) + 1] += 1;
+        }
+        for k in 1..=bins {
+            starts[k] += starts[k - 1];
+        }
+        let mut next = starts.clone();
+        let mut sorted = vec![Point3::origin(); starts[bins]];
+        for q in picked.iter().flatten() {
+            let k = index.bin(f64::from(q.z), bins);
+            sorted[next[k]] = *q;
+            next[k] += 1;
+        }
+        Self { starts, points: sorted, ..index }
+    }
+
+    /// The bin of height `z_m` among `bins`: monotone in the height, so every point of a
+    /// band lies in the bins of its ends and between.
+    fn bin(&self, z_m: f64, bins: usize) -> usize {
+        (((z_m - self.z0_m) / self.bin_m).max(0.0) as usize).min(bins - 1)
+    }
+
+    /// Every point kept with a height in (`lo_m`, `hi_m`), and some just outside it.
+    pub fn within(&self, lo_m: f64, hi_m: f64) -> &[Point3<f32>] {
+        let bins = self.starts.len() - 1;
+        if self.points.is_empty() || lo_m.partial_cmp(&hi_m) != Some(std::cmp::Ordering::Less) {
+            return &[];
+        }
+        let (a, b) = (self.bin(lo_m, bins), self.bin(hi_m, bins));
+        &self.points[self.starts[a]..self.starts[b + 1]]
+    }
+}
+
+/// Places each segment's front edge on the riser below it ([`place_fronts`]), then its back
+/// edge on the riser above it ([`place_backs`]), both searches reading one [`ByHeight`] of
+/// `points` about the treads' tops. Returns how many fronts and how many backs moved.
+pub fn place_edges(
+    segments: &mut [PlaneSegment],
+    points: &[Point3<f32>],
+    viewpoint: &Point3<f64>,
+    ground_m: Option<f64>,
+    noise_m: Option<f64>,
+    p: &RiserParams,
+) -> (usize, usize) {
+    if !p.enabled || segments.is_empty() {
+        return (0, 0);
+    }
+    // Every band looked in lies within `band_m[1]` of its tread's top.
+    let tops: Vec<f64> = segments.iter().map(|s| s.height_m()).collect();
+    let index = ByHeight::new(points, &tops, p.band_m[1]);
+    let fronts = place_fronts(segments, &index, viewpoint, ground_m, noise_m, p);
+    (fronts, place_backs(segments, &index, viewpoint, p))
+}
+
 /// Places each segment's front edge (its end against its ascent, facing `viewpoint`) on the
 /// riser below it where `points` show one whole (see the module's doc); the segment keeps
 /// its back edge, width, height and normal, and is marked [`PlaneSegment::front_on_riser`].
@@ -129,7 +224,7 @@ impl RiserParams {
 /// wall would be taken for its riser). Returns how many fronts moved.
 pub fn place_fronts(
     segments: &mut [PlaneSegment],
-    points: &[Point3<f32>],
+    points: &ByHeight,
     viewpoint: &Point3<f64>,
     ground_m: Option<f64>,
     noise_m: Option<f64>,
@@ -181,7 +276,7 @@ pub fn place_fronts(
 
 /// The riser's distance from `s`'s centre toward its front (against its ascent), metres,
 /// when the returns in `band` (heights) and the window about the front show one whole.
-fn riser_along(s: &PlaneSegment, points: &[Point3<f32>], band: [f64; 2], p: &RiserParams) -> Option<f64> {
+fn riser_along(s: &PlaneSegment, points: &ByHeight, band: [f64; 2], p: &RiserParams) -> Option<f64> {
     let front = s.depth_m() / 2.0;
     let look = Look {
         out: -s.along(),
@@ -226,7 +321,7 @@ struct Seen {
 const WIDTH_STRIP_M: f64 = 0.05;
 
 /// The riser about an edge of `s` as `look` says where, when the returns show one whole.
-fn riser_seen(s: &PlaneSegment, points: &[Point3<f32>], look: &Look, p: &RiserParams) -> Option<Seen> {
+fn riser_seen(s: &PlaneSegment, points: &ByHeight, look: &Look, p: &RiserParams) -> Option<Seen> {
     let band = look.band_m;
     if band[1] - band[0] < p.band_m[0] {
         return None;
@@ -237,6 +332,7 @@ fn riser_seen(s: &PlaneSegment, points: &[Point3<f32>], look: &Look, p: &RiserPa
     let half_width = s.width_m() / 2.0 - p.side_margin_m;
     // (distance along `out` from the centre, height, across) of each return in the box.
     let near: Vec<(f64, f64, f64)> = points
+        .within(band[0], band[1])
         .iter()
         .map(|q| q.cast::<f64>())
         .filter(|q| q.z > band[0] && q.z < band[1])
@@ -267,8 +363,6 @@ fn riser_seen(s: &PlaneSegment, points: &[Point3<f32>], look: &Look, p: &RiserPa
     let by_nose = |t: f64| if look.nose_outward { t > at } else { t < at };
     let lower_all = near.iter().filter(|r| r.1 < mid).count();
     let lower = near.iter().filter(|r| r.1 < mid && at_riser(r.0)).count();
-    let upper = near.iter().filter(|r| r.1 >= mid && (at_riser(r.0) || by_nose(r.0))).count();
-    let least = (p.min_half_share * (lower + upper) as f64).ceil() as usize;
     let whole = match look.foot_suffices {
         // The riser's foot is a peak: at least twice the share of the lower half's returns
         // that a spread even along the window would put about it (under noise a tread's
@@ -285,7 +379,11 @@ fn riser_seen(s: &PlaneSegment, points: &[Point3<f32>], look: &Look, p: &RiserPa
                 && lower as f64 >= 2.0 * even_share * lower_all as f64
                 && risen as f64 >= p.min_half_share * lower as f64
         }
-        false => lower + upper >= p.min_returns && upper >= least && lower >= least,
+        false => {
+            let upper = near.iter().filter(|r| r.1 >= mid && (at_riser(r.0) || by_nose(r.0))).count();
+            let least = (p.min_half_share * (lower + upper) as f64).ceil() as usize;
+            lower + upper >= p.min_returns && upper >= least && lower >= least
+        }
     };
     if !whole {
         return None;
@@ -319,7 +417,7 @@ fn riser_seen(s: &PlaneSegment, points: &[Point3<f32>], look: &Look, p: &RiserPa
 /// deeper than wide (see [`place_fronts`]). Returns how many backs moved.
 pub fn place_backs(
     segments: &mut [PlaneSegment],
-    points: &[Point3<f32>],
+    points: &ByHeight,
     viewpoint: &Point3<f64>,
     p: &RiserParams,
 ) -> usize {
@@ -372,7 +470,7 @@ pub fn place_backs(
 /// is air, and the segment's voxel front stands on or behind it.
 fn nosing_ahead(
     s: &PlaneSegment,
-    points: &[Point3<f32>],
+    points: &ByHeight,
     riser_m: f64,
     least_m: f64,
     p: &RiserParams,
@@ -383,6 +481,7 @@ fn nosing_ahead(
     let top = s.height_m();
     let half_width = s.width_m() / 2.0 - p.side_margin_m;
     let top_returns: Vec<f64> = points
+        .within(top - p.band_m[0], top + p.band_m[0])
         .iter()
         .map(|q| q.cast::<f64>())
         .filter(|q| (q.z - top).abs() < p.band_m[0])
@@ -435,21 +534,19 @@ const NOSE_QUANTILE: f64 = 0.7;
 /// `s` with its front `front_m` from its old centre against its ascent, its back kept;
 /// `None` when that leaves no depth.
 fn with_front(s: &PlaneSegment, front_m: f64) -> Option<PlaneSegment> {
-    let out = -s.along();
-    let back_m = -s.depth_m() / 2.0;
-    let depth_m = front_m - back_m;
-    if depth_m <= 0.0 {
-        return None;
-    }
-    let centre = s.center() + out * (front_m + back_m) / 2.0;
-    PlaneSegment::new(centre, s.along(), depth_m, s.width_m(), s.normal().into_inner(), s.voxel_count())
-        .map(|placed| placed.with_front_on_riser(true).with_back_on_riser(s.back_on_riser()))
+    with_edges(s, -front_m, s.depth_m() / 2.0).map(|placed| placed.with_front_on_riser(true))
 }
 
 /// `s` with its back `back_m` from its old centre up its ascent, its front kept (and
 /// whether it is on its riser, with its nosing); `None` when that leaves no depth.
 fn with_back(s: &PlaneSegment, back_m: f64) -> Option<PlaneSegment> {
-    let front_m = -s.depth_m() / 2.0;
+    with_edges(s, -s.depth_m() / 2.0, back_m).map(|placed| placed.with_back_on_riser(true))
+}
+
+/// `s` running from `front_m` to `back_m` along its ascent from its old centre, every mark
+/// of its edges kept (whether each is on its riser, its nosing); `None` when that leaves no
+/// depth.
+fn with_edges(s: &PlaneSegment, front_m: f64, back_m: f64) -> Option<PlaneSegment> {
     let depth_m = back_m - front_m;
     if depth_m <= 0.0 {
         return None;
@@ -459,8 +556,8 @@ fn with_back(s: &PlaneSegment, back_m: f64) -> Option<PlaneSegment> {
         |placed| {
             placed
                 .with_front_on_riser(s.front_on_riser())
+                .with_back_on_riser(s.back_on_riser())
                 .with_nosing_m(s.nosing_m())
-                .with_back_on_riser(true)
         },
     )
 }
@@ -468,6 +565,11 @@ fn with_back(s: &PlaneSegment, back_m: f64) -> Option<PlaneSegment> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every point of `points`, by height.
+    fn all(points: &[Point3<f32>]) -> ByHeight {
+        ByHeight::new(points, &[0.0], f64::INFINITY)
+    }
 
     /// A level tread 1 m wide ascending along x, its nose at `front`, its top at `z`.
     fn tread(front: f64, z: f64, depth: f64) -> PlaneSegment {
@@ -500,6 +602,38 @@ mod tests {
     }
 
     #[test]
+    fn a_band_of_the_height_index_holds_every_point_of_that_band() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        for spread_m in [0.005, 2.0, 1e5] {
+            // More points than one thread reads at a time, some of no finite height.
+            let z = |u: f64| (u * spread_m - 0.3) as f32;
+            let mut pts: Vec<Point3<f32>> =
+                (0..3 * CHUNK).map(|_| Point3::new(rng.random(), rng.random(), z(rng.random()))).collect();
+            pts.extend([f32::NAN, f32::INFINITY, f32::NEG_INFINITY].map(|z| Point3::new(0.0, 0.0, z)));
+            let about: Vec<f64> = (0..3).map(|_| f64::from(z(rng.random()))).collect();
+            for reach_m in [0.08, f64::INFINITY] {
+                let index = ByHeight::new(&pts, &about, reach_m);
+                let kept = |q: &Point3<f32>| about.iter().any(|h| (f64::from(q.z) - h).abs() <= reach_m);
+                for _ in 0..200 {
+                    let lo = f64::from(z(rng.random::<f64>() * 1.2 - 0.1));
+                    let hi = lo + rng.random::<f64>() * 0.1;
+                    let inside = |q: &&Point3<f32>| f64::from(q.z) > lo && f64::from(q.z) < hi;
+                    let mut want: Vec<[f32; 3]> =
+                        pts.iter().filter(inside).filter(|q| kept(q)).map(|q| q.coords.into()).collect();
+                    let mut got: Vec<[f32; 3]> =
+                        index.within(lo, hi).iter().filter(inside).map(|q| q.coords.into()).collect();
+                    want.sort_by(|a, b| a.partial_cmp(b).unwrap());
+                    got.sort_by(|a, b| a.partial_cmp(b).unwrap());
+                    assert_eq!(got, want, "band ({lo}, {hi}) over a spread of {spread_m} m, reach {reach_m}");
+                }
+            }
+        }
+        assert!(all(&[]).within(-1.0, 1.0).is_empty());
+        assert!(all(&[Point3::new(0.0, 0.0, f32::NAN)]).within(-1.0, 1.0).is_empty());
+    }
+
+    #[test]
     fn a_nosing_past_its_riser_is_the_front_not_the_riser() {
         let eye = Point3::new(0.0, 0.0, 1.4);
         let p = RiserParams::default();
@@ -509,7 +643,7 @@ mod tests {
         let mut cloud = wall(1.025, 0.15, 0.27);
         cloud.extend(patch(1.0, 1.3, 0.3));
         let mut one = [seg.clone()];
-        assert_eq!(place_fronts(&mut one, &cloud, &eye, None, None, &p), 1);
+        assert_eq!(place_fronts(&mut one, &all(&cloud), &eye, None, None, &p), 1);
         let front = one[0].center().x - one[0].depth_m() / 2.0;
         // On the nose at 1.0, not the riser at 1.025: short of it by at most a centimetre
         // (the 70th percentile of its top's returns), never past it.
@@ -519,7 +653,7 @@ mod tests {
         let mut plain = wall(1.025, 0.15, 0.3);
         plain.extend(patch(1.025, 1.3, 0.3));
         let mut one = [seg.clone()];
-        assert_eq!(place_fronts(&mut one, &plain, &eye, None, None, &p), 1);
+        assert_eq!(place_fronts(&mut one, &all(&plain), &eye, None, None, &p), 1);
         let front = one[0].center().x - one[0].depth_m() / 2.0;
         assert!((front - 1.025).abs() < 1e-3, "{front:.4}");
     }
@@ -545,7 +679,7 @@ mod tests {
         }
         let band = [0.3 - p.band_m[1], 0.3 - p.band_m[0]];
         for pts in [cloud, shadowed] {
-            let riser = riser_along(&seg, &pts, band, &p).expect("a riser seen whole");
+            let riser = riser_along(&seg, &all(&pts), band, &p).expect("a riser seen whole");
             let at_x = seg.center().x - riser;
             assert!((at_x - 1.025).abs() < 2e-3, "the riser at {at_x:.4}, not 1.025");
         }
@@ -562,7 +696,7 @@ mod tests {
         // tread ahead of and behind the window.
         let mut riser = wall(1.0, 0.15, 0.3);
         riser.extend(wall(1.2, 0.285, 0.3));
-        assert_eq!(place_fronts(&mut one, &riser, &eye, None, None, &p), 1);
+        assert_eq!(place_fronts(&mut one, &all(&riser), &eye, None, None, &p), 1);
         let front = one[0].center().x - one[0].depth_m() / 2.0;
         assert!((front - 1.0).abs() < 1e-3, "front at {front:.4}");
         assert!((one[0].center().x + one[0].depth_m() / 2.0 - 1.3).abs() < 1e-9, "the back kept");
@@ -570,28 +704,35 @@ mod tests {
         assert!(one[0].front_on_riser());
         // A riser seen only in its upper part (a view over the nose): not believed.
         let mut part = [seg.clone()];
-        assert_eq!(place_fronts(&mut part, &wall(1.0, 0.25, 0.3), &eye, None, None, &p), 0);
+        assert_eq!(place_fronts(&mut part, &all(&wall(1.0, 0.25, 0.3)), &eye, None, None, &p), 0);
         assert_eq!(part[0], seg);
         // Nothing within the window (the true nose 10 cm off): not believed.
         let mut far = [seg.clone()];
-        assert_eq!(place_fronts(&mut far, &wall(0.9, 0.15, 0.3), &eye, None, None, &p), 0);
+        assert_eq!(place_fronts(&mut far, &all(&wall(0.9, 0.15, 0.3)), &eye, None, None, &p), 0);
         // Disabled: the rectangles as §4 gives them.
         let mut off = [seg.clone()];
         assert_eq!(
-            place_fronts(&mut off, &riser, &eye, None, None, &RiserParams { enabled: false, ..p.clone() }),
+            place_fronts(
+                &mut off,
+                &all(&riser),
+                &eye,
+                None,
+                None,
+                &RiserParams { enabled: false, ..p.clone() }
+            ),
             0
         );
         // Seen from past its middle (a tread under or behind the robot), its front does not
         // face the sensor: left as it is, whatever stands under its back edge.
         let mut back = [seg.clone()];
         let behind = Point3::new(1.2, 0.0, 1.4);
-        assert_eq!(place_fronts(&mut back, &riser, &behind, None, None, &p), 0);
+        assert_eq!(place_fronts(&mut back, &all(&riser), &behind, None, None, &p), 0);
         assert_eq!(back[0], seg);
         // A lone segment deeper than wide may have its axes swapped: left as it is.
         let deep = PlaneSegment::new(Point3::new(1.5, 0.0, 0.3), Vector3::x(), 1.0, 0.4, Vector3::z(), 100)
             .expect("valid rectangle");
         let mut lone = [deep.clone()];
-        assert_eq!(place_fronts(&mut lone, &wall(1.0, 0.15, 0.3), &eye, None, None, &p), 0);
+        assert_eq!(place_fronts(&mut lone, &all(&wall(1.0, 0.15, 0.3)), &eye, None, None, &p), 0);
         assert_eq!(lone[0], deep);
     }
 
@@ -609,18 +750,18 @@ mod tests {
                 pts.extend(wall(0.776 + 0.002 * k as f64, z, z + 0.001));
             }
         }
-        place_fronts(&mut segs, &pts, &eye, None, None, &p);
+        place_fronts(&mut segs, &all(&pts), &eye, None, None, &p);
         let front = segs[1].center().x - segs[1].depth_m() / 2.0;
         assert!((front - 0.8).abs() < 1e-3, "front at {front:.4}");
         // The same with the lower tread known only as the ground under the sensor (the
         // floor, or the tread the robot stands on).
         let mut upper = [tread(0.825, 0.30, 0.3)];
-        place_fronts(&mut upper, &pts, &eye, Some(0.22), None, &p);
+        place_fronts(&mut upper, &all(&pts), &eye, Some(0.22), None, &p);
         let front = upper[0].center().x - upper[0].depth_m() / 2.0;
         assert!((front - 0.8).abs() < 1e-3, "front at {front:.4}");
         let mut unbounded = [tread(0.825, 0.30, 0.3)];
         assert_eq!(
-            place_fronts(&mut unbounded, &pts, &eye, None, None, &p),
+            place_fronts(&mut unbounded, &all(&pts), &eye, None, None, &p),
             0,
             "the strays outnumber the riser"
         );
@@ -661,7 +802,7 @@ mod tests {
         let mut cloud = wall(1.28, 0.3, 0.45);
         cloud.extend(patch(1.0, 1.28, 0.3));
         let mut one = [seg.clone()];
-        assert_eq!(place_backs(&mut one, &cloud, &eye, &p), 1);
+        assert_eq!(place_backs(&mut one, &all(&cloud), &eye, &p), 1);
         let (front, back) = edges(&one[0]);
         assert!((back - 1.28).abs() < 1e-3, "back at {back:.4}");
         assert!((front - 1.0).abs() < 1e-9, "the front kept: {front:.4}");
@@ -669,18 +810,18 @@ mod tests {
         assert_eq!((one[0].height_m(), one[0].width_m()), (0.3, 1.0));
         // Its foot alone, the sweep ending 4.5 cm above the tread: the riser all the same.
         let mut foot = [seg.clone()];
-        assert_eq!(place_backs(&mut foot, &wall(1.28, 0.3, 0.345), &eye, &p), 1);
+        assert_eq!(place_backs(&mut foot, &all(&wall(1.28, 0.3, 0.345)), &eye, &p), 1);
         assert!((edges(&foot[0]).1 - 1.28).abs() < 1e-3);
         // A tread's own strays in the band, spread along it (an open riser: no riser
         // above), are no riser.
         let mut strays = [seg.clone()];
-        assert_eq!(place_backs(&mut strays, &patch(1.18, 1.34, 0.325), &eye, &p), 0);
+        assert_eq!(place_backs(&mut strays, &all(&patch(1.18, 1.34, 0.325)), &eye, &p), 0);
         assert_eq!(strays[0], seg);
         // The sensor past the back edge; backs not asked for: left as they are.
         let mut past = [seg.clone()];
-        assert_eq!(place_backs(&mut past, &cloud, &Point3::new(1.4, 0.0, 1.4), &p), 0);
+        assert_eq!(place_backs(&mut past, &all(&cloud), &Point3::new(1.4, 0.0, 1.4), &p), 0);
         let mut off = [seg.clone()];
-        assert_eq!(place_backs(&mut off, &cloud, &eye, &RiserParams { backs: false, ..p.clone() }), 0);
+        assert_eq!(place_backs(&mut off, &all(&cloud), &eye, &RiserParams { backs: false, ..p.clone() }), 0);
         assert_eq!((past[0].clone(), off[0].clone()), (seg.clone(), seg));
     }
 
@@ -699,7 +840,7 @@ mod tests {
                 cloud.extend(face(1.25, across, 0.3, 0.3 + tall));
             }
             let mut one = [seg.clone()];
-            place_backs(&mut one, &cloud, &eye, &p);
+            place_backs(&mut one, &all(&cloud), &eye, &p);
             let back = edges(&one[0]).1;
             assert!(
                 (back - 1.28).abs() < 1e-3 || (back - 1.34).abs() < 1e-9,
