@@ -434,7 +434,7 @@ impl PlaneSegment {
     }
 
     /// Whether the back edge (corners 1 and 2) was placed on the riser above it
-    /// ([`riser::place_backs`]) rather than taken from the tread's voxels or cells.
+    /// ([`riser::place_edges`]) rather than taken from the tread's voxels or cells.
     pub fn back_on_riser(&self) -> bool {
         self.back_on_riser
     }
@@ -585,7 +585,7 @@ pub struct Counts {
     /// Steps whose front edge was placed on the riser below it ([`riser`]).
     #[serde(default)]
     pub riser_fronts: usize,
-    /// Steps whose back edge was placed on the riser above it ([`riser::place_backs`]).
+    /// Steps whose back edge was placed on the riser above it ([`riser::place_edges`]).
     #[serde(default)]
     pub riser_backs: usize,
     /// [`Method::Cells`]: cells with enough points to fit.

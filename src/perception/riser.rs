@@ -117,11 +117,13 @@ impl RiserParams {
     }
 }
 
-/// The points about some heights ordered by height, in bins of `BIN_M`, so that the searches
-/// about a tread's edges, each in a band a few centimetres high about its top, read the
-/// points of their band's bins only, not the whole cloud (a sweep holds about 260 000
-/// points, and each step's front, nosing and back look at it).
-pub struct ByHeight {
+/// The points about some heights ordered by height, in bins of `BIN_M` (taller where more
+/// than `MAX_BINS` would be needed), so that the searches about a tread's edges, each in a
+/// band a few centimetres high about its top, read the points of their band's bins only,
+/// not the whole cloud (a sweep holds about 260 000 points, and each step's front, nosing
+/// and back look at it).
+#[derive(Debug, Clone)]
+struct ByHeight {
     /// The lowest bin's floor, metres.
     z0_m: f64,
     /// Bin height, metres.
@@ -142,7 +144,7 @@ const CHUNK: usize = 1 << 14;
 impl ByHeight {
     /// Those of `points` within `reach_m` of one of the heights `about_m` (and of a finite
     /// height), binned by height.
-    pub fn new(points: &[Point3<f32>], about_m: &[f64], reach_m: f64) -> Self {
+    fn new(points: &[Point3<f32>], about_m: &[f64], reach_m: f64) -> Self {
         let near = |z: f32| z.is_finite() && about_m.iter().any(|h| (f64::from(z) - h).abs() <= reach_m);
         let picked: Vec<Vec<Point3<f32>>> =
             points.par_chunks(CHUNK).map(|c| c.iter().filter(|q| near(q.z)).copied().collect()).collect();
@@ -154,7 +156,8 @@ impl ByHeight {
         if lo > hi {
             return Self { z0_m: 0.0, bin_m: BIN_M, starts: vec![0, 0], points: Vec::new() };
         }
-        let bins = (((hi - lo) / BIN_M) as usize + 1).min(MAX_BINS);
+        // Capped before the cast: a spread of 1e17 m would overflow the count.
+        let bins = ((hi - lo) / BIN_M).min((MAX_BINS - 1) as f64) as usize + 1;
         let bin_m = ((hi - lo) / bins as f64).max(BIN_M);
         let index = Self { z0_m: lo, bin_m, starts: Vec::new(), points: Vec::new() };
         let mut starts = vec![0usize; bins + 1];
@@ -180,8 +183,9 @@ impl ByHeight {
         (((z_m - self.z0_m) / self.bin_m).max(0.0) as usize).min(bins - 1)
     }
 
-    /// Every point kept with a height in (`lo_m`, `hi_m`), and some just outside it.
-    pub fn within(&self, lo_m: f64, hi_m: f64) -> &[Point3<f32>] {
+    /// Every point kept with a height in (`lo_m`, `hi_m`), among the others of the bins that
+    /// band meets (the lowest or highest bin where it reaches past the points kept).
+    fn within(&self, lo_m: f64, hi_m: f64) -> &[Point3<f32>] {
         let bins = self.starts.len() - 1;
         if self.points.is_empty() || lo_m.partial_cmp(&hi_m) != Some(std::cmp::Ordering::Less) {
             return &[];
@@ -191,9 +195,10 @@ impl ByHeight {
     }
 }
 
-/// Places each segment's front edge on the riser below it ([`place_fronts`]), then its back
-/// edge on the riser above it ([`place_backs`]), both searches reading one [`ByHeight`] of
-/// `points` about the treads' tops. Returns how many fronts and how many backs moved.
+/// Places each segment's front edge on the riser below it (`place_fronts`), then its back
+/// edge on the riser above it (`place_backs`), both searches reading one index of `points`
+/// by height about the treads' tops (`ByHeight`). Returns how many fronts and how many
+/// backs moved.
 pub fn place_edges(
     segments: &mut [PlaneSegment],
     points: &[Point3<f32>],
@@ -221,8 +226,9 @@ pub fn place_edges(
 /// Left as they are: a segment whose front does not face the sensor (the sensor past its
 /// middle: a tread under or behind the robot), and a lone segment deeper than wide (with
 /// no flight to give its ascent, its "front" may be a side: the step's side face or a
-/// wall would be taken for its riser). Returns how many fronts moved.
-pub fn place_fronts(
+/// wall would be taken for its riser). Returns how many fronts moved. `points` must hold
+/// every point within `band_m[1]` of each segment's top ([`place_edges`] builds it so).
+fn place_fronts(
     segments: &mut [PlaneSegment],
     points: &ByHeight,
     viewpoint: &Point3<f64>,
@@ -408,14 +414,16 @@ fn riser_seen(s: &PlaneSegment, points: &ByHeight, look: &Look, p: &RiserParams)
 /// to `band_m[1]` up, and `band_m[0]` short of the next tread up), its lower half, in which
 /// the riser's are a peak (twice the share an even spread would give), stand (the upper
 /// half of that half holds `min_half_share` of them) and span `min_width_share` of the
-/// width seen (see [`RiserParams::min_width_share`]). A tread's back from its voxels or cells runs past the riser above
-/// where that riser's foot, seen through range noise, lands on the tread's plane; the top
+/// width seen (see [`RiserParams::min_width_share`]). A tread's back from its voxels or
+/// cells runs past the riser above where that riser's foot, seen through range noise, lands
+/// on the tread's plane; the top
 /// tread seen is then as deep as its foot's place allows, and more (a foot put in its
 /// middle stands against the riser). The segment keeps its front edge (and whether it was
 /// placed), width, height and normal, and is marked [`PlaneSegment::back_on_riser`]. Left
 /// as they are: a segment whose back the sensor stands at or past, and a lone segment
-/// deeper than wide (see [`place_fronts`]). Returns how many backs moved.
-pub fn place_backs(
+/// deeper than wide (see [`place_fronts`]). Returns how many backs moved. `points` must
+/// hold every point within `band_m[1]` of each segment's top, as for [`place_fronts`].
+fn place_backs(
     segments: &mut [PlaneSegment],
     points: &ByHeight,
     viewpoint: &Point3<f64>,
@@ -605,19 +613,27 @@ mod tests {
     fn a_band_of_the_height_index_holds_every_point_of_that_band() {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-        for spread_m in [0.005, 2.0, 1e5] {
+        // Spreads from under a bin to past what the bins' count can be (bins then taller).
+        for spread_m in [0.005, 2.0, 1e5, 1e30] {
             // More points than one thread reads at a time, some of no finite height.
             let z = |u: f64| (u * spread_m - 0.3) as f32;
             let mut pts: Vec<Point3<f32>> =
                 (0..3 * CHUNK).map(|_| Point3::new(rng.random(), rng.random(), z(rng.random()))).collect();
             pts.extend([f32::NAN, f32::INFINITY, f32::NEG_INFINITY].map(|z| Point3::new(0.0, 0.0, z)));
             let about: Vec<f64> = (0..3).map(|_| f64::from(z(rng.random()))).collect();
-            for reach_m in [0.08, f64::INFINITY] {
+            // Bands and reaches a few centimetres high, or a hundredth of a wider spread.
+            let scale_m = (spread_m / 100.0).max(0.1);
+            for reach_m in [0.8 * scale_m, f64::INFINITY] {
                 let index = ByHeight::new(&pts, &about, reach_m);
                 let kept = |q: &Point3<f32>| about.iter().any(|h| (f64::from(q.z) - h).abs() <= reach_m);
-                for _ in 0..200 {
-                    let lo = f64::from(z(rng.random::<f64>() * 1.2 - 0.1));
-                    let hi = lo + rng.random::<f64>() * 0.1;
+                let mut nonempty = 0;
+                for k in 0..200 {
+                    // Bands about a kept height (a tread's), and anywhere.
+                    let lo = match k % 2 {
+                        0 => about[k % 3] + (rng.random::<f64>() - 0.5) * 2.0 * scale_m,
+                        _ => f64::from(z(rng.random::<f64>() * 1.2 - 0.1)),
+                    };
+                    let hi = lo + rng.random::<f64>() * scale_m;
                     let inside = |q: &&Point3<f32>| f64::from(q.z) > lo && f64::from(q.z) < hi;
                     let mut want: Vec<[f32; 3]> =
                         pts.iter().filter(inside).filter(|q| kept(q)).map(|q| q.coords.into()).collect();
@@ -626,11 +642,43 @@ mod tests {
                     want.sort_by(|a, b| a.partial_cmp(b).unwrap());
                     got.sort_by(|a, b| a.partial_cmp(b).unwrap());
                     assert_eq!(got, want, "band ({lo}, {hi}) over a spread of {spread_m} m, reach {reach_m}");
+                    nonempty += usize::from(!want.is_empty());
                 }
+                // The comparisons are not all of empty bands.
+                assert!(nonempty >= 20, "{nonempty} bands held points, spread {spread_m} m, reach {reach_m}");
             }
         }
         assert!(all(&[]).within(-1.0, 1.0).is_empty());
         assert!(all(&[Point3::new(0.0, 0.0, f32::NAN)]).within(-1.0, 1.0).is_empty());
+        let one = [Point3::new(0.0, 0.0, 0.3)];
+        assert_eq!(all(&one).within(0.29, 0.31), &one);
+        let level: Vec<Point3<f32>> = (0..100).map(|i| Point3::new(i as f32, 0.0, 0.3)).collect();
+        assert_eq!(all(&level).within(0.2, 0.4).len(), 100);
+        assert_eq!(ByHeight::new(&level, &[0.5], 0.1).within(0.2, 0.4).len(), 0);
+    }
+
+    #[test]
+    fn both_edges_placed_through_one_index_are_as_placed_over_every_point() {
+        // Step 1 (top 0.3 m, nose at 1.0) and step 2 (top 0.45 m, nose at 1.3), their risers
+        // and treads, a wall 2 m up and a floor far below the bands.
+        let eye = Point3::new(0.0, 0.0, 1.4);
+        let p = RiserParams::default();
+        let mut cloud = wall(1.0, 0.15, 0.3);
+        cloud.extend(patch(1.0, 1.3, 0.3));
+        cloud.extend(wall(1.3, 0.3, 0.45));
+        cloud.extend(patch(1.3, 1.6, 0.45));
+        cloud.extend(wall(1.9, 0.45, 2.0));
+        cloud.extend(patch(0.0, 1.0, 0.0));
+        let steps = [tread(1.02, 0.3, 0.33), tread(1.31, 0.45, 0.25)];
+        let mut one = steps.clone();
+        let moved = place_edges(&mut one, &cloud, &eye, Some(0.0), None, &p);
+        let mut every = steps.clone();
+        let index = all(&cloud);
+        let fronts = place_fronts(&mut every, &index, &eye, Some(0.0), None, &p);
+        let backs = place_backs(&mut every, &index, &eye, &p);
+        assert_eq!(moved, (fronts, backs));
+        assert!(fronts >= 1 && backs >= 1, "fronts {fronts}, backs {backs}: the test places something");
+        assert_eq!(one, every);
     }
 
     #[test]
