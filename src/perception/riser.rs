@@ -474,8 +474,9 @@ fn place_backs(
 /// to 32 mm on short treads), as a distance toward the front from `s`'s centre, the riser
 /// being at `riser_m`: where the tread's own returns (within `band_m[0]` of its top) run on
 /// past the riser, at least `min_returns` of them in the window's half beyond it, the nose
-/// is the 70th percentile of the returns past the riser, at most the segment's own front. `None` for a riser under a plain nose: past it, at the top's height,
-/// is air, and the segment's voxel front stands on or behind it.
+/// is the 70th percentile of the returns past the riser, at most the segment's own front.
+/// `None` for a riser under a plain nose: past it, at the top's height, is air, and the
+/// segment's voxel front stands on or behind it.
 fn nosing_ahead(
     s: &PlaneSegment,
     points: &ByHeight,

@@ -289,10 +289,10 @@ pub fn without_partial_top(mut ahead: Vec<PlaneSegment>, min_tread_m: f64) -> Ne
 /// matches. Where a new rectangle matches a known one, the two views are merged
 /// ([`merge_view`]): the one on more voxels, reaching to the other's front and back edges
 /// where they are farther out (each view misses part of a tread: its front close to the
-/// riser, its back from afar), or where they were placed on their risers. New rectangles that are one step, once merged (a view that
-/// split a tread in two), are one: two at one height would leave the first no depth up to
-/// the "next" one's front, and its foot on the nose (regression
-/// `tread-split-in-two-under-20mm`).
+/// riser, its back from afar), or where they were placed on their risers. New rectangles
+/// that are one step, once merged (a view that split a tread in two), are one: two at one
+/// height would leave the first no depth up to the "next" one's front, and its foot on the
+/// nose (regression `tread-split-in-two-under-20mm`).
 pub fn merge(known: &[PlaneSegment], seen: Vec<PlaneSegment>, p: &StepMapParams) -> Vec<PlaneSegment> {
     let matches = |a: &PlaneSegment, b: &PlaneSegment| same_step(a, b, p);
     let merged = |s: &PlaneSegment, k: &PlaneSegment| merge_view(s, k, p.max_view_turn_rad);
@@ -375,7 +375,7 @@ fn side_by_side(a: &PlaneSegment, b: &PlaneSegment, p: &StepMapParams) -> bool {
 /// since a view of part of a tread gets it wrong: its height (regression
 /// `tilted-tread-and-sunk-landing`), direction (regression `partial-view-turned-a-step`),
 /// sides (regression `side-view-narrowed-a-step`) and plane. An edge placed on its riser
-/// (perception's `riser`) outranks one from voxels.
+/// (perception's `riser`) outranks one from voxels; of two alike, the farther stays.
 fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSegment {
     let (fuller, other) = if k.voxel_count() > s.voxel_count() { (k, s) } else { (s, k) };
     // Which of its axes is the ascent, a view of one tread only guesses (see
@@ -408,7 +408,7 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
         }
     };
     // Likewise a back placed on the riser above it stands against one from voxels or cells,
-    // which runs past that riser under noise (perception's `riser::place_backs`).
+    // which runs past that riser under noise (perception's `riser::place_edges`).
     let backs = [&fuller, &other].map(|r| match r.back_on_riser() {
         true => ((r.center() + r.along() * (r.depth_m() / 2.0) - c).dot(&along), true),
         false => (surely_seen(r, &c, &along, 1.0), false),
