@@ -14,9 +14,11 @@
 //! lower half: a nosing's face stands in the upper); a riser seen in part (its returns all
 //! in the upper or the lower half of the band, where a nosing's face stands for its
 //! shadowed top: a view over the nose, or a partial view of the floor below it) leaves the
-//! edge as it was. A tread whose own returns
-//! run on past its riser has a nosing: its front is then the nose, not the riser (a foot on
-//! the tread below keeps its toes behind the nose, not under it). A tread's back edge errs
+//! edge as it was. The window reaches farther inside the edge than out past it: the cell
+//! method's rectangles run out past their risers toward the sensor. A tread whose nose
+//! stands out before its riser has a nosing, seen as its face's returns just under the top
+//! standing before the riser: its front is then the nose, not the riser (a foot on the
+//! tread below keeps its toes behind the nose, not under it). A tread's back edge errs
 //! the other way: the foot of the riser above, seen through noise, lands on the tread's
 //! plane past it, and the rectangle runs on past the riser by centimetres; that riser, seen
 //! whole across the tread, is its back ([`place_backs`]).
@@ -34,10 +36,17 @@ pub struct RiserParams {
     /// Whether the fronts (and, with `backs`, the backs) are placed on the risers (`false`:
     /// the rectangles as §4 gives them).
     pub enabled: bool,
-    /// Half the window, along the ascent about the segment's front edge, in which the riser
-    /// is looked for, metres: the edges err by up to about 4 cm under 25 mm of noise. For a
-    /// back edge, how far past it the riser above is looked for.
+    /// How far out past a segment's front edge (against its ascent) its riser is looked
+    /// for, metres: the paper's edges err by up to about 4 cm under 25 mm of noise (inside
+    /// the edge: `front_inward_m`). For a back edge, how far past it the riser above is
+    /// looked for; and how far before a riser a nosing's face may stand.
     pub half_window_m: f64,
+    /// How far inside a tread's front edge its riser is looked for, metres (out past the
+    /// edge: `half_window_m`). The cell method's rectangles run out past the riser toward
+    /// the sensor, by up to 84 mm under 20-25 mm of noise (the `wide` suite with
+    /// `riser.enabled = false`, `perceive --json`'s `front_error_m`): the nose's returns,
+    /// scattered along the rays, lie in the tread's plane before it.
+    pub front_inward_m: f64,
     /// The band below the tread's top in which a return may be the riser's, metres below
     /// the top: [nearest, farthest]. Its near end keeps the tread's own returns out (they
     /// scatter about 1-2 cm in height under 10-25 mm of noise), its far end the tread or
@@ -80,6 +89,7 @@ impl Default for RiserParams {
         Self {
             enabled: true,
             half_window_m: 0.05,
+            front_inward_m: 0.10,
             band_m: [0.02, 0.08],
             side_margin_m: 0.05,
             min_returns: 30,
@@ -97,6 +107,9 @@ impl RiserParams {
         let pos = |v: f64| v.is_finite() && v > 0.0;
         if !pos(self.half_window_m) {
             return Some(("riser.half_window_m", "must be > 0"));
+        }
+        if !pos(self.front_inward_m) {
+            return Some(("riser.front_inward_m", "must be > 0"));
         }
         if !(pos(self.band_m[0]) && self.band_m[1].is_finite() && self.band_m[1] > self.band_m[0]) {
             return Some(("riser.band_m", "must be [near, far] with 0 < near < far"));
@@ -258,7 +271,7 @@ fn place_fronts(
                 .fold(f64::NEG_INFINITY, f64::max);
             let band = [(top - p.band_m[1]).max(below + p.band_m[0]), top - p.band_m[0]];
             let riser = riser_along(s, points, band, p)?;
-            Some((riser, nosing_ahead(s, points, riser, least_m, p).map(|nose| nose - riser)))
+            Some((riser, nose_face(s, points, riser, p).filter(|&nose| nose >= least_m)))
         })
         .collect();
     // A flight's treads have one nosing (building codes: within a few millimetres): where
@@ -286,7 +299,7 @@ fn riser_along(s: &PlaneSegment, points: &ByHeight, band: [f64; 2], p: &RiserPar
     let front = s.depth_m() / 2.0;
     let look = Look {
         out: -s.along(),
-        window_m: [front - p.half_window_m, front + p.half_window_m],
+        window_m: [front - p.front_inward_m, front + p.half_window_m],
         band_m: band,
         nose_outward: true,
         foot_suffices: false,
@@ -470,75 +483,64 @@ fn place_backs(
     moved
 }
 
-/// The nose of a tread that projects past its riser (a nosing: IRC R311.7.5.3 asks for 19
-/// to 32 mm on short treads), as a distance toward the front from `s`'s centre, the riser
-/// being at `riser_m`: where the tread's own returns (within `band_m[0]` of its top) run on
-/// past the riser, at least `min_returns` of them in the window's half beyond it, the nose
-/// is the 70th percentile of the returns past the riser, at most the segment's own front.
-/// `None` for a riser under a plain nose: past it, at the top's height, is air, and the
-/// segment's voxel front stands on or behind it.
-fn nosing_ahead(
-    s: &PlaneSegment,
-    points: &ByHeight,
-    riser_m: f64,
-    least_m: f64,
-    p: &RiserParams,
-) -> Option<f64> {
+/// How far a tread's nose stands out before its riser (at `riser_m` from `s`'s centre
+/// toward its front), metres: the peak (a median, narrowed twice) of the offsets from the
+/// riser of the returns `FACE_BAND_M` under the tread's top, from `FACE_BEHIND_M` behind
+/// the riser to `half_window_m` before it; `None` with fewer than `min_returns` of them. Under a
+/// nosing (IRC R311.7.5.3: 19 to 32 mm deep on short treads; 25-40 mm thick, the `real`
+/// suite) they are its face's, a nosing's depth out; under a plain nose, the riser's top,
+/// about the riser, and the nose's strays past it (a return scattered along its ray past
+/// the nose lies before the riser and below the top), a thin spread a median sees
+/// through. A tread's own returns, scattered in height, reach the band too, behind the
+/// riser: those past `FACE_BEHIND_M` are left out.
+fn nose_face(s: &PlaneSegment, points: &ByHeight, riser_m: f64, p: &RiserParams) -> Option<f64> {
     let out = -s.along();
     let side = Vector3::new(-out.y, out.x, 0.0);
     let c = s.center();
-    let top = s.height_m();
     let half_width = s.width_m() / 2.0 - p.side_margin_m;
-    let top_returns: Vec<f64> = points
-        .within(top - p.band_m[0], top + p.band_m[0])
+    let (lo, hi) = (s.height_m() - FACE_BAND_M[1], s.height_m() - FACE_BAND_M[0]);
+    let offsets: Vec<f64> = points
+        .within(lo, hi)
         .iter()
         .map(|q| q.cast::<f64>())
-        .filter(|q| (q.z - top).abs() < p.band_m[0])
+        .filter(|q| q.z > lo && q.z < hi)
         .map(|q| q - c)
         .filter(|d| d.dot(&side).abs() < half_width)
         .map(|d| d.dot(&out) - riser_m)
+        .filter(|t| *t > -FACE_BEHIND_M && *t < p.half_window_m)
         .collect();
-    let ahead = top_returns.iter().filter(|t| **t > least_m && **t < p.half_window_m).count();
-    // A nosing's top and face give past its least projection at least `NOSING_SHARE` of
-    // the returns of a strip of the tread `NOSING_STRIP_M` deep behind the riser; a plain
-    // nose's strays under range noise are a thin spread by the edge. And the segment's own
-    // front, from its voxels, stands past the riser too: a plain tread's voxel front comes
-    // back onto the tread under noise, rarely out past it.
-    let behind = top_returns.iter().filter(|t| **t < 0.0 && **t > -NOSING_STRIP_M).count();
-    let voxel_front_m = s.depth_m() / 2.0 - riser_m;
-    if ahead < p.min_returns || (ahead as f64) < NOSING_SHARE * behind as f64 || voxel_front_m < least_m {
+    if offsets.len() < p.min_returns {
         return None;
     }
-    // The nose: the 70th percentile of every return past the riser (the test above counts
-    // only those past the least projection, which under noise lie past a short nosing's
-    // nose): short of the nose by a few millimetres on its top's spread, past it by about as
-    // much where its face's returns stray, at most the segment's own front.
-    let mut past: Vec<f64> = top_returns.into_iter().filter(|t| *t > 0.0 && *t < p.half_window_m).collect();
-    past.sort_by(f64::total_cmp);
-    let k = ((past.len() - 1) as f64 * NOSE_QUANTILE).round() as usize;
-    Some(riser_m + past[k].min(voxel_front_m))
+    // Twice again over a halved window about it, as for the riser: the face's returns are
+    // a dense peak, the strays a thin spread before it.
+    let mut at = median(offsets.iter().copied())?;
+    for w in [p.half_window_m / 2.0, p.half_window_m / 4.0] {
+        at = median(offsets.iter().copied().filter(|t| (t - at).abs() < w))?;
+    }
+    Some(at)
 }
 
-/// Least projection past the riser of a nosing's returns, and of the tread's voxel front,
-/// metres: IRC's least nosing is 19 mm, and under 20 mm of range noise a plain nose's voxel
-/// front and a few dozen of its returns stray up to about 15 mm past the riser (the Exp. 1
-/// flight's fronts, `tests/perception.rs`).
+/// The heights under a tread's top in which its nosing's face is looked for, metres: below
+/// the tread's own returns' scatter about its top (about 1 cm in height under 20 mm of
+/// noise seen from 1-2 m), within the thinnest nosing's face (25 mm, the `real` suite).
+const FACE_BAND_M: [f64; 2] = [0.008, 0.025];
+
+/// How far behind the riser a return may lie and count toward the nose's face, metres:
+/// the riser's peak's own half-width (`half_window_m / 4`, see [`riser_seen`]), so a plain
+/// nose's face is the riser's, centred on it.
+const FACE_BEHIND_M: f64 = 0.0125;
+
+/// Least projection of a nose before its riser for a nosing, metres: IRC's least nosing is
+/// 19 mm, and under 20 mm of range noise a plain nose's face median strays up to about
+/// 15 mm before the riser (the Exp. 1 flight's fronts, `tests/perception.rs`).
 const NOSING_MIN_M: f64 = 0.015;
 
 /// ... and at least this many times the sweep's measured range noise: at grazing incidence
-/// a range error moves a return almost wholly along the tread, and under 20 mm of noise a
-/// far plain nose's voxel front and returns stray past 15 mm (the Exp. 1 flight's top step,
-/// `tests/perception.rs`). A nosing shorter than that under such noise is left on its
-/// riser.
-const NOSING_NOISE_FACTOR: f64 = 1.5;
-
-/// The strip of a tread behind its riser that a nosing's returns are weighed against,
-/// metres, and the share of its returns a nosing shows past `NOSING_MIN_M` (see
-/// [`nosing_ahead`]).
-const NOSING_STRIP_M: f64 = 0.035;
-const NOSING_SHARE: f64 = 0.25;
-/// The quantile of a nosing's returns past its riser taken for its nose.
-const NOSE_QUANTILE: f64 = 0.7;
+/// a range error moves a return almost wholly along the tread, and the nose's strays past
+/// it under more noise reach farther. A nosing shorter than that under such noise is left
+/// on its riser.
+const NOSING_NOISE_FACTOR: f64 = 1.0;
 
 /// `s` with its front `front_m` from its old centre against its ascent, its back kept;
 /// `None` when that leaves no depth.
@@ -682,29 +684,77 @@ mod tests {
         assert_eq!(one, every);
     }
 
+    /// `seg` with its front placed over `cloud`, seen from 1.4 m over the origin under
+    /// `noise_m`: how many fronts moved, and where its front edge lies along x.
+    fn front_over(seg: &PlaneSegment, cloud: &[Point3<f32>], noise_m: Option<f64>) -> (usize, PlaneSegment) {
+        let mut one = [seg.clone()];
+        let moved = place_fronts(
+            &mut one,
+            &all(cloud),
+            &Point3::new(0.0, 0.0, 1.4),
+            None,
+            noise_m,
+            &RiserParams::default(),
+        );
+        let [placed] = one;
+        (moved, placed)
+    }
+
     #[test]
     fn a_nosing_past_its_riser_is_the_front_not_the_riser() {
-        let eye = Point3::new(0.0, 0.0, 1.4);
-        let p = RiserParams::default();
-        // A tread 0.3 m up whose nose stands 25 mm before its riser (at 1.025 m); the
-        // segment's front from voxels at 1.003.
+        // A tread 0.3 m up, 30 mm thick, whose nose stands 25 mm before its riser (at 1.025
+        // m); the segment's front from voxels at 1.003.
         let seg = tread(1.003, 0.3, 0.297);
         let mut cloud = wall(1.025, 0.15, 0.27);
+        cloud.extend(wall(1.0, 0.27, 0.3));
         cloud.extend(patch(1.0, 1.3, 0.3));
-        let mut one = [seg.clone()];
-        assert_eq!(place_fronts(&mut one, &all(&cloud), &eye, None, None, &p), 1);
-        let front = one[0].center().x - one[0].depth_m() / 2.0;
-        // On the nose at 1.0, not the riser at 1.025: short of it by at most a centimetre
-        // (the 70th percentile of its top's returns), never past it.
-        assert!((1.0..1.01).contains(&front), "the front on the nose at 1.0, not the riser: {front:.4}");
-        assert!(one[0].front_on_riser());
-        // The same riser under a plain nose: the front on the riser.
+        let (moved, placed) = front_over(&seg, &cloud, None);
+        let front = edges(&placed).0;
+        // On the nose's face at 1.0, not the riser at 1.025.
+        assert!(
+            moved == 1 && (front - 1.0).abs() < 1e-3,
+            "the front on the nose at 1.0, not the riser: {front:.4}"
+        );
+        assert!(placed.front_on_riser());
+        assert!((placed.nosing_m() - 0.025).abs() < 1e-3, "nosing {}", placed.nosing_m());
+        // The same riser under a plain nose, with the nose's strays scattered along the rays
+        // before it and below its top, fewer than its face's returns: the front on the riser.
         let mut plain = wall(1.025, 0.15, 0.3);
         plain.extend(patch(1.025, 1.3, 0.3));
-        let mut one = [seg.clone()];
-        assert_eq!(place_fronts(&mut one, &all(&plain), &eye, None, None, &p), 1);
-        let front = one[0].center().x - one[0].depth_m() / 2.0;
-        assert!((front - 1.025).abs() < 1e-3, "{front:.4}");
+        for k in 1..=3 {
+            plain.extend(wall(1.025 - 0.008 * k as f64, 0.28, 0.2805));
+        }
+        let (moved, placed) = front_over(&seg, &plain, None);
+        let front = edges(&placed).0;
+        assert!(moved == 1 && (front - 1.025).abs() < 1e-3, "{front:.4}");
+        assert_eq!(placed.nosing_m(), 0.0);
+        // A nosing is believed from 15 mm out, and from the sweep's noise: a 13 mm one never,
+        // a 19 mm one under 10 mm of noise, not under 25 mm.
+        for (nose, noise_m, at) in [
+            (1.012, None, 1.025),
+            (1.012, Some(0.01), 1.025),
+            (1.006, Some(0.01), 1.006),
+            (1.006, Some(0.025), 1.025),
+        ] {
+            let mut nosed = wall(1.025, 0.15, 0.27);
+            nosed.extend(wall(nose, 0.27, 0.3));
+            let front = edges(&front_over(&seg, &nosed, noise_m).1).0;
+            assert!((front - at).abs() < 1e-3, "nose at {nose}, {noise_m:?}: front at {front:.4}");
+        }
+    }
+
+    #[test]
+    fn a_rectangle_run_out_past_its_riser_comes_back_onto_it() {
+        // The cell method's tread rectangle 8 cm out past the riser at 1.0 m, toward the
+        // sensor (the nose's returns scattered along the rays, in the tread's plane).
+        let mut cloud = wall(1.0, 0.15, 0.3);
+        cloud.extend(patch(1.0, 1.3, 0.3));
+        let (moved, placed) = front_over(&tread(0.92, 0.3, 0.38), &cloud, None);
+        let front = edges(&placed).0;
+        assert!(moved == 1 && (front - 1.0).abs() < 1e-3, "front at {front:.4}");
+        assert_eq!(placed.nosing_m(), 0.0);
+        // Past the window inside the edge: left as it was.
+        assert_eq!(front_over(&tread(0.88, 0.3, 0.42), &cloud, None).0, 0);
     }
 
     #[test]
