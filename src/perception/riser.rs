@@ -486,11 +486,11 @@ fn place_backs(
 /// How far a tread's nose stands out before its riser (at `riser_m` from `s`'s centre
 /// toward its front), metres: the peak (a median, narrowed twice) of the offsets from the
 /// riser of the returns `FACE_BAND_M` under the tread's top, from `FACE_BEHIND_M` behind
-/// the riser to `half_window_m` before it; `None` with fewer than `min_returns` of them. Under a
-/// nosing (IRC R311.7.5.3: 19 to 32 mm deep on short treads; 25-40 mm thick, the `real`
-/// suite) they are its face's, a nosing's depth out; under a plain nose, the riser's top,
-/// about the riser, and the nose's strays past it (a return scattered along its ray past
-/// the nose lies before the riser and below the top), a thin spread a median sees
+/// the riser to `half_window_m` before it; `None` with fewer than `min_returns` of them.
+/// Under a nosing (IRC R311.7.5.3: 19 to 32 mm deep on short treads; 25-40 mm thick, the
+/// `real` suite) they are its face's, a nosing's depth out; under a plain nose, the riser's
+/// top, about the riser, and the nose's strays past it (a return scattered along its ray
+/// past the nose lies before the riser and below the top), a thin spread the peak sees
 /// through. A tread's own returns, scattered in height, reach the band too, behind the
 /// riser: those past `FACE_BEHIND_M` are left out.
 fn nose_face(s: &PlaneSegment, points: &ByHeight, riser_m: f64, p: &RiserParams) -> Option<f64> {
@@ -532,8 +532,8 @@ const FACE_BAND_M: [f64; 2] = [0.008, 0.025];
 const FACE_BEHIND_M: f64 = 0.0125;
 
 /// Least projection of a nose before its riser for a nosing, metres: IRC's least nosing is
-/// 19 mm, and under 20 mm of range noise a plain nose's face median strays up to about
-/// 15 mm before the riser (the Exp. 1 flight's fronts, `tests/perception.rs`).
+/// 19 mm, and under 20 mm of range noise a plain nose's face reads up to about 12 mm
+/// before its riser (`wide` and `real`, one view each).
 const NOSING_MIN_M: f64 = 0.015;
 
 /// ... and at least this many times the sweep's measured range noise: at grazing incidence
