@@ -105,8 +105,10 @@ impl RiserParams {
     /// Why the parameters are unusable, naming the field; `None` when they are fine.
     pub fn invalid(&self) -> Option<(&'static str, &'static str)> {
         let pos = |v: f64| v.is_finite() && v > 0.0;
-        if !pos(self.half_window_m) {
-            return Some(("riser.half_window_m", "must be > 0"));
+        // The nose's face is looked for as far before the riser: a window short of the least
+        // nosing would never find one.
+        if !(self.half_window_m.is_finite() && self.half_window_m > NOSING_MIN_M) {
+            return Some(("riser.half_window_m", "must be > 0.015 (the least nosing)"));
         }
         if !pos(self.front_inward_m) {
             return Some(("riser.front_inward_m", "must be > 0"));
@@ -223,9 +225,10 @@ pub fn place_edges(
     if !p.enabled || segments.is_empty() {
         return (0, 0);
     }
-    // Every band looked in lies within `band_m[1]` of its tread's top.
+    // Every band looked in lies within `band_m[1]` of its tread's top, the nose's face within
+    // `FACE_BAND_M[1]`.
     let tops: Vec<f64> = segments.iter().map(|s| s.height_m()).collect();
-    let index = ByHeight::new(points, &tops, p.band_m[1]);
+    let index = ByHeight::new(points, &tops, p.band_m[1].max(FACE_BAND_M[1]));
     let fronts = place_fronts(segments, &index, viewpoint, ground_m, noise_m, p);
     (fronts, place_backs(segments, &index, viewpoint, p))
 }
@@ -240,7 +243,8 @@ pub fn place_edges(
 /// middle: a tread under or behind the robot), and a lone segment deeper than wide (with
 /// no flight to give its ascent, its "front" may be a side: the step's side face or a
 /// wall would be taken for its riser). Returns how many fronts moved. `points` must hold
-/// every point within `band_m[1]` of each segment's top ([`place_edges`] builds it so).
+/// every point within `band_m[1]` and `FACE_BAND_M[1]` of each segment's top
+/// ([`place_edges`] builds it so).
 fn place_fronts(
     segments: &mut [PlaneSegment],
     points: &ByHeight,
@@ -527,8 +531,11 @@ fn nose_face(s: &PlaneSegment, points: &ByHeight, riser_m: f64, p: &RiserParams)
 const FACE_BAND_M: [f64; 2] = [0.008, 0.025];
 
 /// How far behind the riser a return may lie and count toward the nose's face, metres:
-/// the riser's peak's own half-width (`half_window_m / 4`, see [`riser_seen`]), so a plain
-/// nose's face is the riser's, centred on it.
+/// the riser's peak's own half-width with the default window (`half_window_m / 4`, see
+/// [`riser_seen`]), so a plain nose's face reads about the riser. The window reaching
+/// `half_window_m` before the riser takes in more of the nose's strays than of the
+/// tread's behind it, and pulls a plain nose's face a few millimetres out (see
+/// [`NOSING_MIN_M`]).
 const FACE_BEHIND_M: f64 = 0.0125;
 
 /// Least projection of a nose before its riser for a nosing, metres: IRC's least nosing is
@@ -718,22 +725,24 @@ mod tests {
         assert!(placed.front_on_riser());
         assert!((placed.nosing_m() - 0.025).abs() < 1e-3, "nosing {}", placed.nosing_m());
         // The same riser under a plain nose, with the nose's strays scattered along the rays
-        // before it and below its top, fewer than its face's returns: the front on the riser.
+        // 40-45 mm before it, below its top: fewer than its face's returns, but far enough
+        // that the mean of both would read 18 mm out. The front on the riser.
         let mut plain = wall(1.025, 0.15, 0.3);
         plain.extend(patch(1.025, 1.3, 0.3));
-        for k in 1..=3 {
-            plain.extend(wall(1.025 - 0.008 * k as f64, 0.28, 0.2805));
+        for x in [0.98, 0.9825, 0.985] {
+            plain.extend(wall(x, 0.28, 0.2805));
         }
         let (moved, placed) = front_over(&seg, &plain, None);
         let front = edges(&placed).0;
         assert!(moved == 1 && (front - 1.025).abs() < 1e-3, "{front:.4}");
         assert_eq!(placed.nosing_m(), 0.0);
         // A nosing is believed from 15 mm out, and from the sweep's noise: a 13 mm one never,
-        // a 19 mm one under 10 mm of noise, not under 25 mm.
+        // a 19 mm one under 10 or 17 mm of noise, not under 25 mm.
         for (nose, noise_m, at) in [
             (1.012, None, 1.025),
             (1.012, Some(0.01), 1.025),
             (1.006, Some(0.01), 1.006),
+            (1.006, Some(0.017), 1.006),
             (1.006, Some(0.025), 1.025),
         ] {
             let mut nosed = wall(1.025, 0.15, 0.27);
