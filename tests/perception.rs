@@ -101,8 +101,7 @@ fn front_errors(s: &Scenario, p: &PerceptionParams) -> Vec<f64> {
 /// 0.269 m tread seen 0.245 m deep, and a foot on a 0.24 m tread put its toe on the next
 /// riser). The cells' rectangles run out past the riser, toward the sensor (the nose's
 /// returns, scattered along the rays, lie in the tread's plane before it), so their riser
-/// is looked for farther inside the edge than outside it: looked for within 5 cm either
-/// way, the top step's front came out 3.2-9.4 mm past its nose (draws 0-3).
+/// is looked for farther inside the edge than outside it (`riser.front_inward_m`).
 #[test]
 fn a_steps_front_edge_lies_on_its_nose_under_range_noise() {
     for method in [Method::Paper, Method::Cells] {
