@@ -294,6 +294,7 @@ pub struct PlaneSegment {
     height_m: f64,
     voxel_count: usize,
     front_on_riser: bool,
+    front_on_face: bool,
     nosing_m: f64,
     back_on_riser: bool,
 }
@@ -308,6 +309,9 @@ struct PlaneSegmentData {
     /// Absent from recordings made before fronts were placed on risers.
     #[serde(default)]
     front_on_riser: bool,
+    /// Absent from recordings made before fronts were placed on faces.
+    #[serde(default)]
+    front_on_face: bool,
     /// Absent from recordings made before a nosing's projection was kept.
     #[serde(default)]
     nosing_m: f64,
@@ -343,6 +347,7 @@ impl TryFrom<PlaneSegmentData> for PlaneSegment {
             height_m: d.height_m,
             voxel_count: d.voxel_count,
             front_on_riser: d.front_on_riser,
+            front_on_face: d.front_on_face,
             nosing_m: d.nosing_m,
             back_on_riser: d.back_on_riser,
         })
@@ -376,6 +381,7 @@ impl PlaneSegment {
             height_m: center.z,
             voxel_count,
             front_on_riser: false,
+            front_on_face: false,
             nosing_m: 0.0,
             back_on_riser: false,
         })
@@ -433,6 +439,19 @@ impl PlaneSegment {
         self.front_on_riser
     }
 
+    /// Whether the front edge was placed on the tread's own face, no riser seen whole under
+    /// it (an open riser's slab; [`riser`]): the nose, measured, with nothing known to stand
+    /// under it.
+    pub fn front_on_face(&self) -> bool {
+        self.front_on_face
+    }
+
+    /// Whether the front edge was measured on the nose (on its riser, or on its face) rather
+    /// than taken from the tread's voxels or cells.
+    pub fn front_measured(&self) -> bool {
+        self.front_on_riser || self.front_on_face
+    }
+
     /// Whether the back edge (corners 1 and 2) was placed on the riser above it
     /// ([`riser::place_edges`]) rather than taken from the tread's voxels or cells.
     pub fn back_on_riser(&self) -> bool {
@@ -486,6 +505,12 @@ impl PlaneSegment {
     /// The same rectangle, its front edge marked as placed on the riser (or not).
     pub fn with_front_on_riser(mut self, on: bool) -> Self {
         self.front_on_riser = on;
+        self
+    }
+
+    /// The same rectangle, its front edge marked as placed on its own face (or not).
+    pub fn with_front_on_face(mut self, on: bool) -> Self {
+        self.front_on_face = on;
         self
     }
 
@@ -585,6 +610,9 @@ pub struct Counts {
     /// Steps whose front edge was placed on the riser below it ([`riser`]).
     #[serde(default)]
     pub riser_fronts: usize,
+    /// Steps whose front edge was placed on the tread's own face, no riser seen under it.
+    #[serde(default)]
+    pub face_fronts: usize,
     /// Steps whose back edge was placed on the riser above it ([`riser::place_edges`]).
     #[serde(default)]
     pub riser_backs: usize,
@@ -658,7 +686,7 @@ pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, 
         Method::Paper | Method::Cells => by_paper(cloud, noise_m, noise_ms, p, counts)?,
     };
     let t = Instant::now();
-    (found.counts.riser_fronts, found.counts.riser_backs) = riser::place_edges(
+    let placed = riser::place_edges(
         &mut found.segments,
         cloud.points(),
         &cloud.viewpoint(),
@@ -666,6 +694,9 @@ pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, 
         noise_m,
         &p.riser,
     );
+    found.counts.riser_fronts = placed.riser_fronts;
+    found.counts.face_fronts = placed.face_fronts;
+    found.counts.riser_backs = placed.backs;
     let riser_ms = ms(t);
     found.timings.staircase_ms += riser_ms;
     found.timings.total_ms += riser_ms;

@@ -18,7 +18,11 @@
 //! method's rectangles run out past their risers toward the sensor. A tread whose nose
 //! stands out before its riser has a nosing, seen as its face's returns just under the top
 //! standing before the riser: its front is then the nose, not the riser (a foot on the
-//! tread below keeps its toes behind the nose, not under it). A tread's back edge errs
+//! tread below keeps its toes behind the nose, not under it). Where no riser is seen whole
+//! (an open riser's slab, a riser shadowed), the front goes onto the tread's own face, the
+//! returns a little under its top standing as a peak across the flight ([`face_along`]):
+//! the cell method's rectangles run out past an open riser's nose by 6-53 mm, the paper's
+//! by up to 21 mm, under the `real` suite's noise. A tread's back edge errs
 //! the other way: the foot of the riser above, seen through noise, lands on the tread's
 //! plane past it, and the rectangle runs on past the riser by centimetres; that riser, seen
 //! whole across the tread, is its back ([`place_backs`]).
@@ -212,8 +216,8 @@ impl ByHeight {
 
 /// Places each segment's front edge on the riser below it (`place_fronts`), then its back
 /// edge on the riser above it (`place_backs`), both searches reading one index of `points`
-/// by height about the treads' tops (`ByHeight`). Returns how many fronts and how many
-/// backs moved.
+/// by height about the treads' tops (`ByHeight`). Returns how many edges moved, and onto
+/// what.
 pub fn place_edges(
     segments: &mut [PlaneSegment],
     points: &[Point3<f32>],
@@ -221,30 +225,55 @@ pub fn place_edges(
     ground_m: Option<f64>,
     noise_m: Option<f64>,
     p: &RiserParams,
-) -> (usize, usize) {
+) -> Placed {
     if !p.enabled || segments.is_empty() {
-        return (0, 0);
+        return Placed::default();
     }
     // Every band looked in lies within `band_m[1]` of its tread's top, the nose's face within
     // `FACE_BAND_M[1]`.
-    let tops: Vec<f64> = segments.iter().map(|s| s.height_m()).collect();
-    let index = ByHeight::new(points, &tops, p.band_m[1].max(FACE_BAND_M[1]));
-    let fronts = place_fronts(segments, &index, viewpoint, ground_m, noise_m, p);
-    (fronts, place_backs(segments, &index, viewpoint, p))
+    // ... and the ground, before the lowest tread's face ([`face_along`]).
+    let about: Vec<f64> = segments.iter().map(|s| s.height_m()).chain(ground_m).collect();
+    let index = ByHeight::new(points, &about, p.band_m[1].max(FACE_BAND_M[1]));
+    let (riser_fronts, face_fronts) = place_fronts(segments, &index, viewpoint, ground_m, noise_m, p);
+    Placed { riser_fronts, face_fronts, backs: place_backs(segments, &index, viewpoint, p) }
+}
+
+/// How many of a view's edges [`place_edges`] moved.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Placed {
+    /// Fronts placed on the riser below (or on the nose before it).
+    pub riser_fronts: usize,
+    /// Fronts placed on the tread's own face, no riser seen under it ([`face_along`]).
+    pub face_fronts: usize,
+    /// Backs placed on the riser above.
+    pub backs: usize,
+}
+
+/// Where a tread's front edge was found.
+#[derive(Debug, Clone, Copy)]
+enum Front {
+    /// On its riser, `at_m` from the tread's centre toward its front, and its nose that far
+    /// before it where a nosing was seen.
+    Riser { at_m: f64, nosing_m: Option<f64> },
+    /// On its own face, `at_m` from the centre (no riser seen whole under it).
+    Face { at_m: f64 },
 }
 
 /// Places each segment's front edge (its end against its ascent, facing `viewpoint`) on the
 /// riser below it where `points` show one whole (see the module's doc); the segment keeps
 /// its back edge, width, height and normal, and is marked [`PlaneSegment::front_on_riser`].
+/// Where no riser is seen whole (an open riser, a riser shadowed), the front goes onto the
+/// tread's own face where that is seen ([`face_along`]), marked
+/// [`PlaneSegment::front_on_face`].
 /// `ground_m` is the height of the surface the sensor stands over (the floor, or the tread
 /// under the robot), which bounds the band of the lowest segment as a tread below does;
 /// `noise_m`, the sweep's measured range noise, sets the least nosing believed.
 /// Left as they are: a segment whose front does not face the sensor (the sensor past its
 /// middle: a tread under or behind the robot), and a lone segment deeper than wide (with
 /// no flight to give its ascent, its "front" may be a side: the step's side face or a
-/// wall would be taken for its riser). Returns how many fronts moved. `points` must hold
-/// every point within `band_m[1]` and `FACE_BAND_M[1]` of each segment's top
-/// ([`place_edges`] builds it so).
+/// wall would be taken for its riser). Returns how many fronts moved onto risers and how
+/// many onto faces. `points` must hold every point within `band_m[1]` and `FACE_BAND_M[1]`
+/// of each segment's top ([`place_edges`] builds it so).
 fn place_fronts(
     segments: &mut [PlaneSegment],
     points: &ByHeight,
@@ -252,15 +281,16 @@ fn place_fronts(
     ground_m: Option<f64>,
     noise_m: Option<f64>,
     p: &RiserParams,
-) -> usize {
+) -> (usize, usize) {
     if !p.enabled {
-        return 0;
+        return (0, 0);
     }
     let heights: Vec<f64> = segments.iter().map(|s| s.height_m()).chain(ground_m).collect();
     let lone = segments.len() == 1;
     let least_m = NOSING_MIN_M.max(NOSING_NOISE_FACTOR * noise_m.unwrap_or(0.0));
-    // Each segment's riser, and how far its nose projects past it where a nosing is seen.
-    let found: Vec<Option<(f64, Option<f64>)>> = segments
+    // Each segment's riser, and how far its nose projects past it where a nosing is seen;
+    // else its face.
+    let found: Vec<Option<Front>> = segments
         .par_iter()
         .map(|s| {
             if (viewpoint - s.center()).dot(&s.along()) >= 0.0 || (lone && s.depth_m() > s.width_m()) {
@@ -274,27 +304,49 @@ fn place_fronts(
                 .filter(|&h| h < top - 2.0 * p.band_m[0])
                 .fold(f64::NEG_INFINITY, f64::max);
             let band = [(top - p.band_m[1]).max(below + p.band_m[0]), top - p.band_m[0]];
-            let riser = riser_along(s, points, band, p)?;
-            Some((riser, nose_face(s, points, riser, p).filter(|&nose| nose >= least_m)))
+            match riser_along(s, points, band, p) {
+                Some(at_m) => Some(Front::Riser {
+                    at_m,
+                    nosing_m: nose_face(s, points, at_m, p).filter(|&nose| nose >= least_m),
+                }),
+                None => face_along(s, points, below, p).map(|at_m| Front::Face { at_m }),
+            }
         })
         .collect();
     // A flight's treads have one nosing (building codes: within a few millimetres): where
     // at least half the risers found show one, every front goes that far past its riser (the
     // median); else none does. Mixed, a tread whose nosing went unseen would keep its front
     // on the riser while the next one's moved to its nose, and the span between them lose a
-    // nosing's depth.
-    let risers = found.iter().flatten().count();
-    let seen: Vec<f64> = found.iter().flatten().filter_map(|(_, n)| *n).collect();
+    // nosing's depth. A front on its face is on its nose already.
+    let risers = found.iter().filter(|f| matches!(f, Some(Front::Riser { .. }))).count();
+    let seen: Vec<f64> = found
+        .iter()
+        .filter_map(|f| match f {
+            Some(Front::Riser { nosing_m, .. }) => *nosing_m,
+            _ => None,
+        })
+        .collect();
     let nosing_m =
         if !seen.is_empty() && 2 * seen.len() >= risers { median(seen).unwrap_or(0.0) } else { 0.0 };
-    let mut moved = 0;
+    let (mut on_risers, mut on_faces) = (0, 0);
     for (s, f) in segments.iter_mut().zip(found) {
-        if let Some(placed) = f.and_then(|(riser, _)| with_front(s, riser + nosing_m)) {
-            *s = placed.with_nosing_m(nosing_m);
-            moved += 1;
+        match f {
+            Some(Front::Riser { at_m, .. }) => {
+                if let Some(placed) = with_front(s, at_m + nosing_m) {
+                    *s = placed.with_front_on_riser(true).with_nosing_m(nosing_m);
+                    on_risers += 1;
+                }
+            }
+            Some(Front::Face { at_m }) => {
+                if let Some(placed) = with_front(s, at_m) {
+                    *s = placed.with_front_on_face(true);
+                    on_faces += 1;
+                }
+            }
+            None => {}
         }
     }
-    moved
+    (on_risers, on_faces)
 }
 
 /// The riser's distance from `s`'s centre toward its front (against its ascent), metres,
@@ -375,10 +427,7 @@ fn riser_seen(s: &PlaneSegment, points: &ByHeight, look: &Look, p: &RiserParams)
     // (regression `nosing-face-pulled-the-riser-out`).
     let mid = (band[0] + band[1]) / 2.0;
     let lower: Vec<f64> = near.iter().filter(|r| r.1 < mid).map(|r| r.0).collect();
-    let mut at = median(lower.iter().copied())?;
-    for w in [p.half_window_m / 2.0, p.half_window_m / 4.0] {
-        at = median(lower.iter().copied().filter(|t| (t - at).abs() < w))?;
-    }
+    let at = peak(&lower, p.half_window_m)?;
     // Seen whole: returns about it in the band's lower half, and in its upper half either
     // its own or a nosing's face before it (which shadows the riser's top from near:
     // regression `riser-under-a-nosing-not-believed`).
@@ -411,18 +460,131 @@ fn riser_seen(s: &PlaneSegment, points: &ByHeight, look: &Look, p: &RiserParams)
     if !whole {
         return None;
     }
-    // Of the strips across the tread where the window shows anything in the band, those
-    // where that is the riser: a strip the sweep did not reach says nothing either way.
-    let strips = ((2.0 * half_width / WIDTH_STRIP_M).ceil() as usize).max(1);
-    let (mut seen, mut on_riser) = (vec![false; strips], vec![false; strips]);
-    for r in &near {
-        let k = (((r.2 + half_width) / WIDTH_STRIP_M) as usize).min(strips - 1);
+    Some(Seen { at_m: at, width_share: width_share(&near, half_width, at_riser) })
+}
+
+/// The peak of `ts` (offsets along a look, metres): their median, then twice again the
+/// median of those within a halved window about it (`half_window_m / 2`, then `/ 4`). A
+/// surface's returns are a dense peak, strays a thin spread on either side. `None` when
+/// nothing is left.
+fn peak(ts: &[f64], half_window_m: f64) -> Option<f64> {
+    let mut at = median(ts.iter().copied())?;
+    for w in [half_window_m / 2.0, half_window_m / 4.0] {
+        at = median(ts.iter().copied().filter(|t| (t - at).abs() < w))?;
+    }
+    Some(at)
+}
+
+/// Of the strips across a tread (`WIDTH_STRIP_M` wide, within `half_width_m` of its middle)
+/// in which `near` (returns as (along, height, across), metres) shows anything, the share in
+/// which some return is `on` the surface sought (by its offset along): a strip the sweep
+/// did not reach says nothing either way.
+fn width_share(near: &[(f64, f64, f64)], half_width_m: f64, on: impl Fn(f64) -> bool) -> f64 {
+    let strips = ((2.0 * half_width_m / WIDTH_STRIP_M).ceil() as usize).max(1);
+    let (mut seen, mut on_it) = (vec![false; strips], vec![false; strips]);
+    for r in near {
+        let k = (((r.2 + half_width_m) / WIDTH_STRIP_M) as usize).min(strips - 1);
         seen[k] = true;
-        on_riser[k] |= at_riser(r.0);
+        on_it[k] |= on(r.0);
     }
     let count = |v: &[bool]| v.iter().filter(|b| **b).count() as f64;
-    let width_share = count(&on_riser) / count(&seen);
-    Some(Seen { at_m: at, width_share })
+    count(&on_it) / count(&seen).max(1.0)
+}
+
+/// A tread's front on its own face, where no riser is seen whole under it: its distance
+/// from `s`'s centre toward its front, metres. An open riser's tread is a slab whose face,
+/// as deep as the tread is thick (25-45 mm, the `real` suite), is all that stands under its
+/// nose; a riser shadowed or seen in part still shows its top there. The face is looked for
+/// in the returns `FACE_DEEP_M` under the top (the deeper half of the nosing's band: the
+/// tread's own returns, scattered in height by the noise, crowd the shallower half, spread
+/// along the tread behind the nose; seen steeply from near, they outnumber the face's
+/// there), inside the side margins and in the front's window (as for the riser:
+/// `front_inward_m` inside the edge, `half_window_m` out past it). It is the densest span
+/// of them `half_window_m / 2` long ([`densest`]), when that is:
+/// - a peak: at least `min_returns`, and at least twice as dense as the window beside it,
+///   as far on either side (the tread's strays behind it, the nose's before it; where the
+///   sweep's sight begins on a tread, its strays begin there too, an edge, no peak);
+/// - across the flight: in `min_width_share` of the strips where the window shows returns
+///   (a thing on the tread below, as tall as this tread's face, stands across part of it);
+/// - seen past: at least `min_returns` returns lie before it, as far out as the peak is
+///   long, below the band and above the surface below (`below_m`, the highest tread or
+///   ground under this tread, less `band_m[0]`). Where the sweep's sight begins on a tread
+///   (a robot near the first riser, the floor and the riser under its lidar), its returns
+///   begin as a dense line (the servo dwells at the end of its sweep), their strays under
+///   the top with them, and nothing before them: no face is seen there (regression
+///   `sight-edge-taken-for-a-face`).
+///
+/// Not marked as on a riser: the planner keeps the toes `toe_clearance_m` behind a next
+/// step's front only where a riser stands under it.
+fn face_along(s: &PlaneSegment, points: &ByHeight, below_m: f64, p: &RiserParams) -> Option<f64> {
+    let out = -s.along();
+    let side = Vector3::new(-out.y, out.x, 0.0);
+    let c = s.center();
+    let half_width = s.width_m() / 2.0 - p.side_margin_m;
+    let front = s.depth_m() / 2.0;
+    let window = [front - p.front_inward_m, front + p.half_window_m];
+    let (lo, hi) = (s.height_m() - FACE_DEEP_M[1], s.height_m() - FACE_DEEP_M[0]);
+    let near: Vec<(f64, f64, f64)> = points
+        .within(lo, hi)
+        .iter()
+        .map(|q| q.cast::<f64>())
+        .filter(|q| q.z > lo && q.z < hi)
+        .map(|q| (q - c, q.z))
+        .filter(|(d, _)| d.dot(&side).abs() < half_width)
+        .map(|(d, z)| (d.dot(&out), z, d.dot(&side)))
+        .filter(|(t, _, _)| *t > window[0] && *t < window[1] && t.is_finite())
+        .collect();
+    if near.len() < p.min_returns {
+        return None;
+    }
+    let ts: Vec<f64> = near.iter().map(|r| r.0).collect();
+    let w = p.half_window_m / 4.0;
+    let at = densest(&ts, w)?;
+    let on_face = |t: f64| (t - at).abs() < w;
+    let about = ts.iter().filter(|&&t| on_face(t)).count();
+    // Returns per metre along the window beside the peak on each side, as far as the peak is
+    // long (a side the window cuts shorter than the peak's half-width says nothing).
+    let flank = |from: f64, to: f64| {
+        let (from, to) = (from.max(window[0]), to.min(window[1]));
+        let n = ts.iter().filter(|&&t| t > from && t < to).count();
+        if to - from >= w {
+            n as f64 / (to - from)
+        } else {
+            0.0
+        }
+    };
+    let flanks = flank(at - 3.0 * w, at - w).max(flank(at + w, at + 3.0 * w));
+    let (lo_past, hi_past) = (below_m - p.band_m[0], lo);
+    let past = points
+        .within(lo_past, hi_past)
+        .iter()
+        .map(|q| q.cast::<f64>())
+        .filter(|q| q.z > lo_past && q.z < hi_past)
+        .map(|q| q - c)
+        .filter(|d| d.dot(&side).abs() < half_width && (d.dot(&out) - at - 2.0 * w).abs() < w)
+        .count();
+    let seen = about >= p.min_returns
+        && about as f64 / (2.0 * w) >= 2.0 * flanks
+        && width_share(&near, half_width, on_face) >= p.min_width_share
+        && past >= p.min_returns;
+    seen.then_some(at)
+}
+
+/// The middle of the densest span of `ts` `2 half_m` long: the median of the values in it
+/// (the first such span where several hold as many). `None` for no values.
+fn densest(ts: &[f64], half_m: f64) -> Option<f64> {
+    let mut v: Vec<f64> = ts.iter().copied().filter(|t| t.is_finite()).collect();
+    v.sort_by(f64::total_cmp);
+    let (mut best, mut end, mut j) = (0, 0, 0);
+    for i in 0..v.len() {
+        while v[i] - v[j] > 2.0 * half_m {
+            j += 1;
+        }
+        if i + 1 - j > best {
+            (best, end) = (i + 1 - j, i);
+        }
+    }
+    median(v.get(end + 1 - best..=end)?.iter().copied())
 }
 
 /// Places each tread's back edge (its end up its ascent) on the riser rising from it, where
@@ -516,19 +678,18 @@ fn nose_face(s: &PlaneSegment, points: &ByHeight, riser_m: f64, p: &RiserParams)
     if offsets.len() < p.min_returns {
         return None;
     }
-    // Twice again over a halved window about it, as for the riser: the face's returns are
-    // a dense peak, the strays a thin spread before it.
-    let mut at = median(offsets.iter().copied())?;
-    for w in [p.half_window_m / 2.0, p.half_window_m / 4.0] {
-        at = median(offsets.iter().copied().filter(|t| (t - at).abs() < w))?;
-    }
-    Some(at)
+    // The face's returns are a dense peak, the strays a thin spread before it.
+    peak(&offsets, p.half_window_m)
 }
 
 /// The heights under a tread's top in which its nosing's face is looked for, metres: below
 /// the tread's own returns' scatter about its top (about 1 cm in height under 20 mm of
 /// noise seen from 1-2 m), within the thinnest nosing's face (25 mm, the `real` suite).
 const FACE_BAND_M: [f64; 2] = [0.008, 0.025];
+
+/// The heights under a tread's top in which its own face is looked for where no riser
+/// stands under it, metres: the deeper half of `FACE_BAND_M` (see [`face_along`]).
+const FACE_DEEP_M: [f64; 2] = [(FACE_BAND_M[0] + FACE_BAND_M[1]) / 2.0, FACE_BAND_M[1]];
 
 /// How far behind the riser a return may lie and count toward the nose's face, metres:
 /// the riser's peak's own half-width with the default window (`half_window_m / 4`, see
@@ -549,10 +710,10 @@ const NOSING_MIN_M: f64 = 0.015;
 /// on its riser.
 const NOSING_NOISE_FACTOR: f64 = 1.0;
 
-/// `s` with its front `front_m` from its old centre against its ascent, its back kept;
-/// `None` when that leaves no depth.
+/// `s` with its front `front_m` from its old centre against its ascent, its back kept (and
+/// its marks: the caller marks where the front now is); `None` when that leaves no depth.
 fn with_front(s: &PlaneSegment, front_m: f64) -> Option<PlaneSegment> {
-    with_edges(s, -front_m, s.depth_m() / 2.0).map(|placed| placed.with_front_on_riser(true))
+    with_edges(s, -front_m, s.depth_m() / 2.0)
 }
 
 /// `s` with its back `back_m` from its old centre up its ascent, its front kept (and
@@ -574,6 +735,7 @@ fn with_edges(s: &PlaneSegment, front_m: f64, back_m: f64) -> Option<PlaneSegmen
         |placed| {
             placed
                 .with_front_on_riser(s.front_on_riser())
+                .with_front_on_face(s.front_on_face())
                 .with_back_on_riser(s.back_on_riser())
                 .with_nosing_m(s.nosing_m())
         },
@@ -684,9 +846,9 @@ mod tests {
         let moved = place_edges(&mut one, &cloud, &eye, Some(0.0), None, &p);
         let mut every = steps.clone();
         let index = all(&cloud);
-        let fronts = place_fronts(&mut every, &index, &eye, Some(0.0), None, &p);
+        let (fronts, faces) = place_fronts(&mut every, &index, &eye, Some(0.0), None, &p);
         let backs = place_backs(&mut every, &index, &eye, &p);
-        assert_eq!(moved, (fronts, backs));
+        assert_eq!(moved, Placed { riser_fronts: fronts, face_fronts: faces, backs });
         assert!(fronts >= 1 && backs >= 1, "fronts {fronts}, backs {backs}: the test places something");
         assert_eq!(one, every);
     }
@@ -695,7 +857,7 @@ mod tests {
     /// `noise_m`: how many fronts moved, and where its front edge lies along x.
     fn front_over(seg: &PlaneSegment, cloud: &[Point3<f32>], noise_m: Option<f64>) -> (usize, PlaneSegment) {
         let mut one = [seg.clone()];
-        let moved = place_fronts(
+        let (risers, faces) = place_fronts(
             &mut one,
             &all(cloud),
             &Point3::new(0.0, 0.0, 1.4),
@@ -704,7 +866,7 @@ mod tests {
             &RiserParams::default(),
         );
         let [placed] = one;
-        (moved, placed)
+        (risers + faces, placed)
     }
 
     #[test]
@@ -750,6 +912,57 @@ mod tests {
             let front = edges(&front_over(&seg, &nosed, noise_m).1).0;
             assert!((front - at).abs() < 1e-3, "nose at {nose}, {noise_m:?}: front at {front:.4}");
         }
+    }
+
+    /// Every `every`-th return of a level patch at height z from x0 to x1 (see `patch`).
+    fn thinned(x0: f64, x1: f64, z: f64, every: usize) -> Vec<Point3<f32>> {
+        patch(x0, x1, z).into_iter().step_by(every).collect()
+    }
+
+    #[test]
+    fn an_open_risers_front_is_its_slab_face() {
+        // A slab tread 0.3 m up, 40 mm thick, its face at 1.0 m and nothing under it (an open
+        // riser); the rectangle's front 30 mm out past it (the cell method's: the nose's
+        // strays in the tread's plane). The tread's own returns, scattered in height by the
+        // noise, reach under its top behind the face, thinning with depth: 10 mm under, ten
+        // times as dense as the face's (the tread seen steeply from near), 20 mm under, a
+        // fifth as dense. The tread below, 15 cm down, seen before the face.
+        let seg = tread(0.97, 0.3, 0.33);
+        let mut strays = patch(1.0, 1.3, 0.29);
+        strays.extend(thinned(1.0, 1.3, 0.28, 20));
+        let mut cloud = wall(1.0, 0.26, 0.3);
+        cloud.extend(strays.iter().copied());
+        cloud.extend(patch(0.85, 1.0, 0.15));
+        let (moved, placed) = front_over(&seg, &cloud, None);
+        let front = edges(&placed).0;
+        assert!(moved == 1 && (front - 1.0).abs() < 1e-3, "front at {front:.4}");
+        assert!(placed.front_on_face() && !placed.front_on_riser() && placed.front_measured());
+        assert_eq!(placed.nosing_m(), 0.0);
+        assert!((edges(&placed).1 - edges(&seg).1).abs() < 1e-9, "the back kept");
+        // The same strays with no face (where the sweep's sight begins on the tread, or a
+        // tread seen through noise alone), twice as many 20 mm under as the face had: an even
+        // spread, no face; left as it was.
+        let mut no_face = patch(1.0, 1.3, 0.29);
+        no_face.extend(thinned(1.0, 1.3, 0.28, 5));
+        no_face.extend(patch(0.85, 1.0, 0.15));
+        assert_eq!(front_over(&seg, &no_face, None).0, 0);
+        // Where the sweep's sight begins on the tread, at 1.0 m, nothing seen before it: the
+        // tread's returns begin as a dense line (the servo dwells at the end of its sweep),
+        // their strays under the top with them, a peak across the flight. Not a face.
+        let mut sight_edge = strays.clone();
+        for z in [0.3, 0.29, 0.28] {
+            sight_edge.extend(patch(1.0, 1.0075, z));
+        }
+        assert_eq!(front_over(&seg, &sight_edge, None).0, 0);
+        // A thing on the tread below, 0.3 m across, its top in the face's band 2.5 cm before
+        // the face, its returns there outnumbering the face's: not the face. (The riser
+        // search, before the face's, takes a thing as tall as that for the riser.)
+        let mut thing = cloud.clone();
+        for k in 0..8 {
+            thing.extend(face(0.975 + 0.0005 * k as f64, [-0.15, 0.15], 0.27, 0.29));
+        }
+        let at = face_along(&seg, &all(&thing), 0.15, &RiserParams::default()).map(|t| seg.center().x - t);
+        assert!(at.is_none_or(|x| (x - 1.0).abs() < 1e-3), "the face at {at:?}");
     }
 
     #[test]
@@ -804,19 +1017,20 @@ mod tests {
         // tread ahead of and behind the window.
         let mut riser = wall(1.0, 0.15, 0.3);
         riser.extend(wall(1.2, 0.285, 0.3));
-        assert_eq!(place_fronts(&mut one, &all(&riser), &eye, None, None, &p), 1);
+        assert_eq!(place_fronts(&mut one, &all(&riser), &eye, None, None, &p), (1, 0));
         let front = one[0].center().x - one[0].depth_m() / 2.0;
         assert!((front - 1.0).abs() < 1e-3, "front at {front:.4}");
         assert!((one[0].center().x + one[0].depth_m() / 2.0 - 1.3).abs() < 1e-9, "the back kept");
         assert_eq!(one[0].height_m(), 0.3);
         assert!(one[0].front_on_riser());
-        // A riser seen only in its upper part (a view over the nose): not believed.
+        // A riser seen only in its upper part (a view over the nose), nothing seen before it:
+        // not believed, nor is its top for the nose's face.
         let mut part = [seg.clone()];
-        assert_eq!(place_fronts(&mut part, &all(&wall(1.0, 0.25, 0.3)), &eye, None, None, &p), 0);
+        assert_eq!(place_fronts(&mut part, &all(&wall(1.0, 0.25, 0.3)), &eye, None, None, &p), (0, 0));
         assert_eq!(part[0], seg);
         // Nothing within the window (the true nose 10 cm off): not believed.
         let mut far = [seg.clone()];
-        assert_eq!(place_fronts(&mut far, &all(&wall(0.9, 0.15, 0.3)), &eye, None, None, &p), 0);
+        assert_eq!(place_fronts(&mut far, &all(&wall(0.9, 0.15, 0.3)), &eye, None, None, &p), (0, 0));
         // Disabled: the rectangles as §4 gives them.
         let mut off = [seg.clone()];
         assert_eq!(
@@ -828,19 +1042,19 @@ mod tests {
                 None,
                 &RiserParams { enabled: false, ..p.clone() }
             ),
-            0
+            (0, 0)
         );
         // Seen from past its middle (a tread under or behind the robot), its front does not
         // face the sensor: left as it is, whatever stands under its back edge.
         let mut back = [seg.clone()];
         let behind = Point3::new(1.2, 0.0, 1.4);
-        assert_eq!(place_fronts(&mut back, &all(&riser), &behind, None, None, &p), 0);
+        assert_eq!(place_fronts(&mut back, &all(&riser), &behind, None, None, &p), (0, 0));
         assert_eq!(back[0], seg);
         // A lone segment deeper than wide may have its axes swapped: left as it is.
         let deep = PlaneSegment::new(Point3::new(1.5, 0.0, 0.3), Vector3::x(), 1.0, 0.4, Vector3::z(), 100)
             .expect("valid rectangle");
         let mut lone = [deep.clone()];
-        assert_eq!(place_fronts(&mut lone, &all(&wall(1.0, 0.15, 0.3)), &eye, None, None, &p), 0);
+        assert_eq!(place_fronts(&mut lone, &all(&wall(1.0, 0.15, 0.3)), &eye, None, None, &p), (0, 0));
         assert_eq!(lone[0], deep);
     }
 
@@ -867,12 +1081,15 @@ mod tests {
         place_fronts(&mut upper, &all(&pts), &eye, Some(0.22), None, &p);
         let front = upper[0].center().x - upper[0].depth_m() / 2.0;
         assert!((front - 0.8).abs() < 1e-3, "front at {front:.4}");
+        // Unbounded, the strays outnumber the riser, and it is not believed; the front goes
+        // onto the riser's top, its nose's face, under the tread.
         let mut unbounded = [tread(0.825, 0.30, 0.3)];
         assert_eq!(
             place_fronts(&mut unbounded, &all(&pts), &eye, None, None, &p),
-            0,
+            (0, 1),
             "the strays outnumber the riser"
         );
+        assert!((edges(&unbounded[0]).0 - 0.8).abs() < 1e-3 && unbounded[0].front_on_face());
     }
 
     /// Where `s`'s front and back edges are along x.

@@ -388,24 +388,24 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
         return fuller;
     }
     let c = fuller.center();
-    // A front on its riser is the riser's median across the tread, its middle: no inward
-    // bound for a turned view (see `surely_seen`).
-    let fronts = [&fuller, &other].map(|r| match r.front_on_riser() {
-        true => ((r.center() - r.along() * (r.depth_m() / 2.0) - c).dot(&along), true, r.nosing_m()),
-        false => (surely_seen(r, &c, &along, -1.0), false, 0.0),
+    // A front on its riser (or its face) is the median across the tread, its middle: no
+    // inward bound for a turned view (see `surely_seen`).
+    let fronts = [&fuller, &other].map(|r| match r.front_measured() {
+        true => {
+            ((r.center() - r.along() * (r.depth_m() / 2.0) - c).dot(&along), FrontMark::of(r), r.nosing_m())
+        }
+        false => (surely_seen(r, &c, &along, -1.0), FrontMark::Voxels, 0.0),
     });
     // A front placed on its riser is the nose, and stands against one from voxels, which
-    // errs by centimetres under noise (perception's `riser`); of two alike, the farther out
-    // (with its nosing).
-    let (front, on_riser, nosing_m) = match fronts {
-        [f @ (_, true, _), (_, false, _)] | [(_, false, _), f @ (_, true, _)] => f,
-        [a, b] => {
-            if a.0 <= b.0 {
-                a
-            } else {
-                b
-            }
-        }
+    // errs by centimetres under noise (perception's `riser`); one on its face likewise, but
+    // gives way to one on a riser (hundreds of returns over the rise, against a face's few
+    // over its thickness); of two alike, the farther out (with its nosing).
+    let [a, b] = fronts;
+    let (front, mark, nosing_m) = match a.1.cmp(&b.1) {
+        std::cmp::Ordering::Greater => a,
+        std::cmp::Ordering::Less => b,
+        std::cmp::Ordering::Equal if a.0 <= b.0 => a,
+        std::cmp::Ordering::Equal => b,
     };
     // Likewise a back placed on the riser above it stands against one from voxels or cells,
     // which runs past that riser under noise (perception's `riser::place_edges`).
@@ -431,8 +431,36 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
         fuller.normal().into_inner(),
         fuller.voxel_count(),
     )
-    .map(|m| m.with_front_on_riser(on_riser).with_nosing_m(nosing_m).with_back_on_riser(back_on_riser))
+    .map(|m| {
+        m.with_front_on_riser(mark == FrontMark::Riser)
+            .with_front_on_face(mark == FrontMark::Face)
+            .with_nosing_m(nosing_m)
+            .with_back_on_riser(back_on_riser)
+    })
     .unwrap_or(fuller)
+}
+
+/// Where a view's front edge came from, by how much it is believed (least first).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum FrontMark {
+    /// The tread's voxels or cells.
+    Voxels,
+    /// Its own face (no riser seen under it).
+    Face,
+    /// Its riser.
+    Riser,
+}
+
+impl FrontMark {
+    fn of(r: &PlaneSegment) -> Self {
+        if r.front_on_riser() {
+            Self::Riser
+        } else if r.front_on_face() {
+            Self::Face
+        } else {
+            Self::Voxels
+        }
+    }
 }
 
 /// How far along `along` (from `c`) the view `r` surely saw tread at its front (`sign`
@@ -659,8 +687,30 @@ mod tests {
         let nose = merged[0].center().x - merged[0].depth_m() / 2.0 * merged[0].along().x;
         assert!((nose - (1.005 - 0.135 * turn.cos())).abs() < 2e-3, "{nose}");
         // Both from voxels: the farther out, as before.
-        let merged = merge(std::slice::from_ref(&step(1.005, 0.4, 0.27)), vec![out], &p);
+        let merged = merge(std::slice::from_ref(&step(1.005, 0.4, 0.27)), vec![out.clone()], &p);
         assert!((front(&merged[0]) - 0.85).abs() < 1e-9 && !merged[0].front_on_riser());
+        // A front on its own face (an open riser) stands against one from voxels as one on a
+        // riser does, either way round, and gives way to one on a riser.
+        let on_face = step(1.005, 0.4, 0.27).with_front_on_face(true);
+        for (known, seen) in [(&on_face, &out), (&out, &on_face)] {
+            let merged = merge(std::slice::from_ref(known), vec![seen.clone()], &p);
+            let m = &merged[0];
+            assert!(
+                (front(m) - 0.87).abs() < 1e-9 && m.front_on_face() && !m.front_on_riser(),
+                "{}",
+                front(m)
+            );
+        }
+        let riser_in = step(1.015, 0.4, 0.25).with_front_on_riser(true);
+        for (known, seen) in [(&on_face, &riser_in), (&riser_in, &on_face)] {
+            let merged = merge(std::slice::from_ref(known), vec![seen.clone()], &p);
+            let m = &merged[0];
+            assert!(
+                (front(m) - 0.89).abs() < 1e-9 && m.front_on_riser() && !m.front_on_face(),
+                "{}",
+                front(m)
+            );
+        }
     }
 
     /// Likewise a back placed on the riser above it stands against a view's from voxels
