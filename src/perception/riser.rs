@@ -231,10 +231,9 @@ pub fn place_edges(
     }
     // Every band looked in lies within `band_m[1]` of its tread's top, the nose's face within
     // `FACE_BAND_M[1]`.
-    // ... and the ground, before the lowest tread's face ([`face_along`]).
-    let about: Vec<f64> = segments.iter().map(|s| s.height_m()).chain(ground_m).collect();
-    let index = ByHeight::new(points, &about, p.band_m[1].max(FACE_BAND_M[1]));
-    let (riser_fronts, face_fronts) = place_fronts(segments, &index, viewpoint, ground_m, noise_m, p);
+    let tops: Vec<f64> = segments.iter().map(|s| s.height_m()).collect();
+    let index = ByHeight::new(points, &tops, p.band_m[1].max(FACE_BAND_M[1]));
+    let (riser_fronts, face_fronts) = place_fronts(segments, &index, points, viewpoint, ground_m, noise_m, p);
     Placed { riser_fronts, face_fronts, backs: place_backs(segments, &index, viewpoint, p) }
 }
 
@@ -272,11 +271,12 @@ enum Front {
 /// middle: a tread under or behind the robot), and a lone segment deeper than wide (with
 /// no flight to give its ascent, its "front" may be a side: the step's side face or a
 /// wall would be taken for its riser). Returns how many fronts moved onto risers and how
-/// many onto faces. `points` must hold every point within `band_m[1]` and `FACE_BAND_M[1]`
-/// of each segment's top ([`place_edges`] builds it so).
+/// many onto faces. `points` must hold every point of `cloud` within `band_m[1]` and
+/// `FACE_BAND_M[1]` of each segment's top ([`place_edges`] builds it so).
 fn place_fronts(
     segments: &mut [PlaneSegment],
     points: &ByHeight,
+    cloud: &[Point3<f32>],
     viewpoint: &Point3<f64>,
     ground_m: Option<f64>,
     noise_m: Option<f64>,
@@ -309,7 +309,7 @@ fn place_fronts(
                     at_m,
                     nosing_m: nose_face(s, points, at_m, p).filter(|&nose| nose >= least_m),
                 }),
-                None => face_along(s, points, below, p).map(|at_m| Front::Face { at_m }),
+                None => face_along(s, points, cloud, below, p).map(|at_m| Front::Face { at_m }),
             }
         })
         .collect();
@@ -516,7 +516,13 @@ fn width_share(near: &[(f64, f64, f64)], half_width_m: f64, on: impl Fn(f64) -> 
 ///
 /// Not marked as on a riser: the planner keeps the toes `toe_clearance_m` behind a next
 /// step's front only where a riser stands under it.
-fn face_along(s: &PlaneSegment, points: &ByHeight, below_m: f64, p: &RiserParams) -> Option<f64> {
+fn face_along(
+    s: &PlaneSegment,
+    points: &ByHeight,
+    cloud: &[Point3<f32>],
+    below_m: f64,
+    p: &RiserParams,
+) -> Option<f64> {
     let out = -s.along();
     let side = Vector3::new(-out.y, out.x, 0.0);
     let c = s.center();
@@ -554,19 +560,22 @@ fn face_along(s: &PlaneSegment, points: &ByHeight, below_m: f64, p: &RiserParams
         }
     };
     let flanks = flank(at - 3.0 * w, at - w).max(flank(at + w, at + 3.0 * w));
-    let (lo_past, hi_past) = (below_m - p.band_m[0], lo);
-    let past = points
-        .within(lo_past, hi_past)
-        .iter()
-        .map(|q| q.cast::<f64>())
-        .filter(|q| q.z > lo_past && q.z < hi_past)
-        .map(|q| q - c)
-        .filter(|d| d.dot(&side).abs() < half_width && (d.dot(&out) - at - 2.0 * w).abs() < w)
-        .count();
+    // Last, and over the whole cloud (the surface below may be the ground, which the height
+    // index leaves out): only a face otherwise believed comes to it.
+    let seen_past = || {
+        let (lo_past, hi_past) = (below_m - p.band_m[0], lo);
+        let past = cloud
+            .par_iter()
+            .filter(|q| f64::from(q.z) > lo_past && f64::from(q.z) < hi_past)
+            .map(|q| q.cast::<f64>() - c)
+            .filter(|d| d.dot(&side).abs() < half_width && (d.dot(&out) - at - 2.0 * w).abs() < w)
+            .count();
+        past >= p.min_returns
+    };
     let seen = about >= p.min_returns
         && about as f64 / (2.0 * w) >= 2.0 * flanks
         && width_share(&near, half_width, on_face) >= p.min_width_share
-        && past >= p.min_returns;
+        && seen_past();
     seen.then_some(at)
 }
 
@@ -846,7 +855,7 @@ mod tests {
         let moved = place_edges(&mut one, &cloud, &eye, Some(0.0), None, &p);
         let mut every = steps.clone();
         let index = all(&cloud);
-        let (fronts, faces) = place_fronts(&mut every, &index, &eye, Some(0.0), None, &p);
+        let (fronts, faces) = place_fronts(&mut every, &index, &cloud, &eye, Some(0.0), None, &p);
         let backs = place_backs(&mut every, &index, &eye, &p);
         assert_eq!(moved, Placed { riser_fronts: fronts, face_fronts: faces, backs });
         assert!(fronts >= 1 && backs >= 1, "fronts {fronts}, backs {backs}: the test places something");
@@ -860,6 +869,7 @@ mod tests {
         let (risers, faces) = place_fronts(
             &mut one,
             &all(cloud),
+            cloud,
             &Point3::new(0.0, 0.0, 1.4),
             None,
             noise_m,
@@ -961,7 +971,8 @@ mod tests {
         for k in 0..8 {
             thing.extend(face(0.975 + 0.0005 * k as f64, [-0.15, 0.15], 0.27, 0.29));
         }
-        let at = face_along(&seg, &all(&thing), 0.15, &RiserParams::default()).map(|t| seg.center().x - t);
+        let at =
+            face_along(&seg, &all(&thing), &thing, 0.15, &RiserParams::default()).map(|t| seg.center().x - t);
         assert!(at.is_none_or(|x| (x - 1.0).abs() < 1e-3), "the face at {at:?}");
     }
 
@@ -1017,7 +1028,7 @@ mod tests {
         // tread ahead of and behind the window.
         let mut riser = wall(1.0, 0.15, 0.3);
         riser.extend(wall(1.2, 0.285, 0.3));
-        assert_eq!(place_fronts(&mut one, &all(&riser), &eye, None, None, &p), (1, 0));
+        assert_eq!(place_fronts(&mut one, &all(&riser), &riser, &eye, None, None, &p), (1, 0));
         let front = one[0].center().x - one[0].depth_m() / 2.0;
         assert!((front - 1.0).abs() < 1e-3, "front at {front:.4}");
         assert!((one[0].center().x + one[0].depth_m() / 2.0 - 1.3).abs() < 1e-9, "the back kept");
@@ -1026,17 +1037,24 @@ mod tests {
         // A riser seen only in its upper part (a view over the nose), nothing seen before it:
         // not believed, nor is its top for the nose's face.
         let mut part = [seg.clone()];
-        assert_eq!(place_fronts(&mut part, &all(&wall(1.0, 0.25, 0.3)), &eye, None, None, &p), (0, 0));
+        assert_eq!(
+            place_fronts(&mut part, &all(&wall(1.0, 0.25, 0.3)), &wall(1.0, 0.25, 0.3), &eye, None, None, &p),
+            (0, 0)
+        );
         assert_eq!(part[0], seg);
         // Nothing within the window (the true nose 10 cm off): not believed.
         let mut far = [seg.clone()];
-        assert_eq!(place_fronts(&mut far, &all(&wall(0.9, 0.15, 0.3)), &eye, None, None, &p), (0, 0));
+        assert_eq!(
+            place_fronts(&mut far, &all(&wall(0.9, 0.15, 0.3)), &wall(0.9, 0.15, 0.3), &eye, None, None, &p),
+            (0, 0)
+        );
         // Disabled: the rectangles as §4 gives them.
         let mut off = [seg.clone()];
         assert_eq!(
             place_fronts(
                 &mut off,
                 &all(&riser),
+                &riser,
                 &eye,
                 None,
                 None,
@@ -1048,13 +1066,16 @@ mod tests {
         // face the sensor: left as it is, whatever stands under its back edge.
         let mut back = [seg.clone()];
         let behind = Point3::new(1.2, 0.0, 1.4);
-        assert_eq!(place_fronts(&mut back, &all(&riser), &behind, None, None, &p), (0, 0));
+        assert_eq!(place_fronts(&mut back, &all(&riser), &riser, &behind, None, None, &p), (0, 0));
         assert_eq!(back[0], seg);
         // A lone segment deeper than wide may have its axes swapped: left as it is.
         let deep = PlaneSegment::new(Point3::new(1.5, 0.0, 0.3), Vector3::x(), 1.0, 0.4, Vector3::z(), 100)
             .expect("valid rectangle");
         let mut lone = [deep.clone()];
-        assert_eq!(place_fronts(&mut lone, &all(&wall(1.0, 0.15, 0.3)), &eye, None, None, &p), (0, 0));
+        assert_eq!(
+            place_fronts(&mut lone, &all(&wall(1.0, 0.15, 0.3)), &wall(1.0, 0.15, 0.3), &eye, None, None, &p),
+            (0, 0)
+        );
         assert_eq!(lone[0], deep);
     }
 
@@ -1072,20 +1093,20 @@ mod tests {
                 pts.extend(wall(0.776 + 0.002 * k as f64, z, z + 0.001));
             }
         }
-        place_fronts(&mut segs, &all(&pts), &eye, None, None, &p);
+        place_fronts(&mut segs, &all(&pts), &pts, &eye, None, None, &p);
         let front = segs[1].center().x - segs[1].depth_m() / 2.0;
         assert!((front - 0.8).abs() < 1e-3, "front at {front:.4}");
         // The same with the lower tread known only as the ground under the sensor (the
         // floor, or the tread the robot stands on).
         let mut upper = [tread(0.825, 0.30, 0.3)];
-        place_fronts(&mut upper, &all(&pts), &eye, Some(0.22), None, &p);
+        place_fronts(&mut upper, &all(&pts), &pts, &eye, Some(0.22), None, &p);
         let front = upper[0].center().x - upper[0].depth_m() / 2.0;
         assert!((front - 0.8).abs() < 1e-3, "front at {front:.4}");
         // Unbounded, the strays outnumber the riser, and it is not believed; the front goes
         // onto the riser's top, its nose's face, under the tread.
         let mut unbounded = [tread(0.825, 0.30, 0.3)];
         assert_eq!(
-            place_fronts(&mut unbounded, &all(&pts), &eye, None, None, &p),
+            place_fronts(&mut unbounded, &all(&pts), &pts, &eye, None, None, &p),
             (0, 1),
             "the strays outnumber the riser"
         );
