@@ -142,9 +142,9 @@ fn a_steps_front_edge_lies_on_its_nose_under_range_noise() {
 /// On open risers no riser stands under a nose: a step's front goes onto its slab's face,
 /// from the returns a little under its top. Under the data sheet's range noise (10 mm) every
 /// front is placed so by either method, within 5 mm of its nose (the rectangles' own edges
-/// run out past it, toward the sensor: the cells' by 8-25 mm). Under twice that, from
-/// Exp. 1's start, the face is often lost in the tread's own strays and the front left where
-/// the rectangle put it (the cells': up to 26 mm out); a face believed is within 1 cm.
+/// run out past it, toward the sensor). Under twice that, from Exp. 1's start, the face may
+/// be lost in the tread's own strays and the front left where the rectangle put it; a face
+/// believed is within 1 cm.
 #[test]
 fn an_open_riser_steps_front_edge_lies_on_its_slab_face_under_range_noise() {
     for method in [Method::Paper, Method::Cells] {
@@ -167,6 +167,7 @@ fn an_open_riser_steps_front_edge_lies_on_its_slab_face_under_range_noise() {
                     n += 1;
                 }
             }
+            assert!(faces > 0, "{method:?}, {noise_m} m of noise: no front on its face");
             println!(
                 "{method:?}, {} mm of noise: {faces} of {n} open-riser fronts on their faces, within {:.1} mm of their noses",
                 noise_m * 1e3,

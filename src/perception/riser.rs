@@ -973,7 +973,8 @@ mod tests {
         }
         let at =
             face_along(&seg, &all(&thing), &thing, 0.15, &RiserParams::default()).map(|t| seg.center().x - t);
-        assert!(at.is_none_or(|x| (x - 1.0).abs() < 1e-3), "the face at {at:?}");
+        // The densest span is the thing's, and across part of the flight it is no face.
+        assert_eq!(at, None, "the face at {at:?}");
     }
 
     #[test]
