@@ -20,9 +20,9 @@
 //! standing before the riser: its front is then the nose, not the riser (a foot on the
 //! tread below keeps its toes behind the nose, not under it). Where no riser is seen whole
 //! (an open riser's slab, a riser shadowed), the front goes onto the tread's own face, the
-//! returns a little under its top standing as a peak across the flight ([`face_along`]):
-//! the cell method's rectangles run out past an open riser's nose by 6-53 mm, the paper's
-//! by up to 21 mm, under the `real` suite's noise. A tread's back edge errs
+//! returns a little under its top standing as a peak across the flight ([`face_along`]; the
+//! rectangles' own fronts run out past an open riser's nose by centimetres under noise). A
+//! tread's back edge errs
 //! the other way: the foot of the riser above, seen through noise, lands on the tread's
 //! plane past it, and the rectangle runs on past the riser by centimetres; that riser, seen
 //! whole across the tread, is its back ([`place_backs`]).

@@ -692,24 +692,19 @@ mod tests {
         // A front on its own face (an open riser) stands against one from voxels as one on a
         // riser does, either way round, and gives way to one on a riser.
         let on_face = step(1.005, 0.4, 0.27).with_front_on_face(true);
-        for (known, seen) in [(&on_face, &out), (&out, &on_face)] {
-            let merged = merge(std::slice::from_ref(known), vec![seen.clone()], &p);
-            let m = &merged[0];
-            assert!(
-                (front(m) - 0.87).abs() < 1e-9 && m.front_on_face() && !m.front_on_riser(),
-                "{}",
-                front(m)
-            );
-        }
         let riser_in = step(1.015, 0.4, 0.25).with_front_on_riser(true);
-        for (known, seen) in [(&on_face, &riser_in), (&riser_in, &on_face)] {
-            let merged = merge(std::slice::from_ref(known), vec![seen.clone()], &p);
-            let m = &merged[0];
-            assert!(
-                (front(m) - 0.89).abs() < 1e-9 && m.front_on_riser() && !m.front_on_face(),
-                "{}",
-                front(m)
-            );
+        // (one view, the other, the front kept, whether it is on a riser)
+        for (a, b, at, on_riser) in [(&on_face, &out, 0.87, false), (&on_face, &riser_in, 0.89, true)] {
+            for (known, seen) in [(a, b), (b, a)] {
+                let merged = merge(std::slice::from_ref(known), vec![seen.clone()], &p);
+                let m = &merged[0];
+                let marks = (m.front_on_riser(), m.front_on_face());
+                assert!(
+                    (front(m) - at).abs() < 1e-9 && marks == (on_riser, !on_riser),
+                    "{} {marks:?}",
+                    front(m)
+                );
+            }
         }
     }
 
