@@ -283,24 +283,37 @@ pub enum NoStaircase {
     },
 }
 
+/// Where a step's front edge was measured, by how much it is believed (least first).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord)]
+pub enum FrontMark {
+    /// From the tread's voxels or cells.
+    #[default]
+    Voxels,
+    /// On the tread's own face, no riser seen whole under it (an open riser's slab;
+    /// [`riser`]): the nose, measured, with nothing known to stand under it.
+    Face,
+    /// On the riser below it (or the nose before it, where a nosing was seen; [`riser`]).
+    Riser,
+}
+
 /// One step of the staircase: a rectangle in the world frame. Valid once built: four
 /// finite corners forming a rectangle, counter-clockwise seen from above. Read back from JSON
 /// (a recording), it is checked again and keeps its figures bit for bit.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(try_from = "PlaneSegmentData")]
+#[serde(try_from = "PlaneSegmentData", into = "PlaneSegmentData")]
 pub struct PlaneSegment {
     corners: [Point3<f64>; 4],
     normal: Vector3<f64>,
     height_m: f64,
     voxel_count: usize,
-    front_on_riser: bool,
-    front_on_face: bool,
+    front: FrontMark,
     nosing_m: f64,
     back_on_riser: bool,
 }
 
-/// A [`PlaneSegment`]'s fields as written, before they are checked.
-#[derive(Deserialize)]
+/// A [`PlaneSegment`]'s fields as written (the front's mark as two flags, as recordings
+/// have it), before they are checked.
+#[derive(Clone, Serialize, Deserialize)]
 struct PlaneSegmentData {
     corners: [Point3<f64>; 4],
     normal: Vector3<f64>,
@@ -341,16 +354,36 @@ impl TryFrom<PlaneSegmentData> for PlaneSegment {
         if depth <= 0.0 || width <= 0.0 || !closes || !square || !ccw || d.normal.norm() < 1e-9 {
             return Err("a step rectangle's corners are not a counter-clockwise rectangle".into());
         }
+        let front = match (d.front_on_riser, d.front_on_face) {
+            (true, false) => FrontMark::Riser,
+            (false, true) => FrontMark::Face,
+            (false, false) => FrontMark::Voxels,
+            (true, true) => return Err("a step's front is marked both on its riser and on its face".into()),
+        };
         Ok(Self {
             corners: d.corners,
             normal: d.normal,
             height_m: d.height_m,
             voxel_count: d.voxel_count,
-            front_on_riser: d.front_on_riser,
-            front_on_face: d.front_on_face,
+            front,
             nosing_m: d.nosing_m,
             back_on_riser: d.back_on_riser,
         })
+    }
+}
+
+impl From<PlaneSegment> for PlaneSegmentData {
+    fn from(s: PlaneSegment) -> Self {
+        Self {
+            corners: s.corners,
+            normal: s.normal,
+            height_m: s.height_m,
+            voxel_count: s.voxel_count,
+            front_on_riser: s.front == FrontMark::Riser,
+            front_on_face: s.front == FrontMark::Face,
+            nosing_m: s.nosing_m,
+            back_on_riser: s.back_on_riser,
+        }
     }
 }
 
@@ -380,8 +413,7 @@ impl PlaneSegment {
             normal,
             height_m: center.z,
             voxel_count,
-            front_on_riser: false,
-            front_on_face: false,
+            front: FrontMark::Voxels,
             nosing_m: 0.0,
             back_on_riser: false,
         })
@@ -436,20 +468,25 @@ impl PlaneSegment {
     /// Whether the front edge (corners 0 and 3) was placed on the riser below it
     /// ([`riser`]) rather than taken from the tread's voxels.
     pub fn front_on_riser(&self) -> bool {
-        self.front_on_riser
+        self.front == FrontMark::Riser
+    }
+
+    /// Where the front edge was measured.
+    pub fn front_mark(&self) -> FrontMark {
+        self.front
     }
 
     /// Whether the front edge was placed on the tread's own face, no riser seen whole under
     /// it (an open riser's slab; [`riser`]): the nose, measured, with nothing known to stand
     /// under it.
     pub fn front_on_face(&self) -> bool {
-        self.front_on_face
+        self.front == FrontMark::Face
     }
 
     /// Whether the front edge was measured on the nose (on its riser, or on its face) rather
     /// than taken from the tread's voxels or cells.
     pub fn front_measured(&self) -> bool {
-        self.front_on_riser || self.front_on_face
+        self.front != FrontMark::Voxels
     }
 
     /// Whether the back edge (corners 1 and 2) was placed on the riser above it
@@ -502,15 +539,9 @@ impl PlaneSegment {
         self
     }
 
-    /// The same rectangle, its front edge marked as placed on the riser (or not).
-    pub fn with_front_on_riser(mut self, on: bool) -> Self {
-        self.front_on_riser = on;
-        self
-    }
-
-    /// The same rectangle, its front edge marked as placed on its own face (or not).
-    pub fn with_front_on_face(mut self, on: bool) -> Self {
-        self.front_on_face = on;
+    /// The same rectangle, its front edge marked as measured there.
+    pub fn with_front(mut self, mark: FrontMark) -> Self {
+        self.front = mark;
         self
     }
 
@@ -696,7 +727,7 @@ pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, 
     );
     found.counts.riser_fronts = placed.riser_fronts;
     found.counts.face_fronts = placed.face_fronts;
-    found.counts.riser_backs = placed.backs;
+    found.counts.riser_backs = placed.riser_backs;
     let riser_ms = ms(t);
     found.timings.staircase_ms += riser_ms;
     found.timings.total_ms += riser_ms;
@@ -859,4 +890,35 @@ fn from_voxels(
     let result = staircase::extract(&voxels, &sv, &clusters, &planes, &viewpoint, &gravity, p);
     timings.staircase_ms = ms(t);
     finish(Method::Paper, result, timings, counts, Detail { voxels, supervoxels: sv, clusters })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A step's front mark is written as the two flags recordings have, and read back the
+    /// same; a recording from before the marks reads as voxels; both flags at once is no
+    /// front a perception gives, and is refused.
+    #[test]
+    fn a_fronts_mark_reads_back_as_written() {
+        for mark in [FrontMark::Voxels, FrontMark::Face, FrontMark::Riser] {
+            let s = PlaneSegment::level_along_x(1.0, 0.2, 0.28).with_front(mark);
+            let json = serde_json::to_value(&s).unwrap();
+            assert_eq!(json["front_on_riser"], mark == FrontMark::Riser);
+            assert_eq!(json["front_on_face"], mark == FrontMark::Face);
+            assert_eq!(serde_json::from_value::<PlaneSegment>(json).unwrap(), s);
+        }
+        let mut json = serde_json::to_value(PlaneSegment::level_along_x(1.0, 0.2, 0.28)).unwrap();
+        let fields = json.as_object_mut().unwrap();
+        fields.remove("front_on_riser");
+        fields.remove("front_on_face");
+        assert_eq!(
+            serde_json::from_value::<PlaneSegment>(json.clone()).unwrap().front_mark(),
+            FrontMark::Voxels
+        );
+        json["front_on_riser"] = true.into();
+        json["front_on_face"] = true.into();
+        let err = serde_json::from_value::<PlaneSegment>(json).unwrap_err().to_string();
+        assert!(err.contains("both on its riser and on its face"), "{err}");
+    }
 }

@@ -451,13 +451,19 @@ fn ascent_direction(stair: &[&Candidate], sensor: &P2, p: &PerceptionParams) -> 
 /// voxel (its two side edges, each half a voxel, averaged), so over steps spread along the
 /// flight their line's direction is known to `voxel / 2 / spread`, where a rectangle's axis
 /// is known to about `voxel / its long side`. Steps narrower than the flight (a step seen
-/// in part across, a landing of another width) are left out of the line.
+/// in part across, a landing of another width) are left out of the line. A step's middle
+/// and width are those of the rectangle it will give ([`dense_extent`]), not its hull's:
+/// a wall beside the flight returns a few points at a tread's height, a gap past its side,
+/// and one such column widens the hull by the gap, moves its middle by half of it, and on
+/// steps where it fell on alternate sides turned the line by 4 deg (regression
+/// `wall-column-turned-the-flight`, the cell method).
 fn through_the_middles(stair: &[&Candidate], axes: P2, p: &PerceptionParams) -> P2 {
     let across = P2::new(-axes.y, axes.x);
     let spans: Vec<(f64, f64, f64)> = stair
         .iter()
         .map(|c| {
-            let (ra, rb) = geom2d::extents(&c.hull, &axes);
+            let ra = dense_extent(&c.xy, &axes, p.voxel_resolution_m, p.min_edge_row_fill);
+            let rb = dense_extent(&c.xy, &across, p.voxel_resolution_m, p.min_edge_row_fill);
             ((ra[0] + ra[1]) / 2.0, (rb[0] + rb[1]) / 2.0, rb[1] - rb[0])
         })
         .collect();
@@ -822,6 +828,34 @@ mod tests {
             flight_deg < 0.67 * rect_deg,
             "the flight's ascent is {flight_deg:.2} deg off (rms), the rectangles' {rect_deg:.2}"
         );
+    }
+
+    /// Regression `wall-column-turned-the-flight`, the cell method's view from the floor of
+    /// a flight 0.81 m wide yawed 17 deg between stairwell walls 6 cm past its sides: a
+    /// wall's return at a tread's height joined steps 2 and 3 on the left and step 4 on
+    /// the right, one column each. The flight's ascent stays within half a degree.
+    #[test]
+    fn a_wall_column_beside_a_tread_does_not_turn_the_flight() {
+        let p = PerceptionParams::default();
+        let yaw_deg = 17.0f32;
+        let (s, c) = yaw_deg.to_radians().sin_cos();
+        let stair: Vec<Candidate> = [1.0f32, 1.0, -1.0]
+            .iter()
+            .enumerate()
+            .map(|(i, &side)| {
+                let (front, z) = (0.37 * i as f32, 0.114 * (i + 2) as f32);
+                let mut xy = tread(front, 0.36, 0.80, yaw_deg, z).xy;
+                // The wall's column, at the tread's middle along it, 6 cm past its side.
+                let (a, b) = (front + 0.18, side * (0.40 + 0.06));
+                xy.push(P2::new(f64::from(a * c - b * s), f64::from(a * s + b * c)));
+                let at: Vec<(f32, f32)> = xy.iter().map(|q| (q.x as f32, q.y as f32)).collect();
+                candidate_at(&at, z)
+            })
+            .collect();
+        let refs: Vec<&Candidate> = stair.iter().collect();
+        let along = ascent_direction(&refs, &P2::new(-1.0, -0.3), &p);
+        let off_deg = along.y.atan2(along.x).to_degrees() - f64::from(yaw_deg);
+        assert!(off_deg.abs() < 0.5, "the flight's ascent is {off_deg:.2} deg off");
     }
 
     /// `regress wide` case wide-0035 with the cell method, the loop's first view (not in

@@ -4,7 +4,7 @@
 //! that turns the known steps and a new view into the next plan's input: the closed loop,
 //! `replay` and the tests all call it.
 
-use super::PlaneSegment;
+use super::{FrontMark, PlaneSegment};
 use nalgebra::{Isometry3, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -392,7 +392,7 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
     // inward bound for a turned view (see `surely_seen`).
     let fronts = [&fuller, &other].map(|r| match r.front_measured() {
         true => {
-            ((r.center() - r.along() * (r.depth_m() / 2.0) - c).dot(&along), FrontMark::of(r), r.nosing_m())
+            ((r.center() - r.along() * (r.depth_m() / 2.0) - c).dot(&along), r.front_mark(), r.nosing_m())
         }
         false => (surely_seen(r, &c, &along, -1.0), FrontMark::Voxels, 0.0),
     });
@@ -431,36 +431,8 @@ fn merge_view(s: &PlaneSegment, k: &PlaneSegment, max_turn_rad: f64) -> PlaneSeg
         fuller.normal().into_inner(),
         fuller.voxel_count(),
     )
-    .map(|m| {
-        m.with_front_on_riser(mark == FrontMark::Riser)
-            .with_front_on_face(mark == FrontMark::Face)
-            .with_nosing_m(nosing_m)
-            .with_back_on_riser(back_on_riser)
-    })
+    .map(|m| m.with_front(mark).with_nosing_m(nosing_m).with_back_on_riser(back_on_riser))
     .unwrap_or(fuller)
-}
-
-/// Where a view's front edge came from, by how much it is believed (least first).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-enum FrontMark {
-    /// The tread's voxels or cells.
-    Voxels,
-    /// Its own face (no riser seen under it).
-    Face,
-    /// Its riser.
-    Riser,
-}
-
-impl FrontMark {
-    fn of(r: &PlaneSegment) -> Self {
-        if r.front_on_riser() {
-            Self::Riser
-        } else if r.front_on_face() {
-            Self::Face
-        } else {
-            Self::Voxels
-        }
-    }
 }
 
 /// How far along `along` (from `c`) the view `r` surely saw tread at its front (`sign`
@@ -536,7 +508,7 @@ mod tests {
         let origin = Point3::new(0.3, 0.0, 1.4);
         let truth = [(0.735, 0.2), (1.005, 0.4), (1.275, 0.6)];
         let known: Vec<PlaneSegment> =
-            truth.iter().map(|&(x, z)| step(x, z, 0.27).with_front_on_riser(true)).collect();
+            truth.iter().map(|&(x, z)| step(x, z, 0.27).with_front(FrontMark::Riser)).collect();
         let map = StepMap { known: known.clone() };
         let drift = Vector3::new(0.04, 0.0, 0.025);
         let seen: Vec<PlaneSegment> = known.iter().map(|k| k.clone().moved(&drift)).collect();
@@ -570,10 +542,10 @@ mod tests {
         let origin = Point3::new(0.5, 0.0, 1.5);
         let known: Vec<PlaneSegment> = [(0.74, 0.1), (1.02, 0.2), (1.30, 0.3)]
             .iter()
-            .map(|&(x, z)| step(x, z, 0.28).with_front_on_riser(true))
+            .map(|&(x, z)| step(x, z, 0.28).with_front(FrontMark::Riser))
             .collect();
         let map = StepMap { known };
-        let seen = vec![step(1.128, 0.199, 0.067), step(1.30, 0.299, 0.28).with_front_on_riser(true)];
+        let seen = vec![step(1.128, 0.199, 0.067), step(1.30, 0.299, 0.28).with_front(FrontMark::Riser)];
         assert_eq!(map.register(&seen, &origin, &p), None);
         // Drift of 2.5 cm in height is still found on such a flight.
         let drifted: Vec<PlaneSegment> =
@@ -597,13 +569,13 @@ mod tests {
             .map(|&(x, z)| {
                 let depth_m = 0.28 + nose_out_m;
                 step(x - nose_out_m + depth_m / 2.0, z, depth_m)
-                    .with_front_on_riser(true)
+                    .with_front(FrontMark::Riser)
                     .with_nosing_m(nose_out_m)
             })
             .collect();
         let map = StepMap { known };
         let seen: Vec<PlaneSegment> =
-            risers.iter().map(|&(x, z)| step(x + 0.14, z, 0.28).with_front_on_riser(true)).collect();
+            risers.iter().map(|&(x, z)| step(x + 0.14, z, 0.28).with_front(FrontMark::Riser)).collect();
         assert_eq!(map.register(&seen, &origin, &p), None);
         let drifted: Vec<PlaneSegment> =
             seen.iter().map(|s| s.clone().moved(&Vector3::new(-0.04, 0.0, 0.0))).collect();
@@ -622,7 +594,7 @@ mod tests {
         let known: Vec<PlaneSegment> = [(1.2, 0.17), (1.48, 0.34), (1.76, 0.51)]
             .iter()
             .map(|&(x, z)| {
-                level(Point3::new(x, 0.0, z), Vector3::x(), 0.28, 0.45, 10).with_front_on_riser(true)
+                level(Point3::new(x, 0.0, z), Vector3::x(), 0.28, 0.45, 10).with_front(FrontMark::Riser)
             })
             .collect();
         let map = StepMap { known: known.clone() };
@@ -665,7 +637,7 @@ mod tests {
         let p = StepMapParams::default();
         let front = |r: &PlaneSegment| r.center().x - r.depth_m() / 2.0;
         // Known: the nose at 0.87 on its riser; seen nearer, its front 2 cm out, from voxels.
-        let on_riser = step(1.005, 0.4, 0.27).with_front_on_riser(true);
+        let on_riser = step(1.005, 0.4, 0.27).with_front(FrontMark::Riser);
         let out = level(Point3::new(0.995, 0.0, 0.4), Vector3::x(), 0.29, 0.5, 20);
         let merged = merge(std::slice::from_ref(&on_riser), vec![out.clone()], &p);
         assert!(
@@ -682,7 +654,7 @@ mod tests {
         let turn = 5f64.to_radians();
         let turned =
             level(Point3::new(1.005, 0.0, 0.4), Vector3::new(turn.cos(), turn.sin(), 0.0), 0.27, 1.0, 20)
-                .with_front_on_riser(true);
+                .with_front(FrontMark::Riser);
         let merged = merge(std::slice::from_ref(&out), vec![turned], &p);
         let nose = merged[0].center().x - merged[0].depth_m() / 2.0 * merged[0].along().x;
         assert!((nose - (1.005 - 0.135 * turn.cos())).abs() < 2e-3, "{nose}");
@@ -691,8 +663,8 @@ mod tests {
         assert!((front(&merged[0]) - 0.85).abs() < 1e-9 && !merged[0].front_on_riser());
         // A front on its own face (an open riser) stands against one from voxels as one on a
         // riser does, either way round, and gives way to one on a riser.
-        let on_face = step(1.005, 0.4, 0.27).with_front_on_face(true);
-        let riser_in = step(1.015, 0.4, 0.25).with_front_on_riser(true);
+        let on_face = step(1.005, 0.4, 0.27).with_front(FrontMark::Face);
+        let riser_in = step(1.015, 0.4, 0.25).with_front(FrontMark::Riser);
         // (one view, the other, the front kept, whether it is on a riser)
         for (a, b, at, on_riser) in [(&on_face, &out, 0.87, false), (&on_face, &riser_in, 0.89, true)] {
             for (known, seen) in [(a, b), (b, a)] {
@@ -717,7 +689,7 @@ mod tests {
         let p = StepMapParams::default();
         let back = |r: &PlaneSegment| r.center().x + r.depth_m() / 2.0;
         // Known: the back at 1.14 on its riser; seen again, 6 cm past it, from voxels, fuller.
-        let on_riser = step(1.005, 0.4, 0.27).with_front_on_riser(true).with_back_on_riser(true);
+        let on_riser = step(1.005, 0.4, 0.27).with_front(FrontMark::Riser).with_back_on_riser(true);
         let past = level(Point3::new(1.035, 0.0, 0.4), Vector3::x(), 0.33, 0.5, 40);
         for (known, seen) in [(&on_riser, &past), (&past, &on_riser)] {
             let merged = merge(std::slice::from_ref(known), vec![seen.clone()], &p);

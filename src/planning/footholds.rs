@@ -885,6 +885,7 @@ impl Frame {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::perception::FrontMark;
     use nalgebra::Point3;
 
     /// About HRP-4's legs: thigh and shank 0.353 m, the trailing leg to 95 % of their length,
@@ -1356,7 +1357,7 @@ mod tests {
         let flight = |depth: f64| -> Vec<PlaneSegment> {
             (0..3)
                 .map(|i| {
-                    tread(0.5 + depth * i as f64, 0.15 * (i + 1) as f64, depth).with_front_on_riser(true)
+                    tread(0.5 + depth * i as f64, 0.15 * (i + 1) as f64, depth).with_front(FrontMark::Riser)
                 })
                 .collect()
         };
@@ -1429,7 +1430,7 @@ mod tests {
         seen.push(Point3::new(0.32, -0.1, -0.01));
         assert!(riser_in_sight(&start, &rects, &seen, &p).is_ok());
         let mut placed = rects.clone();
-        placed[0] = rects[0].clone().with_front_on_riser(true);
+        placed[0] = rects[0].clone().with_front(FrontMark::Riser);
         assert!(riser_in_sight(&start, &placed, &[], &p).is_ok());
 
         // The walk back: in the feet's lanes, within the approach's stride, on the floor, to
@@ -1492,7 +1493,7 @@ mod tests {
         let sole = |y: f64| Isometry3::translation(0.3, y, 0.0);
         let start = Stance { right: sole(-0.1), left: sole(0.1), step: None };
         let rects: Vec<PlaneSegment> = (0..3)
-            .map(|i| tread(0.5 + 0.23 * i as f64, 0.1 * (i + 1) as f64, 0.23).with_front_on_riser(true))
+            .map(|i| tread(0.5 + 0.23 * i as f64, 0.1 * (i + 1) as f64, 0.23).with_front(FrontMark::Riser))
             .collect();
         assert!(matches!(
             footholds_below(&start, &rects, 1, &[], &LEGS, &p),
