@@ -87,15 +87,13 @@ pub struct RiserParams {
     /// is taken for the riser, and the tread ends before it.
     pub min_width_share: f64,
     /// Least share, of the strips across the tread in which the front's window shows
-    /// returns in the band, in which they are the riser's, for it to place the front: a
-    /// riser spans the flight. A thing on the tread below as tall as the band's lower half
-    /// shows there as a dense peak across its own width alone (`real-0025`'s shoe on step 5,
-    /// 0.12 m across, its top in step 6's band seen from step 4: 0.05, its peak 25 mm out
-    /// past the rectangle's front). Risers read 0.75-1.00 (every start view of `wide`,
-    /// `real` and `regressions`, both methods): some strips show strays in the window
-    /// where the rectangle's front is turned against its riser. Lower than
+    /// returns in the band, in which they are the riser's (about the middle's peak, or about
+    /// the riser's own line through it where the rectangle is turned against the riser),
+    /// for it to place the front: a riser spans the flight. A thing on the tread below, as
+    /// tall as the band's lower half, shows there as a dense peak across its own width
+    /// alone (regression `shoe-top-taken-for-the-riser-above`). Lower than
     /// `min_width_share`: a front not placed stays where the rectangle puts it, out past
-    /// the riser by up to 4 cm (the cell method under noise).
+    /// the riser by centimetres with the cell method under noise (see `front_inward_m`).
     pub min_front_width_share: f64,
 }
 
@@ -488,7 +486,60 @@ fn riser_seen(s: &PlaneSegment, points: &ByHeight, look: &Look, p: &RiserParams)
     if !whole {
         return None;
     }
-    Some(Seen { at_m: at, width_share: width_share(&near, half_width, at_riser) })
+    // Where the rectangle is turned against its riser (its axis errs by degrees), the far
+    // strips' returns lie off the middle's peak (by 12.5 mm at 1.5 deg on a 1 m tread): the
+    // share is also taken about the riser's own line, as its strips place it, where that
+    // line passes through the peak (a line through the strips beside a thing that made the
+    // peak is not the peak's).
+    let aligned = width_share(&near, half_width, |t, _| at_riser(t));
+    let lower: Vec<(f64, f64)> = near.iter().filter(|r| r.1 < mid).map(|r| (r.0, r.2)).collect();
+    let width_share = match riser_line(&lower, half_width, p.half_window_m) {
+        Some((a, b)) if at_riser(a) => {
+            aligned.max(width_share(&near, half_width, |t, y| (t - a - b * y).abs() < p.half_window_m / 4.0))
+        }
+        _ => aligned,
+    };
+    Some(Seen { at_m: at, width_share })
+}
+
+/// Least returns in a strip across a tread for its own peak to place the riser there
+/// ([`riser_line`]): a tread's strays in the band are one or two a strip.
+const STRIP_MIN_RETURNS: usize = 3;
+
+/// Largest turn of a riser against its tread's rectangle that [`riser_line`] fits, radians
+/// (a rectangle's axis errs by a few degrees: 4 deg in regression
+/// `wall-column-turned-the-flight`).
+const MAX_TURN_RAD: f64 = 0.2;
+
+/// The riser's line across a tread as its strips place it: each strip's own peak
+/// ([`peak`]) of its `returns` (offset along, offset across; metres) where it holds
+/// [`STRIP_MIN_RETURNS`] or more, and through those Theil and Sen's line (the median of the
+/// pairwise slopes, then the median intercept): (offset along at the middle, metres; along
+/// per metre across). `None` with fewer than two such strips, or turned more than
+/// [`MAX_TURN_RAD`].
+fn riser_line(returns: &[(f64, f64)], half_width_m: f64, half_window_m: f64) -> Option<(f64, f64)> {
+    let strips = strip_count(half_width_m);
+    let mut by_strip: Vec<Vec<f64>> = vec![Vec::new(); strips];
+    for &(t, y) in returns {
+        by_strip[strip_of(y, half_width_m, strips)].push(t);
+    }
+    let peaks: Vec<(f64, f64)> = by_strip
+        .iter()
+        .enumerate()
+        .filter(|(_, ts)| ts.len() >= STRIP_MIN_RETURNS)
+        .filter_map(|(k, ts)| {
+            Some(((k as f64 + 0.5) * WIDTH_STRIP_M - half_width_m, peak(ts, half_window_m)?))
+        })
+        .collect();
+    let slopes = peaks
+        .iter()
+        .enumerate()
+        .flat_map(|(i, a)| peaks[i + 1..].iter().map(move |b| (b.1 - a.1) / (b.0 - a.0)));
+    let slope = median(slopes)?;
+    if slope.abs() > MAX_TURN_RAD.tan() {
+        return None;
+    }
+    Some((median(peaks.iter().map(|(y, t)| t - slope * y))?, slope))
 }
 
 /// The peak of `ts` (offsets along a look, metres): their median, then twice again the
@@ -503,17 +554,28 @@ fn peak(ts: &[f64], half_window_m: f64) -> Option<f64> {
     Some(at)
 }
 
+/// How many strips (`WIDTH_STRIP_M` wide) cut a tread within `half_width_m` of its middle.
+fn strip_count(half_width_m: f64) -> usize {
+    ((2.0 * half_width_m / WIDTH_STRIP_M).ceil() as usize).max(1)
+}
+
+/// The strip of `strips` (see [`strip_count`]) that a return `across_m` from the middle
+/// falls in.
+fn strip_of(across_m: f64, half_width_m: f64, strips: usize) -> usize {
+    (((across_m + half_width_m) / WIDTH_STRIP_M) as usize).min(strips - 1)
+}
+
 /// Of the strips across a tread (`WIDTH_STRIP_M` wide, within `half_width_m` of its middle)
 /// in which `near` (returns as (along, height, across), metres) shows anything, the share in
-/// which some return is `on` the surface sought (by its offset along): a strip the sweep
-/// did not reach says nothing either way.
-fn width_share(near: &[(f64, f64, f64)], half_width_m: f64, on: impl Fn(f64) -> bool) -> f64 {
-    let strips = ((2.0 * half_width_m / WIDTH_STRIP_M).ceil() as usize).max(1);
+/// which some return is `on` the surface sought (by its offsets along and across): a strip
+/// the sweep did not reach says nothing either way.
+fn width_share(near: &[(f64, f64, f64)], half_width_m: f64, on: impl Fn(f64, f64) -> bool) -> f64 {
+    let strips = strip_count(half_width_m);
     let (mut seen, mut on_it) = (vec![false; strips], vec![false; strips]);
     for r in near {
-        let k = (((r.2 + half_width_m) / WIDTH_STRIP_M) as usize).min(strips - 1);
+        let k = strip_of(r.2, half_width_m, strips);
         seen[k] = true;
-        on_it[k] |= on(r.0);
+        on_it[k] |= on(r.0, r.2);
     }
     let count = |v: &[bool]| v.iter().filter(|b| **b).count() as f64;
     count(&on_it) / count(&seen).max(1.0)
@@ -593,7 +655,7 @@ fn face_along(
     };
     let seen = about >= p.min_returns
         && about as f64 / (2.0 * w) >= 2.0 * flanks
-        && width_share(&near, half_width, on_face) >= p.min_width_share
+        && width_share(&near, half_width, |t, _| on_face(t)) >= p.min_width_share
         && seen_past();
     seen.then_some(at)
 }
@@ -1210,7 +1272,7 @@ mod tests {
         let seg = tread(1.0, 0.3, 0.3);
         // A shoe (12 cm across) on the tread below, against this tread's riser, its top 5 cm
         // under this tread's (the middle of the riser's band, its returns scattered about
-        // it), seen from below over the tread's nose: the riser is shadowed, the tread's
+        // it), seen from a step below over this tread's nose: the riser is shadowed, the tread's
         // strays spread thin behind its nose in the band's upper half, across the flight.
         let shoe: Vec<Point3<f32>> = [0.24, 0.245, 0.25, 0.255, 0.26]
             .iter()
@@ -1230,5 +1292,27 @@ mod tests {
         let mut beside_it = [seg.clone()];
         assert_eq!(place_fronts(&mut beside_it, &all(&cloud), &cloud, &eye, None, None, &p), (1, 0));
         assert!((edges(&beside_it[0]).0 - 1.0).abs() < 1e-3, "front at {:.4}", edges(&beside_it[0]).0);
+    }
+    #[test]
+    fn a_riser_turned_against_its_tread_or_seen_in_part_places_the_front() {
+        let eye = Point3::new(0.0, 0.0, 1.4);
+        let p = RiserParams::default();
+        let seg = tread(1.0, 0.3, 0.3);
+        // The riser turned 5 deg against the rectangle (its axis erring so), its returns every
+        // 2 cm across the tread and 5 mm up its band: a third of the strips lie within the
+        // peak's half-width of the middle's peak, all of them on the riser's own line.
+        let turn = 5f64.to_radians().tan();
+        let turned: Vec<Point3<f32>> = wall(1.0, 0.22, 0.3)
+            .into_iter()
+            .map(|q| Point3::new((1.0 + f64::from(q.y) * turn) as f32, q.y, q.z))
+            .collect();
+        let mut one = [seg.clone()];
+        assert_eq!(place_fronts(&mut one, &all(&turned), &turned, &eye, None, None, &p), (1, 0));
+        assert!((edges(&one[0]).0 - 1.0).abs() < 0.005, "front at {:.4}", edges(&one[0]).0);
+        // The riser reached across 0.3 m of the tread only, nothing else in the window: the
+        // strips the sweep did not reach say nothing.
+        let part: Vec<Point3<f32>> = wall(1.0, 0.22, 0.3).into_iter().filter(|q| q.y.abs() < 0.15).collect();
+        let mut one = [seg.clone()];
+        assert_eq!(place_fronts(&mut one, &all(&part), &part, &eye, None, None, &p), (1, 0));
     }
 }
