@@ -507,8 +507,7 @@ fn riser_seen(s: &PlaneSegment, points: &ByHeight, look: &Look, p: &RiserParams)
 const STRIP_MIN_RETURNS: usize = 3;
 
 /// Largest turn of a riser against its tread's rectangle that [`riser_line`] fits, radians
-/// (a rectangle's axis errs by a few degrees: 4 deg in regression
-/// `wall-column-turned-the-flight`).
+/// (a rectangle's axis errs by a few degrees; regression `wall-column-turned-the-flight`).
 const MAX_TURN_RAD: f64 = 0.2;
 
 /// The riser's line across a tread as its strips place it: each strip's own peak

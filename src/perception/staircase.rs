@@ -455,7 +455,7 @@ fn ascent_direction(stair: &[&Candidate], sensor: &P2, p: &PerceptionParams) -> 
 /// and width are those of the rectangle it will give ([`dense_extent`]), not its hull's:
 /// a wall beside the flight returns a few points at a tread's height, a gap past its side,
 /// and one such column widens the hull by the gap, moves its middle by half of it, and on
-/// steps where it fell on alternate sides turned the line by 4 deg (regression
+/// steps where it fell on alternate sides turned the line by degrees (regression
 /// `wall-column-turned-the-flight`, the cell method).
 fn through_the_middles(stair: &[&Candidate], axes: P2, p: &PerceptionParams) -> P2 {
     let across = P2::new(-axes.y, axes.x);
