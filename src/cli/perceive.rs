@@ -2,7 +2,7 @@
 //! on a scenario's simulated scan, a PLY / PCD cloud, or a voxel file such as the paper's
 //! `voxels.txt`.
 
-use anyhow::Result;
+use anyhow::{bail, Result};
 use clap::Args;
 use serde_json::json;
 use stairbench::cloud::io::{read_cloud, read_xyz_text};
@@ -21,11 +21,12 @@ pub struct PerceiveArgs {
     /// representatives as x,y,z rows (.txt, e.g. the paper's voxels.txt: Filters 1-2 skipped).
     input: Option<PathBuf>,
     /// Estimate the normals on exactly k neighbours (default: the paper's k = 10 of §5,
-    /// grown in proportion to the sweep's measured range noise above 10 mm).
+    /// grown in proportion to the sweep's measured range noise above 10 mm). The paper's
+    /// pipeline only (`--method paper`, or a cloud without a scan grid).
     #[arg(short, long)]
     k: Option<usize>,
     /// Neighbourhood search of the normal estimation (auto: the scan grid when the cloud
-    /// has one).
+    /// has one). The paper's pipeline only, as `-k`.
     #[arg(long, value_enum)]
     search: Option<SearchArg>,
     /// How the planes are found: the paper's §4 pipeline, or planes grown on cells of the
@@ -118,6 +119,11 @@ pub fn run(a: PerceiveArgs) -> Result<ExitCode> {
         Input::Cloud(cloud) => (cloud, false, None),
         Input::Voxels(cloud) => (cloud, true, None),
     };
+    if params.method == Method::Cells && cloud.grid().is_some() && (a.k.is_some() || a.search.is_some()) {
+        bail!(
+            "-k and --search set the normals of the paper's pipeline, and the cell method computes none: drop them or use --method paper"
+        );
+    }
     let run_once = || if voxels { perceive_voxels(cloud, &params) } else { perceive(cloud, &params) };
     let mut runs: Vec<_> = (0..a.repeat.max(1)).map(|_| run_once()).collect();
     runs.sort_by(|x, y| match (x, y) {

@@ -12,7 +12,9 @@
 //!    sweep's range noise (measured on the sweep, at least [`CellParams::planarity_floor_m`]):
 //!    a cell across a nose holds tread and riser and is not. A plane whose tilt is known
 //!    (`is_known`) is level within Filter 1's slope plus the uncertainty of its tilt
-//!    ([`CellParams::level_sigmas`]), else steep.
+//!    ([`CellParams::level_sigmas`]), else steep. A cell that is neither is cut into its
+//!    upper and lower rows, and is level by a half that is ([`CellParams::split_rows`]): a
+//!    tread seen over few rows (far, or from low) holds no whole cell.
 //! 2. **Regions.** From the flattest level cell not yet taken, a region grows over the
 //!    grid's 4-neighbours: a level plane cell joins when its centre lies within
 //!    [`CellParams::merge_distance_m`] of the region's plane, refitted from the summed
@@ -45,10 +47,25 @@ pub struct CellParams {
     /// Scan rows per cell. With the default lidar (0.25 deg between rows and between beams)
     /// an 8 x 8 cell spans about 3.5 cm at 1 m across the rays, more along a tread seen
     /// obliquely: small enough that a 25 cm tread holds several, large enough that 64
-    /// points under 10 mm of range noise fit a normal within about 2 deg.
+    /// points under 10 mm of range noise fit a normal within about 2 deg. A tread seen over
+    /// fewer rows than that holds no whole cell; see `split_rows`.
     pub rows: usize,
     /// Beams per cell (see `rows`).
     pub beams: usize,
+    /// A cell that is neither a level nor a steep plane (across a nose, or a tread and the
+    /// wall behind it) is cut into its upper and lower rows, and a half that is a level
+    /// plane makes the cell level with that half's points (all its points still go where
+    /// step 3 gives them). A row
+    /// of the tilting lidar crosses a tread along its width and the rows step along its
+    /// depth: a tread seen over `R` rows holds a whole cell only when `R >= 2 rows - 1` (the
+    /// cells' edges fall where they fall), and a whole half when `R >= rows - 1`. A 27 cm
+    /// tread 0.8 m below the head and 2.3 m ahead spans about 8 rows (the top step of
+    /// Exp. 1 seen from a head 1 m behind the robot, which the paper's pipeline found and
+    /// 8 x 8 cells did not; test `a_tread_seen_over_few_rows_is_found_by_the_cells`).
+    /// Cells of 4 rows x 16 beams everywhere found it too, but lost two of the three treads
+    /// of regression `pelvis-held-turned-from-the-flight`'s second view (seen near and
+    /// steeply through 18 mm of noise, a 4-row cell spans 2 cm of a tread's depth).
+    pub split_rows: bool,
     /// A cell is fitted when at least this share of its grid places returned a point.
     pub min_fill: f64,
     /// A cell is a plane when its points' RMS distance from their plane is at most this
@@ -100,6 +117,7 @@ impl Default for CellParams {
         Self {
             rows: 8,
             beams: 8,
+            split_rows: true,
             min_fill: 0.5,
             planarity_noise_factor: 2.0,
             planarity_floor_m: 0.004,
@@ -261,6 +279,9 @@ impl Plane {
 #[derive(Debug, Clone, Copy)]
 struct Cell {
     moments: Moments,
+    /// The sums of the points its level plane was fitted to, which a region takes in: all
+    /// of `moments`, or a half's ([`CellParams::split_rows`]).
+    fit: Moments,
     /// Its plane, when it is a level plane.
     level: Option<Plane>,
     /// Its plane, when it is a plane too steep to be level (a riser, a wall): its points
@@ -376,25 +397,71 @@ fn is_level(f: &Plane, up: &Vector3<f64>, max_tilt_rad: f64, p: &CellParams) -> 
     is_known(f, p) && tilt_rad <= max_tilt_rad + p.level_sigmas * f.tilt_sd_rad
 }
 
-/// The grid's cell rows and columns for `p`.
-fn cell_dims(grid: &ScanGrid, p: &CellParams) -> (usize, usize) {
-    (grid.rows().div_ceil(p.rows), grid.beams().div_ceil(p.beams))
+/// What a cell's plane is judged by in step 1.
+struct Limits {
+    up: Vector3<f64>,
+    /// Filter 1's slope, radians.
+    max_tilt_rad: f64,
+    /// The sweep's range noise, squared.
+    noise_var_m2: f64,
+    /// The most RMS distance of a plane's points from it.
+    max_rms_m: f64,
 }
 
-/// Calls `f` with each finite point of cell `(cr, cb)`: its index and position from
-/// `origin`, row by row.
-#[inline(always)]
-fn for_cell_points(
+/// The level plane of cell `(cr, cb)`'s upper or lower rows, with the sums of its points,
+/// when one half is one ([`CellParams::split_rows`]): the half with more points, or of two
+/// as full the flatter. `None` when neither is a known level plane.
+fn level_half(
     grid: &ScanGrid,
     points: &[Point3<f32>],
     origin: &Vector3<f64>,
     p: &CellParams,
     (cr, cb): (usize, usize),
+    l: &Limits,
+) -> Option<(Moments, Plane)> {
+    let (r0, r2) = cell_rows(grid, p, cr);
+    let r1 = r0 + p.rows / 2;
+    if r1 <= r0 || r1 >= r2 {
+        return None;
+    }
+    let min_points = (p.min_fill * ((r1 - r0) * p.beams) as f64).ceil().max(3.0);
+    [(r0, r1), (r1, r2)]
+        .into_iter()
+        .filter_map(|rows| {
+            let mut m = Moments::default();
+            for_rows_points(grid, points, origin, p, rows, cb, |_, q| m.add(&q));
+            let f = (m.n >= min_points).then(|| m.plane(l.noise_var_m2)).flatten()?;
+            (f.rms_m <= l.max_rms_m && is_level(&f, &l.up, l.max_tilt_rad, p)).then_some((m, f))
+        })
+        .max_by(|(a, f), (b, g)| a.n.total_cmp(&b.n).then(g.rms_m.total_cmp(&f.rms_m)))
+}
+
+/// The grid's cell rows and columns for `p`.
+fn cell_dims(grid: &ScanGrid, p: &CellParams) -> (usize, usize) {
+    (grid.rows().div_ceil(p.rows), grid.beams().div_ceil(p.beams))
+}
+
+/// The scan rows of cell row `cr`.
+fn cell_rows(grid: &ScanGrid, p: &CellParams, cr: usize) -> (usize, usize) {
+    let r0 = cr * p.rows;
+    (r0, (r0 + p.rows).min(grid.rows()))
+}
+
+/// Calls `f` with each finite point of rows `r0..r1` of cell column `cb` (a cell's:
+/// [`cell_rows`]): its index and position from `origin`, row by row.
+#[inline(always)]
+fn for_rows_points(
+    grid: &ScanGrid,
+    points: &[Point3<f32>],
+    origin: &Vector3<f64>,
+    p: &CellParams,
+    (r0, r1): (usize, usize),
+    cb: usize,
     mut f: impl FnMut(u32, Vector3<f64>),
 ) {
     let beams = grid.beams();
-    let (r0, b0) = (cr * p.rows, cb * p.beams);
-    let (r1, b1) = ((r0 + p.rows).min(grid.rows()), (b0 + p.beams).min(beams));
+    let b0 = cb * p.beams;
+    let b1 = (b0 + p.beams).min(beams);
     for r in r0..r1 {
         for &c in &grid.cells()[r * beams + b0..r * beams + b1] {
             let Some(q) = points.get(c as usize) else { continue };
@@ -435,7 +502,7 @@ pub fn extract(
                 let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
                 // The box in the points' own coordinates, as step 4 bins them.
                 let mut box_m = [[f32::INFINITY; 2], [f32::NEG_INFINITY; 2]];
-                for_cell_points(grid, points, &origin, p, (cr, cb), |i, q| {
+                for_rows_points(grid, points, &origin, p, cell_rows(grid, p, cr), cb, |i, q| {
                     m.add(&q);
                     lo = lo.inf(&q);
                     hi = hi.sup(&q);
@@ -452,9 +519,17 @@ pub fn extract(
                 // A plane of uncertain tilt is neither (see `is_known`).
                 let known = plane.filter(|f| is_known(f, p));
                 let steep = known.filter(|f| !is_level(f, &up, max_tilt_rad, p));
-                let level = known.filter(|_| steep.is_none());
+                let mut level = known.filter(|_| steep.is_none());
+                let mut fit = m;
+                // Neither a level nor a steep plane: perhaps two surfaces, one in each half.
+                if p.split_rows && level.is_none() && steep.is_none() && m.n >= min_points {
+                    let limits = Limits { up, max_tilt_rad, noise_var_m2, max_rms_m };
+                    if let Some((half, f)) = level_half(grid, points, &origin, p, (cr, cb), &limits) {
+                        (fit, level) = (half, Some(f));
+                    }
+                }
                 let reach_m = if m.n > 0.0 { REACH_DIAGONALS * (hi - lo).norm() } else { 0.0 };
-                Cell { moments: m, level, steep, reach_m, box_m }
+                Cell { moments: m, fit, level, steep, reach_m, box_m }
             })
         })
         .collect();
@@ -490,7 +565,7 @@ pub fn extract(
                     if !near_planes(&cells, &label, &planes, (crs, cbs), (cr, cb), &mut near) {
                         continue;
                     }
-                    for_cell_points(grid, points, &origin, p, (cr, cb), |i, q| {
+                    for_rows_points(grid, points, &origin, p, cell_rows(grid, p, cr), cb, |i, q| {
                         if let Some(id) = region_of(&q, &near, &planes, noise_m, p) {
                             tables.add(&mut out, id, i, &points[i as usize]);
                         }
@@ -779,7 +854,7 @@ fn grow(
         }
         let id = planes.len() as u32;
         let Some(mut plane) = cells[seed].level else { continue };
-        let mut m = cells[seed].moments;
+        let mut m = cells[seed].fit;
         label[seed] = id;
         queue.clear();
         queue.push(seed);
@@ -796,7 +871,7 @@ fn grow(
                     && cells[nb].level.is_some_and(|f| plane.distance_m(&f.centre) <= p.merge_distance_m);
                 if joins {
                     label[nb] = id;
-                    m.merge(&cells[nb].moments);
+                    m.merge(&cells[nb].fit);
                     plane = m.plane(noise_var_m2).filter(|f| f.normal.dot(up) > 0.0).unwrap_or(plane);
                     queue.push(nb);
                 }
@@ -1093,6 +1168,7 @@ mod tests {
             }
             Cell {
                 moments: Moments { n: 2.0, ..Default::default() },
+                fit: Moments::default(),
                 level: None,
                 steep: None,
                 reach_m: 0.0,
@@ -1102,6 +1178,7 @@ mod tests {
         // A 1 x 5 grid of cells: region 0, region 0, empty, empty, region 1.
         let empty = Cell {
             moments: Moments::default(),
+            fit: Moments::default(),
             level: None,
             steep: None,
             reach_m: 0.0,

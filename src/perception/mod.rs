@@ -141,7 +141,7 @@ pub struct PerceptionParams {
 impl Default for PerceptionParams {
     fn default() -> Self {
         Self {
-            method: Method::Paper,
+            method: Method::default(),
             cells: cells::CellParams::default(),
             seed_resolution_m: 0.1,
             voxel_resolution_m: 0.02,
