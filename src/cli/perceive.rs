@@ -113,17 +113,24 @@ pub fn run(a: PerceiveArgs) -> Result<ExitCode> {
         Some(MethodArg::Cells) => params.method = Method::Cells,
         None => {}
     }
+    // A scenario's scan and the hardware's sweep are organized grids, which the cells take;
+    // a points file has none and runs the paper's pipeline whatever the method.
+    let ext =
+        a.input.as_deref().and_then(Path::extension).and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let sweep =
+        a.hardware.is_some() || !matches!(ext.as_deref(), Some("ply" | "pcd" | "txt" | "xyz" | "csv"));
+    let paper_only = a.k.is_some() || a.search.is_some_and(|s| !matches!(s, SearchArg::Auto));
+    if params.method == Method::Cells && sweep && paper_only {
+        bail!(
+            "-k and --search set the normals of the paper's pipeline, and the cell method computes none: drop them or use --method paper"
+        );
+    }
     let input = load(&a)?;
     let (cloud, voxels, scene) = match &input {
         Input::Scenario(scene, cloud) => (cloud, false, Some(scene.as_ref())),
         Input::Cloud(cloud) => (cloud, false, None),
         Input::Voxels(cloud) => (cloud, true, None),
     };
-    if params.method == Method::Cells && cloud.grid().is_some() && (a.k.is_some() || a.search.is_some()) {
-        bail!(
-            "-k and --search set the normals of the paper's pipeline, and the cell method computes none: drop them or use --method paper"
-        );
-    }
     let run_once = || if voxels { perceive_voxels(cloud, &params) } else { perceive(cloud, &params) };
     let mut runs: Vec<_> = (0..a.repeat.max(1)).map(|_| run_once()).collect();
     runs.sort_by(|x, y| match (x, y) {

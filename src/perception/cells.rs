@@ -19,7 +19,7 @@
 //!    grid's 4-neighbours: a level plane cell joins when its centre lies within
 //!    [`CellParams::merge_distance_m`] of the region's plane, refitted from the summed
 //!    moments as it grows. Two treads meet in the grid where a riser is hidden, a rise apart.
-//!    A region is judged level again on all its points.
+//!    A region is judged level again on all the points its cells were fitted to.
 //! 3. **Points.** Each point of a region's cell or of a cell beside one (8-neighbours) goes
 //!    to the likeliest plane among those cells' regions and steep planes, in its own noise
 //!    (`region_of`): to a region only within its tolerance and within reach of the
@@ -55,16 +55,13 @@ pub struct CellParams {
     /// A cell that is neither a level nor a steep plane (across a nose, or a tread and the
     /// wall behind it) is cut into its upper and lower rows, and a half that is a level
     /// plane makes the cell level with that half's points (all its points still go where
-    /// step 3 gives them). A row
-    /// of the tilting lidar crosses a tread along its width and the rows step along its
-    /// depth: a tread seen over `R` rows holds a whole cell only when `R >= 2 rows - 1` (the
-    /// cells' edges fall where they fall), and a whole half when `R >= rows - 1`. A 27 cm
-    /// tread 0.8 m below the head and 2.3 m ahead spans about 8 rows (the top step of
-    /// Exp. 1 seen from a head 1 m behind the robot, which the paper's pipeline found and
-    /// 8 x 8 cells did not; test `a_tread_seen_over_few_rows_is_found_by_the_cells`).
-    /// Cells of 4 rows x 16 beams everywhere found it too, but lost two of the three treads
-    /// of regression `pelvis-held-turned-from-the-flight`'s second view (seen near and
-    /// steeply through 18 mm of noise, a 4-row cell spans 2 cm of a tread's depth).
+    /// step 3 gives them). A row of the tilting lidar crosses a tread along its width and
+    /// the rows step along its depth: a tread seen over `R` rows always holds a whole cell
+    /// when `R >= 2 rows - 1` (from `R >= rows` only where the cells' edges happen to fall
+    /// right), and a whole half when `R >= rows - 1`. A 27 cm tread 0.8 m below the head
+    /// and 2.3 m ahead spans about 8 rows (test `a_tread_seen_over_few_rows_is_found_by_the_cells`).
+    /// Cells of 4 rows everywhere see it too, but lose near treads seen steeply through
+    /// high noise (regression `pelvis-held-turned-from-the-flight`).
     pub split_rows: bool,
     /// A cell is fitted when at least this share of its grid places returned a point.
     pub min_fill: f64,
@@ -287,7 +284,8 @@ struct Cell {
     /// Its plane, when it is a plane too steep to be level (a riser, a wall): its points
     /// nearer that plane than a region's stay out of the region.
     steep: Option<Plane>,
-    /// Points within this of its centre are near it, metres ([`REACH_DIAGONALS`]).
+    /// Points within this of its centre (`fit`'s) are near it, metres
+    /// ([`REACH_DIAGONALS`]; a level half's own, [`CellParams::split_rows`]).
     reach_m: f64,
     /// Its points' horizontal bounding box (world x, y), metres: lowest, highest.
     box_m: [[f32; 2]; 2],
@@ -408,9 +406,11 @@ struct Limits {
     max_rms_m: f64,
 }
 
-/// The level plane of cell `(cr, cb)`'s upper or lower rows, with the sums of its points,
-/// when one half is one ([`CellParams::split_rows`]): the half with more points, or of two
-/// as full the flatter. `None` when neither is a known level plane.
+/// The level plane of cell `(cr, cb)`'s upper or lower rows, with the sums of its points
+/// and its reach ([`REACH_DIAGONALS`] of its points' box), when one half is one
+/// ([`CellParams::split_rows`]): the half with more points, or of two as full the flatter.
+/// `None` when neither is a known level plane, or for cells of under 4 rows (a half of one
+/// row is a line, of any tilt).
 fn level_half(
     grid: &ScanGrid,
     points: &[Point3<f32>],
@@ -418,22 +418,29 @@ fn level_half(
     p: &CellParams,
     (cr, cb): (usize, usize),
     l: &Limits,
-) -> Option<(Moments, Plane)> {
+) -> Option<(Moments, Plane, f64)> {
     let (r0, r2) = cell_rows(grid, p, cr);
     let r1 = r0 + p.rows / 2;
-    if r1 <= r0 || r1 >= r2 {
+    if p.rows < 4 || r1 >= r2 {
         return None;
     }
-    let min_points = (p.min_fill * ((r1 - r0) * p.beams) as f64).ceil().max(3.0);
-    [(r0, r1), (r1, r2)]
+    // Each half's least count from its full size (a last, partial row of cells counts short).
+    [(r0, r1, p.rows / 2), (r1, r2, p.rows - p.rows / 2)]
         .into_iter()
-        .filter_map(|rows| {
+        .filter_map(|(a, b, full)| {
+            let min_points = (p.min_fill * (full * p.beams) as f64).ceil().max(3.0);
             let mut m = Moments::default();
-            for_rows_points(grid, points, origin, p, rows, cb, |_, q| m.add(&q));
+            let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
+            for_rows_points(grid, points, origin, p, (a, b), cb, |_, q| {
+                m.add(&q);
+                lo = lo.inf(&q);
+                hi = hi.sup(&q);
+            });
             let f = (m.n >= min_points).then(|| m.plane(l.noise_var_m2)).flatten()?;
-            (f.rms_m <= l.max_rms_m && is_level(&f, &l.up, l.max_tilt_rad, p)).then_some((m, f))
+            let level = f.rms_m <= l.max_rms_m && is_level(&f, &l.up, l.max_tilt_rad, p);
+            level.then(|| (m, f, REACH_DIAGONALS * (hi - lo).norm()))
         })
-        .max_by(|(a, f), (b, g)| a.n.total_cmp(&b.n).then(g.rms_m.total_cmp(&f.rms_m)))
+        .max_by(|(a, f, _), (b, g, _)| a.n.total_cmp(&b.n).then(g.rms_m.total_cmp(&f.rms_m)))
 }
 
 /// The grid's cell rows and columns for `p`.
@@ -521,14 +528,16 @@ pub fn extract(
                 let steep = known.filter(|f| !is_level(f, &up, max_tilt_rad, p));
                 let mut level = known.filter(|_| steep.is_none());
                 let mut fit = m;
-                // Neither a level nor a steep plane: perhaps two surfaces, one in each half.
+                let mut reach_m = if m.n > 0.0 { REACH_DIAGONALS * (hi - lo).norm() } else { 0.0 };
+                // Neither a level nor a steep plane: perhaps two surfaces, one in each half. A
+                // level half reaches its neighbours' points from its own centre and box: the
+                // whole cell's may span a depth jump.
                 if p.split_rows && level.is_none() && steep.is_none() && m.n >= min_points {
                     let limits = Limits { up, max_tilt_rad, noise_var_m2, max_rms_m };
-                    if let Some((half, f)) = level_half(grid, points, &origin, p, (cr, cb), &limits) {
-                        (fit, level) = (half, Some(f));
+                    if let Some((half, f, r)) = level_half(grid, points, &origin, p, (cr, cb), &limits) {
+                        (fit, level, reach_m) = (half, Some(f), r);
                     }
                 }
-                let reach_m = if m.n > 0.0 { REACH_DIAGONALS * (hi - lo).norm() } else { 0.0 };
                 Cell { moments: m, fit, level, steep, reach_m, box_m }
             })
         })
@@ -541,7 +550,7 @@ pub fn extract(
     // 2. Regions.
     let level_cells = cells.iter().filter(|c| c.level.is_some()).count();
     let (mut label, planes) = grow(&cells, (crs, cbs), &up, noise_var_m2, p);
-    // A region is judged level again on all its points, as its cells were on theirs: a
+    // A region is judged level again on all the points its cells were fitted to: a
     // wall's cells seen at grazing incidence, thin across their rays, each pass within
     // their wide uncertainty, and grown together make a vertical strip whose columns, at
     // the wall's mean height, a sole's size and dense, would pass for a tread.
@@ -642,7 +651,7 @@ fn near_planes(
                 normal: plane.normal,
                 offset_m: plane.normal.dot(&plane.centre),
                 region,
-                cell_centre: c.moments.centre(),
+                cell_centre: c.fit.centre(),
                 reach2_m2: if own { f64::INFINITY } else { c.reach_m * c.reach_m },
             });
         }
