@@ -48,7 +48,7 @@ pub struct CellParams {
     /// an 8 x 8 cell spans about 3.5 cm at 1 m across the rays, more along a tread seen
     /// obliquely: small enough that a 25 cm tread holds several, large enough that 64
     /// points under 10 mm of range noise fit a normal within about 2 deg. A tread seen over
-    /// fewer rows than that holds no whole cell; see `split_rows`.
+    /// fewer than `2 rows - 1` rows may hold no whole cell; see `split_rows`.
     pub rows: usize,
     /// Beams per cell (see `rows`).
     pub beams: usize,
