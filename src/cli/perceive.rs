@@ -74,17 +74,38 @@ enum Input {
     Voxels(PointCloud),
 }
 
-fn load(a: &PerceiveArgs) -> Result<Input> {
-    if let Some(hw) = &a.hardware {
-        let (_, sweep) = super::hardware_sweep(hw, a.json, None)?;
-        return Ok(Input::Cloud(sweep.assemble(&AssembleParams::default())?));
+/// What the input is, by its name: a file of points (a cloud or voxel rows, with no scan
+/// grid) or a sweep (the hardware's, or a scenario's scan).
+#[derive(Clone, Copy, PartialEq)]
+enum Kind {
+    Hardware,
+    CloudFile,
+    VoxelFile,
+    Scenario,
+}
+
+fn kind(a: &PerceiveArgs) -> Kind {
+    if a.hardware.is_some() {
+        return Kind::Hardware;
     }
     let ext =
         a.input.as_deref().and_then(Path::extension).and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    match (a.input.as_deref(), ext.as_deref()) {
-        (Some(p), Some("ply" | "pcd")) => Ok(Input::Cloud(read_cloud(p)?)),
-        (Some(p), Some("txt" | "xyz" | "csv")) => Ok(Input::Voxels(read_xyz_text(p)?)),
-        (arg, _) => {
+    match ext.as_deref() {
+        Some("ply" | "pcd") => Kind::CloudFile,
+        Some("txt" | "xyz" | "csv") => Kind::VoxelFile,
+        _ => Kind::Scenario,
+    }
+}
+
+fn load(a: &PerceiveArgs) -> Result<Input> {
+    match (kind(a), a.input.as_deref(), &a.hardware) {
+        (Kind::Hardware, _, Some(hw)) => {
+            let (_, sweep) = super::hardware_sweep(hw, a.json, None)?;
+            Ok(Input::Cloud(sweep.assemble(&AssembleParams::default())?))
+        }
+        (Kind::CloudFile, Some(p), _) => Ok(Input::Cloud(read_cloud(p)?)),
+        (Kind::VoxelFile, Some(p), _) => Ok(Input::Voxels(read_xyz_text(p)?)),
+        (_, arg, _) => {
             let mut scenario = super::load_scenario(arg)?;
             a.noise.apply(&mut scenario);
             let scan = scan_scenario(&scenario, &mut |_, _| {})?;
@@ -115,10 +136,7 @@ pub fn run(a: PerceiveArgs) -> Result<ExitCode> {
     }
     // A scenario's scan and the hardware's sweep are organized grids, which the cells take;
     // a points file has none and runs the paper's pipeline whatever the method.
-    let ext =
-        a.input.as_deref().and_then(Path::extension).and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    let sweep =
-        a.hardware.is_some() || !matches!(ext.as_deref(), Some("ply" | "pcd" | "txt" | "xyz" | "csv"));
+    let sweep = matches!(kind(&a), Kind::Hardware | Kind::Scenario);
     let paper_only = a.k.is_some() || a.search.is_some_and(|s| !matches!(s, SearchArg::Auto));
     if params.method == Method::Cells && sweep && paper_only {
         bail!(
