@@ -249,8 +249,11 @@ fn a_wide_low_tread_is_one_segment() {
 
 /// A low flight under 15 mm of range noise (the ci suite's case 60, boxes behind the robot
 /// left out): RANSAC's plane through step 1's supervoxel centres came out tilted 5.5 degrees
-/// (the foot, then planned on that tilt, met the tread heel first, 2 cm up). Treads are
-/// level; every segment's normal is within a degree of vertical.
+/// (the foot, then planned on that tilt, met the tread heel first, 2 cm up). With the cell
+/// method, the cells at a tread's back edge, holding the foot of the riser above, passed as
+/// level and tilted the region's plane 1.4-2.7 deg toward the sensor, and the treads by
+/// 0.9-1.5 deg (`cells.fit_noise_factor`). Treads are level by either method; every
+/// segment's normal is within a degree of vertical.
 #[test]
 fn a_tread_under_range_noise_comes_out_level() {
     let toml = "seed = 8443359241396318136\n\
@@ -260,12 +263,21 @@ fn a_tread_under_range_noise_comes_out_level() {
         [robot]\nyaw_deg = -2.26\n\
         [lidar]\nnoise_sigma_m = 0.0148\ndropout_probability = 0.0008\n";
     let s = Scenario::from_toml_str(toml, "low-noisy.toml").unwrap();
-    let (r, sc) = perceive_scored(&s);
-    assert!(sc.found >= 4, "{sc:?}");
-    for seg in &r.segments {
-        let tilt_deg = seg.normal().z.clamp(-1.0, 1.0).acos().to_degrees();
-        println!("segment at {:.3} m: tilt {tilt_deg:.2} deg", seg.height_m());
-        assert!(tilt_deg < 1.0, "the tread at {:.3} m is tilted {tilt_deg:.2} deg", seg.height_m());
+    let scene = common::scene_of(&s);
+    let cloud = scan(&s);
+    for method in [Method::Paper, Method::Cells] {
+        let r = perceive(&cloud, &PerceptionParams { method, ..Default::default() }).unwrap();
+        let sc = metrics::score(&r.segments, scene.steps(), 0.02);
+        assert!(sc.found >= 4, "{method}: {sc:?}");
+        for seg in &r.segments {
+            let tilt_deg = seg.normal().z.clamp(-1.0, 1.0).acos().to_degrees();
+            println!("{method}: segment at {:.3} m: tilt {tilt_deg:.2} deg", seg.height_m());
+            assert!(
+                tilt_deg < 1.0,
+                "{method}: the tread at {:.3} m is tilted {tilt_deg:.2} deg",
+                seg.height_m()
+            );
+        }
     }
 }
 

@@ -31,7 +31,7 @@ pub struct PerceiveArgs {
     search: Option<SearchArg>,
     /// How the planes are found: the paper's §4 pipeline, or planes grown on cells of the
     /// scan grid (a cloud without one, a file of points, runs the paper's). Default: the
-    /// parameters' [perception] method, the paper's.
+    /// parameters' [perception] method, the cells.
     #[arg(long, value_enum)]
     method: Option<MethodArg>,
     /// Climb parameters as TOML (as for `run --params`): its [perception] table. The options

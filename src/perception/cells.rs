@@ -91,6 +91,15 @@ pub struct CellParams {
     /// metres: under the least rise a step has, above what noise and a tread's tilt of a
     /// degree over its width leave.
     pub merge_distance_m: f64,
+    /// A region's plane is fitted to those of its cells whose points lie about it within
+    /// this many times the range noise as seen across it (RMS of `sigma |ray . n|`, at
+    /// least [`CellParams::planarity_floor_m`]). A cell at a tread's back edge holds the
+    /// foot of the riser above, one at its front the top of the riser below: under noise
+    /// such a cell still passes as a level plane, and its riser returns, 1-3 cm off the
+    /// tread, tilt the region's plane toward the sensor by degrees, a tilt that step 3's
+    /// tolerance about that plane then keeps (test `a_tread_under_range_noise_comes_out_level`).
+    /// The cells stay the region's; only its plane leaves them out.
+    pub fit_noise_factor: f64,
     /// A point joins a region when within this many times its range noise, as seen across
     /// the plane (the noise moves a point along its ray: `sigma |ray . n|` off the plane), of
     /// the region's plane ...
@@ -122,6 +131,7 @@ impl Default for CellParams {
             max_tilt_sd_rad: 0.5,
             min_incidence_rad: 5f64.to_radians(),
             merge_distance_m: 0.02,
+            fit_noise_factor: 1.5,
             point_noise_factor: 1.5,
             point_floor_m: 0.005,
             min_part_share: 0.1,
@@ -152,6 +162,7 @@ impl CellParams {
             ("cells.max_tilt_sd_rad", self.max_tilt_sd_rad),
             ("cells.min_incidence_rad", self.min_incidence_rad),
             ("cells.merge_distance_m", self.merge_distance_m),
+            ("cells.fit_noise_factor", self.fit_noise_factor),
             ("cells.point_noise_factor", self.point_noise_factor),
             ("cells.point_floor_m", self.point_floor_m),
         ] {
@@ -207,6 +218,19 @@ impl Moments {
             self.outer[k] += o.outer[k];
             self.rays[k] += o.rays[k];
         }
+    }
+
+    /// The points' mean square distance from `plane`, and what the range noise of variance
+    /// `noise_var_m2` alone would give (it moves a point along its ray `d`, `|d . n|` of it
+    /// across the plane).
+    fn mean_square_m2(&self, plane: &Plane, noise_var_m2: f64) -> (f64, f64) {
+        let n = &plane.normal;
+        let inv = 1.0 / self.n.max(1.0);
+        let along = n.dot(&self.centre());
+        let offset = n.dot(&plane.centre);
+        let spread = n.dot(&(symmetric(&self.outer) * n)) * inv - along * along;
+        let seen = n.dot(&(symmetric(&self.rays) * n)) * inv * noise_var_m2;
+        (spread.max(0.0) + (along - offset).powi(2), seen)
     }
 
     /// The centre of the points (the origin for none).
@@ -558,6 +582,7 @@ pub fn extract(
     for l in label.iter_mut().filter(|l| **l != NONE && steep[**l as usize]) {
         *l = NONE;
     }
+    let planes = fit_to_members(&cells, &label, planes, &up, noise_var_m2, p);
 
     // 3. Points, cell by cell: each to the likeliest of the planes of the cell and its
     // 8-neighbours (regions' and steep cells'), see [`region_of`]; 4. binned on the way
@@ -889,6 +914,43 @@ fn grow(
         planes.push(plane);
     }
     (label, planes)
+}
+
+/// Each region's plane refitted to those of its cells that lie about it as the noise lets
+/// them ([`CellParams::fit_noise_factor`]): twice, each time from the cells the plane
+/// before kept. A region none of whose cells would be kept keeps its plane.
+fn fit_to_members(
+    cells: &[Cell],
+    label: &[u32],
+    mut planes: Vec<Plane>,
+    up: &Vector3<f64>,
+    noise_var_m2: f64,
+    p: &CellParams,
+) -> Vec<Plane> {
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); planes.len()];
+    for (i, &l) in label.iter().enumerate() {
+        if l != NONE {
+            members[l as usize].push(i);
+        }
+    }
+    let floor_m2 = p.planarity_floor_m * p.planarity_floor_m;
+    let factor2 = p.fit_noise_factor * p.fit_noise_factor;
+    for (plane, cells_of) in planes.iter_mut().zip(&members).filter(|(_, m)| m.len() > 1) {
+        for _ in 0..2 {
+            let mut m = Moments::default();
+            for &i in cells_of {
+                let (ms, seen) = cells[i].fit.mean_square_m2(plane, noise_var_m2);
+                if ms <= (factor2 * seen).max(floor_m2) {
+                    m.merge(&cells[i].fit);
+                }
+            }
+            match m.plane(noise_var_m2).filter(|f| f.normal.dot(up) > 0.0) {
+                Some(f) => *plane = f,
+                None => break,
+            }
+        }
+    }
+    planes
 }
 
 /// The parts of a region's columns `cols` (edge `v`) that touch (within two columns) with at

