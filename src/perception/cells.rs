@@ -421,6 +421,8 @@ fn is_level(f: &Plane, up: &Vector3<f64>, max_tilt_rad: f64, p: &CellParams) -> 
 
 /// What a cell's plane is judged by in step 1.
 struct Limits {
+    /// The fewest points a cell is fitted on.
+    min_points: f64,
     up: Vector3<f64>,
     /// Filter 1's slope, radians.
     max_tilt_rad: f64,
@@ -503,16 +505,150 @@ fn for_rows_points(
     }
 }
 
-/// Level planes grown on `cloud`'s scan grid (see the module's doc) with voxel edge
-/// `voxel_m`, `cos_slope` the least cosine of a level normal from up (Filter 1's), and
-/// `noise_m` the sweep's range noise. `None` for a cloud without a scan grid.
-pub fn extract(
-    cloud: &PointCloud,
-    voxel_m: f64,
-    cos_slope: f64,
-    noise_m: f64,
+/// Step 1's sums of one cell, from its points alone (no noise needed, so a stream takes
+/// them as its rows arrive): its moments, reach and box.
+#[derive(Debug, Clone, Copy)]
+struct CellSums {
+    moments: Moments,
+    /// [`REACH_DIAGONALS`] of its points' bounding box, metres.
+    reach_m: f64,
+    /// Its points' horizontal bounding box (world x, y), metres: lowest, highest.
+    box_m: [[f32; 2]; 2],
+}
+
+/// The sums of cell `(cr, cb)`.
+fn sums_of(
+    grid: &ScanGrid,
+    points: &[Point3<f32>],
+    origin: &Vector3<f64>,
     p: &CellParams,
-) -> Option<Regions> {
+    cr: usize,
+    cb: usize,
+) -> CellSums {
+    let mut m = Moments::default();
+    let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
+    // The box in the points' own coordinates, as step 4 bins them.
+    let mut box_m = [[f32::INFINITY; 2], [f32::NEG_INFINITY; 2]];
+    for_rows_points(grid, points, origin, p, cell_rows(grid, p, cr), cb, |i, q| {
+        m.add(&q);
+        lo = lo.inf(&q);
+        hi = hi.sup(&q);
+        let w = &points[i as usize];
+        box_m = [[box_m[0][0].min(w.x), box_m[0][1].min(w.y)], [box_m[1][0].max(w.x), box_m[1][1].max(w.y)]];
+    });
+    let reach_m = if m.n > 0.0 { REACH_DIAGONALS * (hi - lo).norm() } else { 0.0 };
+    CellSums { moments: m, reach_m, box_m }
+}
+
+/// Cell `(cr, cb)` of sums `s` judged (step 1): a level plane, a steep one, or neither, and
+/// then perhaps level by a half ([`CellParams::split_rows`]).
+fn judge(
+    s: &CellSums,
+    grid: &ScanGrid,
+    points: &[Point3<f32>],
+    origin: &Vector3<f64>,
+    p: &CellParams,
+    (cr, cb): (usize, usize),
+    l: &Limits,
+) -> Cell {
+    let m = s.moments;
+    let plane =
+        (m.n >= l.min_points).then(|| m.plane(l.noise_var_m2)).flatten().filter(|f| f.rms_m <= l.max_rms_m);
+    // A plane of uncertain tilt is neither (see `is_known`).
+    let known = plane.filter(|f| is_known(f, p));
+    let steep = known.filter(|f| !is_level(f, &l.up, l.max_tilt_rad, p));
+    let mut level = known.filter(|_| steep.is_none());
+    let (mut fit, mut reach_m) = (m, s.reach_m);
+    // Neither a level nor a steep plane: perhaps two surfaces, one in each half. A level
+    // half reaches its neighbours' points from its own centre and box: the whole cell's may
+    // span a depth jump.
+    if p.split_rows && level.is_none() && steep.is_none() && m.n >= l.min_points {
+        if let Some((half, f, r)) = level_half(grid, points, origin, p, (cr, cb), l) {
+            (fit, level, reach_m) = (half, Some(f), r);
+        }
+    }
+    Cell { moments: m, fit, level, steep, reach_m, box_m: s.box_m }
+}
+
+/// The sums of every cell of `cloud`'s grid, row-major; `None` without a grid.
+fn all_sums(cloud: &PointCloud, p: &CellParams) -> Option<Vec<CellSums>> {
+    let grid = cloud.grid()?;
+    let origin = cloud.viewpoint().coords;
+    let points = cloud.points();
+    let (crs, cbs) = cell_dims(grid, p);
+    Some(
+        (0..crs)
+            .into_par_iter()
+            .flat_map_iter(|cr| (0..cbs).map(move |cb| sums_of(grid, points, &origin, p, cr, cb)))
+            .collect(),
+    )
+}
+
+/// Step 1's sums gathered as a sweep's rows arrive, each row of cells as soon as its last
+/// scan row is in; the rest of the extraction, which needs the sweep's noise and every
+/// cell, is left for [`Stream::finish`]. It gives exactly what [`extract`] gives on the
+/// whole sweep.
+#[derive(Debug, Clone)]
+pub struct Stream {
+    sums: Vec<CellSums>,
+    /// Cell rows summed.
+    cell_rows: usize,
+}
+
+impl Stream {
+    /// An empty stream for `cloud`'s grid (its rows not yet arrived are not read); `None`
+    /// without a grid.
+    pub fn new(cloud: &PointCloud) -> Option<Self> {
+        cloud.grid().map(|_| Self { sums: Vec::new(), cell_rows: 0 })
+    }
+
+    /// The sweep's first `rows` scan rows have arrived (of `cloud`, the one given to `new`):
+    /// sums the rows of cells they complete.
+    pub fn arrived(&mut self, cloud: &PointCloud, rows: usize, p: &CellParams) {
+        let Some(grid) = cloud.grid() else { return };
+        let origin = cloud.viewpoint().coords;
+        let (crs, cbs) = cell_dims(grid, p);
+        let complete = if rows >= grid.rows() { crs } else { rows / p.rows };
+        for cr in self.cell_rows..complete {
+            self.sums.extend((0..cbs).map(|cb| sums_of(grid, cloud.points(), &origin, p, cr, cb)));
+        }
+        self.cell_rows = self.cell_rows.max(complete);
+    }
+
+    /// [`extract`]'s regions once every row has arrived (the rest are summed now); `None`
+    /// without a grid. Its `cells_ms` counts the sums taken now and the cells' judging.
+    pub fn finish(mut self, cloud: &PointCloud, s: &Setting) -> Option<Regions> {
+        let start = Instant::now();
+        self.arrived(cloud, usize::MAX, s.params);
+        regions(cloud, &self.sums, start, s)
+    }
+}
+
+/// What the extraction works to, besides the cloud.
+#[derive(Debug, Clone, Copy)]
+pub struct Setting<'a> {
+    /// The columns' edge (the voxel edge), metres.
+    pub voxel_m: f64,
+    /// The least cosine of a level normal from up (Filter 1's).
+    pub cos_slope: f64,
+    /// The sweep's range noise, metres.
+    pub noise_m: f64,
+    /// The cells' own parameters.
+    pub params: &'a CellParams,
+}
+
+/// Level planes grown on `cloud`'s scan grid (see the module's doc) as `s` says. `None` for
+/// a cloud without a scan grid.
+pub fn extract(cloud: &PointCloud, s: &Setting) -> Option<Regions> {
+    let start = Instant::now();
+    let sums = all_sums(cloud, s.params)?;
+    regions(cloud, &sums, start, s)
+}
+
+/// Steps 1 (the cells judged) to 4 from every cell's `sums`; step 1's time counted from
+/// `start`.
+fn regions(cloud: &PointCloud, sums: &[CellSums], start: Instant, s: &Setting) -> Option<Regions> {
+    let Setting { voxel_m, cos_slope, noise_m, params: p } = *s;
     let grid = cloud.grid()?;
     let origin = cloud.viewpoint().coords;
     let up = -cloud.gravity().into_inner();
@@ -522,49 +658,13 @@ pub fn extract(
     let max_rms_m = (p.planarity_noise_factor * noise_m).max(p.planarity_floor_m);
     let max_tilt_rad = cos_slope.clamp(-1.0, 1.0).acos();
     let noise_var_m2 = noise_m * noise_m;
+    let limits = Limits { min_points, up, max_tilt_rad, noise_var_m2, max_rms_m };
 
     // 1. Cells.
-    let start = Instant::now();
-    let cells: Vec<Cell> = (0..crs)
-        .into_par_iter()
-        .flat_map_iter(|cr| {
-            (0..cbs).map(move |cb| {
-                let mut m = Moments::default();
-                let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
-                // The box in the points' own coordinates, as step 4 bins them.
-                let mut box_m = [[f32::INFINITY; 2], [f32::NEG_INFINITY; 2]];
-                for_rows_points(grid, points, &origin, p, cell_rows(grid, p, cr), cb, |i, q| {
-                    m.add(&q);
-                    lo = lo.inf(&q);
-                    hi = hi.sup(&q);
-                    let w = &points[i as usize];
-                    box_m = [
-                        [box_m[0][0].min(w.x), box_m[0][1].min(w.y)],
-                        [box_m[1][0].max(w.x), box_m[1][1].max(w.y)],
-                    ];
-                });
-                let plane = (m.n >= min_points)
-                    .then(|| m.plane(noise_var_m2))
-                    .flatten()
-                    .filter(|f| f.rms_m <= max_rms_m);
-                // A plane of uncertain tilt is neither (see `is_known`).
-                let known = plane.filter(|f| is_known(f, p));
-                let steep = known.filter(|f| !is_level(f, &up, max_tilt_rad, p));
-                let mut level = known.filter(|_| steep.is_none());
-                let mut fit = m;
-                let mut reach_m = if m.n > 0.0 { REACH_DIAGONALS * (hi - lo).norm() } else { 0.0 };
-                // Neither a level nor a steep plane: perhaps two surfaces, one in each half. A
-                // level half reaches its neighbours' points from its own centre and box: the
-                // whole cell's may span a depth jump.
-                if p.split_rows && level.is_none() && steep.is_none() && m.n >= min_points {
-                    let limits = Limits { up, max_tilt_rad, noise_var_m2, max_rms_m };
-                    if let Some((half, f, r)) = level_half(grid, points, &origin, p, (cr, cb), &limits) {
-                        (fit, level, reach_m) = (half, Some(f), r);
-                    }
-                }
-                Cell { moments: m, fit, level, steep, reach_m, box_m }
-            })
-        })
+    let cells: Vec<Cell> = sums
+        .par_iter()
+        .enumerate()
+        .map(|(i, s)| judge(s, grid, points, &origin, p, (i / cbs, i % cbs), &limits))
         .collect();
     let fitted = cells.iter().filter(|c| c.moments.n >= min_points).count();
 

@@ -713,10 +713,76 @@ pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, 
     let noise_m = noise::range_noise_m(cloud);
     counts.range_noise_mm = noise_m.map(|s| s * 1e3);
     let noise_ms = ms(t);
-    let mut found = match p.method {
-        Method::Cells if cloud.grid().is_some() => by_cells(cloud, noise_m, noise_ms, p, counts)?,
+    let found = match p.method {
+        Method::Cells if cloud.grid().is_some() => {
+            by_cells(cloud, noise_m, noise_ms, p, counts, |s| cells::extract(cloud, s))?
+        }
         Method::Paper | Method::Cells => by_paper(cloud, noise_m, noise_ms, p, counts)?,
     };
+    Ok(on_risers(found, cloud, noise_m, p))
+}
+
+/// Perception of a sweep whose rows arrive one after another (a tilting lidar's, a row every
+/// 25 ms), by the cell method: the work that needs only the rows in (each row's range
+/// differences for the noise, each row of cells' sums) is done as they arrive, and the rest
+/// once the last is in ([`PerceptionStream::finish`]). It gives exactly what [`perceive`]
+/// gives on the whole sweep. With the paper's method, or a cloud without a scan grid,
+/// everything waits for the end.
+#[derive(Debug, Clone)]
+pub struct PerceptionStream {
+    p: PerceptionParams,
+    /// Both `None` where nothing is streamed.
+    noise: Option<noise::Stream>,
+    cells: Option<cells::Stream>,
+}
+
+impl PerceptionStream {
+    /// A stream over `cloud`'s sweep, none of its rows yet arrived.
+    pub fn new(cloud: &PointCloud, p: &PerceptionParams) -> Result<Self, PerceptionError> {
+        p.validate()?;
+        let streamed = p.method == Method::Cells;
+        Ok(Self {
+            p: p.clone(),
+            noise: noise::Stream::new(cloud).filter(|_| streamed),
+            cells: cells::Stream::new(cloud).filter(|_| streamed),
+        })
+    }
+
+    /// `cloud`'s first `rows` scan rows (the cloud given to `new`) have arrived; the rows
+    /// after them are not read.
+    pub fn arrived(&mut self, cloud: &PointCloud, rows: usize) {
+        if let (Some(noise), Some(cells)) = (&mut self.noise, &mut self.cells) {
+            noise.arrived(cloud, rows);
+            cells.arrived(cloud, rows, &self.p.cells);
+        }
+    }
+
+    /// The perception of the whole sweep, once its last row has arrived.
+    pub fn finish(self, cloud: &PointCloud) -> Result<Perception, PerceptionError> {
+        let (Some(noise), Some(cells)) = (self.noise, self.cells) else {
+            return perceive(cloud, &self.p);
+        };
+        let p = &self.p;
+        let counts = Counts { points: cloud.len(), ..Default::default() };
+        if cloud.is_empty() {
+            return Err(PerceptionError::NoStaircase(NoStaircase::EmptyCloud));
+        }
+        let t = Instant::now();
+        let noise_m = noise.finish(cloud);
+        let noise_ms = ms(t);
+        let counts = Counts { range_noise_mm: noise_m.map(|s| s * 1e3), ..counts };
+        let found = by_cells(cloud, noise_m, noise_ms, p, counts, |s| cells.finish(cloud, s))?;
+        Ok(on_risers(found, cloud, noise_m, p))
+    }
+}
+
+/// `found`'s steps with their fronts and backs placed on the risers of `cloud`.
+fn on_risers(
+    mut found: Perception,
+    cloud: &PointCloud,
+    noise_m: Option<f64>,
+    p: &PerceptionParams,
+) -> Perception {
     let t = Instant::now();
     let placed = riser::place_edges(
         &mut found.segments,
@@ -732,7 +798,7 @@ pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, 
     let riser_ms = ms(t);
     found.timings.staircase_ms += riser_ms;
     found.timings.total_ms += riser_ms;
-    Ok(found)
+    found
 }
 
 /// The paper's pipeline (§4) up to the steps, their fronts not yet on the risers.
@@ -769,17 +835,23 @@ fn by_paper(
 }
 
 /// The planes grown on the scan grid ([`cells`]) up to the steps, their fronts not yet on
-/// the risers. A sweep whose noise could not be measured is taken at the reference noise.
+/// the risers: `regions` (the whole sweep's, or a stream's) in their setting. A sweep whose
+/// noise could not be measured is taken at the reference noise.
 fn by_cells(
     cloud: &PointCloud,
     noise_m: Option<f64>,
     noise_ms: f64,
     p: &PerceptionParams,
     mut counts: Counts,
+    regions: impl FnOnce(&cells::Setting) -> Option<cells::Regions>,
 ) -> Result<Perception, PerceptionError> {
-    let cos_slope = p.normal_distance_threshold - 1.0;
-    let noise = noise_m.unwrap_or(p.reference_noise_m);
-    let Some(found) = cells::extract(cloud, p.voxel_resolution_m, cos_slope, noise, &p.cells) else {
+    let setting = cells::Setting {
+        voxel_m: p.voxel_resolution_m,
+        cos_slope: p.normal_distance_threshold - 1.0,
+        noise_m: noise_m.unwrap_or(p.reference_noise_m),
+        params: &p.cells,
+    };
+    let Some(found) = regions(&setting) else {
         return by_paper(cloud, noise_m, noise_ms, p, counts);
     };
     let mut timings = PhaseTimings {

@@ -18,6 +18,20 @@ const MIN_SAMPLES: usize = 100;
 /// cloud with no scan grid, or with fewer than [`MIN_SAMPLES`] runs of three beams.
 pub fn range_noise_m(cloud: &PointCloud) -> Option<f64> {
     let grid = cloud.grid()?;
+    let width = grid.beams().saturating_sub(2);
+    let mut second = vec![f64::NAN; grid.rows() * width];
+    if width > 0 {
+        second
+            .par_chunks_mut(width)
+            .zip(grid.cells().par_chunks(grid.beams()))
+            .for_each(|(out, row)| second_differences(cloud, row, out));
+    }
+    sigma_of(&second)
+}
+
+/// A scan row's second differences of range into `out` (one per run of three beams), NaN
+/// where a beam of the three is missing.
+fn second_differences(cloud: &PointCloud, row: &[u32], out: &mut [f64]) {
     let v = cloud.viewpoint().cast::<f32>();
     let points = cloud.points();
     let range = |c: u32| {
@@ -25,24 +39,58 @@ pub fn range_noise_m(cloud: &PointCloud) -> Option<f64> {
         let r = (p - v).norm();
         r.is_finite().then_some(f64::from(r))
     };
-    // Each row's second differences in its own slice, NaN where a beam of the three is
-    // missing.
-    let width = grid.beams().saturating_sub(2);
-    let mut second = vec![f64::NAN; grid.rows() * width];
-    if width > 0 {
-        second.par_chunks_mut(width).zip(grid.cells().par_chunks(grid.beams())).for_each(|(out, row)| {
-            let (mut a, mut b) = (range(row[0]), range(row[1]));
-            for (o, &cell) in out.iter_mut().zip(&row[2..]) {
-                let c = range(cell);
-                if let (Some(a), Some(b), Some(c)) = (a, b, c) {
-                    *o = (a - 2.0 * b + c).abs();
-                }
-                (a, b) = (b, c);
-            }
-        });
+    let (mut a, mut b) = (range(row[0]), range(row[1]));
+    for (o, &cell) in out.iter_mut().zip(&row[2..]) {
+        let c = range(cell);
+        if let (Some(a), Some(b), Some(c)) = (a, b, c) {
+            *o = (a - 2.0 * b + c).abs();
+        }
+        (a, b) = (b, c);
     }
-    let median = median_of_non_negative(&second, MIN_SAMPLES)?;
+}
+
+/// Sigma from a sweep's second differences (see the module's doc).
+fn sigma_of(second: &[f64]) -> Option<f64> {
+    let median = median_of_non_negative(second, MIN_SAMPLES)?;
     Some(1.4826 * median / 6f64.sqrt())
+}
+
+/// [`range_noise_m`] over a sweep whose rows arrive one after another: each row's second
+/// differences are taken as it arrives, and only their median is left for the end. It
+/// gives exactly what [`range_noise_m`] gives on the whole sweep.
+#[derive(Debug, Clone)]
+pub struct Stream {
+    second: Vec<f64>,
+    rows_done: usize,
+}
+
+impl Stream {
+    /// For `cloud`'s sweep (the rows not yet arrived are not read); `None` without a scan grid.
+    pub fn new(cloud: &PointCloud) -> Option<Self> {
+        let grid = cloud.grid()?;
+        let width = grid.beams().saturating_sub(2);
+        Some(Self { second: vec![f64::NAN; grid.rows() * width], rows_done: 0 })
+    }
+
+    /// The sweep's first `rows` rows have arrived (of `cloud`, the one given to `new`).
+    pub fn arrived(&mut self, cloud: &PointCloud, rows: usize) {
+        let Some(grid) = cloud.grid() else { return };
+        let (beams, width) = (grid.beams(), grid.beams().saturating_sub(2));
+        let rows = rows.min(grid.rows());
+        if width > 0 {
+            for r in self.rows_done..rows {
+                let row = &grid.cells()[r * beams..(r + 1) * beams];
+                second_differences(cloud, row, &mut self.second[r * width..(r + 1) * width]);
+            }
+        }
+        self.rows_done = self.rows_done.max(rows);
+    }
+
+    /// The sweep's range noise once every row has arrived (the rest are taken now).
+    pub fn finish(mut self, cloud: &PointCloud) -> Option<f64> {
+        self.arrived(cloud, usize::MAX);
+        sigma_of(&self.second)
+    }
 }
 
 /// The median (the element at rank `n / 2` of the `n` that are not NaN) of `values`, all

@@ -10,13 +10,14 @@ use stairbench::cloud::PointCloud;
 use stairbench::geom2d;
 use stairbench::perception::normals::grid_window;
 use stairbench::perception::{
-    metrics, perceive, Method, NeighbourSearch, Perception, PerceptionParams, PhaseTimings,
+    metrics, perceive, Method, NeighbourSearch, Perception, PerceptionParams, PerceptionStream, PhaseTimings,
 };
 use stairbench::scene::Scene;
 use stairbench::sensor::AssembleParams;
 use stairbench::sim::scan_scenario;
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::time::Instant;
 
 /// The k values of Fig. 5.
 const K_RANGE: std::ops::RangeInclusive<usize> = 5..=25;
@@ -41,6 +42,34 @@ fn median_run(cloud: &PointCloud, p: &PerceptionParams, repeat: usize) -> Result
     }
     runs.sort_by(|a, b| a.timings.total_ms.total_cmp(&b.timings.total_ms));
     Ok(runs.swap_remove(runs.len() / 2))
+}
+
+/// `cloud`'s sweep given to a [`PerceptionStream`] row by row, as the lidar sends it, `repeat`
+/// times after a warm-up: the median time from the last row's arrival to the steps, ms,
+/// and the most time one earlier row's arrival took, ms; with the steps of the last run.
+fn streamed_run(cloud: &PointCloud, p: &PerceptionParams, repeat: usize) -> Result<(Perception, f64, f64)> {
+    let rows = cloud.grid().map_or(0, |g| g.rows());
+    let mut after_ms = Vec::with_capacity(repeat);
+    let mut row_ms: f64 = 0.0;
+    let mut last = None;
+    for run in 0..=repeat {
+        let mut stream = PerceptionStream::new(cloud, p)?;
+        for r in 1..rows {
+            let t = Instant::now();
+            stream.arrived(cloud, r);
+            row_ms = row_ms.max(t.elapsed().as_secs_f64() * 1e3);
+        }
+        let t = Instant::now();
+        stream.arrived(cloud, rows);
+        let found = stream.finish(cloud)?;
+        if run > 0 {
+            after_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        last = Some(found);
+    }
+    after_ms.sort_by(f64::total_cmp);
+    let found = last.context("no run")?;
+    Ok((found, after_ms[after_ms.len() / 2], row_ms))
 }
 
 fn scan(name: &str, noise_mm: f64) -> Result<Case> {
@@ -123,6 +152,16 @@ pub fn run(repeat: usize, fig5_at: Option<(&Path, &str)>, pcl: Option<&Path>) ->
             "| PCL peer | - | - | - | - | - | - | - | - | - | not run: no binary at {PCL_DEFAULT} (build it with ../shared/peers/run_all.sh, or pass --pcl) | | | |\n"
         ),
     }
+    eprintln!("streamed ...");
+    let (streamed, after_ms, row_ms) = streamed_run(&exp1.cloud, &cells, repeat)?;
+    let same = if streamed.segments == cells_all.segments {
+        "the same steps as the whole sweep's"
+    } else {
+        "steps that DIFFER from the whole sweep's"
+    };
+    out += &format!(
+        "\nStreamed (the default method, `PerceptionStream`): the sweep's rows given one by one as the lidar sends them (one every 25 ms), each row's range differences and each completed row of cells' sums taken as they arrive; the rest (the noise's median, the cells judged, regions, points, columns, staircase, risers) after the last. Steps ready **{after_ms:.1} ms** after the last row (median of {repeat}), {same}; the most one row's arrival took: {row_ms:.2} ms.\n"
+    );
 
     // Fig. 5 (b): phases at k = 10 on every cloud.
     eprintln!("phases per cloud ...");
