@@ -31,6 +31,9 @@
 //!    rows, summed at the end); each column's mean is one "voxel" of the region, as the
 //!    paper's segments are voxels. A region is one surface: its columns' parts a gap away
 //!    from its body, and small beside it, are not its ([`CellParams::min_part_share`]).
+//!
+//! Step 1's sums need only a cell's own rows: [`Stream`] takes them as a sweep's rows
+//! arrive, and leaves the rest, which needs the sweep's noise and every cell, for its end.
 
 use super::normals::smallest_eigenvector;
 use super::voxel::VoxelCloud;
