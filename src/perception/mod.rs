@@ -705,14 +705,7 @@ pub fn filter_slope(normals: &[[f32; 3]], gravity: &Unit<Vector3<f64>>, threshol
 /// The whole pipeline on a point cloud, by `p.method`.
 pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, PerceptionError> {
     p.validate()?;
-    let mut counts = Counts { points: cloud.len(), ..Default::default() };
-    if cloud.is_empty() {
-        return Err(PerceptionError::NoStaircase(NoStaircase::EmptyCloud));
-    }
-    let t = Instant::now();
-    let noise_m = noise::range_noise_m(cloud);
-    counts.range_noise_mm = noise_m.map(|s| s * 1e3);
-    let noise_ms = ms(t);
+    let (counts, noise_m, noise_ms) = noise_of(cloud, || noise::range_noise_m(cloud))?;
     let found = match p.method {
         Method::Cells if cloud.grid().is_some() => {
             by_cells(cloud, noise_m, noise_ms, p, counts, |s| cells::extract(cloud, s))?
@@ -763,17 +756,27 @@ impl PerceptionStream {
             return perceive(cloud, &self.p);
         };
         let p = &self.p;
-        let counts = Counts { points: cloud.len(), ..Default::default() };
-        if cloud.is_empty() {
-            return Err(PerceptionError::NoStaircase(NoStaircase::EmptyCloud));
-        }
-        let t = Instant::now();
-        let noise_m = noise.finish(cloud);
-        let noise_ms = ms(t);
-        let counts = Counts { range_noise_mm: noise_m.map(|s| s * 1e3), ..counts };
+        let (counts, noise_m, noise_ms) = noise_of(cloud, || noise.finish(cloud))?;
         let found = by_cells(cloud, noise_m, noise_ms, p, counts, |s| cells.finish(cloud, s))?;
         Ok(on_risers(found, cloud, noise_m, p))
     }
+}
+
+/// The counts a perception of `cloud` starts from, with the sweep's range noise from
+/// `noise` and the milliseconds it took; an empty cloud is refused.
+fn noise_of(
+    cloud: &PointCloud,
+    noise: impl FnOnce() -> Option<f64>,
+) -> Result<(Counts, Option<f64>, f64), PerceptionError> {
+    if cloud.is_empty() {
+        return Err(PerceptionError::NoStaircase(NoStaircase::EmptyCloud));
+    }
+    let t = Instant::now();
+    let noise_m = noise();
+    let noise_ms = ms(t);
+    let counts =
+        Counts { points: cloud.len(), range_noise_mm: noise_m.map(|s| s * 1e3), ..Default::default() };
+    Ok((counts, noise_m, noise_ms))
 }
 
 /// `found`'s steps with their fronts and backs placed on the risers of `cloud`.
