@@ -346,7 +346,9 @@ fn stop_after(ex: &Execution, cycle: usize, cancel: &Cancel) -> Option<StopReaso
 /// begins, and a walk nearer puts the feet into the riser (regression
 /// `set-down-near-the-first-riser`). Such a robot plans from where it stands (the climb's
 /// first stance onto the step), or walks back until the riser is in sight
-/// ([`PlanRequest::retreat`]), and looks again.
+/// ([`PlanRequest::retreat`]), and looks again. And on that floor, where the lanes the climb
+/// keeps are chosen, a sole keeps a margin off a step's side that the flight does not ask
+/// ([`PlanRequest::climb_from_the_floor`]).
 ///
 /// The step map's lowest step left for a closer look ([`NextInput::deferred`]):
 /// no foot goes on it, but its front bounds the tread below it (left out of the plan, the
@@ -368,8 +370,8 @@ pub fn plan_next(
     let steps: Vec<PlaneSegment> = ahead.iter().chain(&next.deferred).cloned().collect();
     let on_start_floor = (feet_height_m(model, q) - start_floor_z_m).abs() <= p.gait.floor_band_m;
     let request = PlanRequest::new(model, q, &steps, p).among(surfaces.clone()).max_stances(Some(stances));
-    let first = request.clone().below(ahead.len());
-    let climb = if on_start_floor { first.climb_in_sight() } else { first.climb() };
+    let climb_from_here = |r: PlanRequest| if on_start_floor { r.climb_from_the_floor() } else { r.climb() };
+    let climb = climb_from_here(request.clone().below(ahead.len()));
     let refusal = match climb {
         Ok(plan) => return Ok((plan, None)),
         Err(e) => e.refusal(),
@@ -380,7 +382,7 @@ pub fn plan_next(
     }
     let below = refusal.step.and_then(|s| s.checked_sub(1)).filter(|&b| b > 0);
     if let Some(below) = below.filter(|_| refusal.kind.about_the_view()) {
-        if let Ok(plan) = request.below(below).climb() {
+        if let Ok(plan) = climb_from_here(request.below(below)) {
             if plan.stances.first().is_some_and(|s| s.step.is_some()) {
                 return Ok((plan, Some(refusal)));
             }

@@ -72,6 +72,15 @@ pub struct GaitParams {
     pub heel_overhang_m: f64,
     /// How far a sole may overhang its rectangle's side.
     pub side_overhang_m: f64,
+    /// From the floor the climb starts on, a sole may overhang its rectangle's side by
+    /// `side_overhang_m` less this. The lanes chosen there are kept up the flight, and each
+    /// step is judged again from the treads: its side edges move by millimetres between
+    /// views, the feet land millimetres off their plan, and a step judged at the limit from
+    /// the floor was refused with the robot on the flight, beside an object it had moved
+    /// its lanes away from (regression `lanes-at-the-limit-refused-on-the-flight`). Half a
+    /// voxel (§4, v = 2 cm), perception's reach on an edge; on the flight the limit is
+    /// `side_overhang_m` itself.
+    pub side_commit_margin_m: f64,
     /// A foothold moved back from its tread's middle, so that the stride stays within
     /// `max_stride_m`, keeps the heel at least this far onto the tread from its front edge
     /// as perceived (about a voxel: perception places an edge within half a voxel, §4's
@@ -146,6 +155,15 @@ pub struct GaitParams {
     pub test_foothold_shift_m: f64,
 }
 
+impl GaitParams {
+    /// These limits for a climb planned from the floor it starts on: a sole's side overhang
+    /// within `side_overhang_m - side_commit_margin_m`.
+    #[must_use]
+    pub fn committing(&self) -> Self {
+        Self { side_overhang_m: self.side_overhang_m - self.side_commit_margin_m, ..self.clone() }
+    }
+}
+
 impl Default for GaitParams {
     fn default() -> Self {
         Self {
@@ -160,6 +178,7 @@ impl Default for GaitParams {
             toe_clearance_m: 0.015,
             heel_overhang_m: 0.01,
             side_overhang_m: 0.02,
+            side_commit_margin_m: 0.01,
             edge_margin_m: 0.02,
             sole_length_m: crate::robot::hrp4::SOLE_SIZE_M[0],
             sole_width_m: crate::robot::hrp4::SOLE_SIZE_M[1],

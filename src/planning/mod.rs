@@ -121,7 +121,7 @@ pub enum PlanError {
         max_m: f64,
     },
     /// A foot's lane runs off the side of a step.
-    #[error("step {}: the {foot:?} foot would overhang its side by {overhang_m:.3} m", .step + 1)]
+    #[error("step {}: the {foot:?} foot would overhang its side by {overhang_m:.4} m, more than {max_m:.3} m", .step + 1)]
     OffTheSide {
         /// 0-based step.
         step: usize,

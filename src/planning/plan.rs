@@ -109,7 +109,7 @@ pub fn stance_at(model: &RobotModel, q: &[f64]) -> Result<Stance, PlanError> {
 /// `rects`, with `params`. By default the feet may go on every rectangle, nothing is known
 /// around the steps and the plan goes to the top; [`PlanRequest::among`],
 /// [`PlanRequest::below`] and [`PlanRequest::max_stances`] change that. Then one of
-/// [`PlanRequest::climb`], [`PlanRequest::climb_in_sight`], [`PlanRequest::approach`] or
+/// [`PlanRequest::climb`], [`PlanRequest::climb_from_the_floor`], [`PlanRequest::approach`] or
 /// [`PlanRequest::retreat`] plans it.
 #[derive(Clone)]
 pub struct PlanRequest<'a> {
@@ -159,13 +159,17 @@ impl<'a> PlanRequest<'a> {
         self.plan_climb(false)
     }
 
-    /// The climb where the first riser may be out of the lidar's sight (the closed loop, on
-    /// the floor it started from; `seen` is everything the lidar saw): a climb that would
-    /// first walk the floor toward the lowest step is refused as [`riser_in_sight`] refuses
-    /// it, unless that riser is in sight. A robot set down near the first riser plans from
-    /// where it stands (its first stance onto the step) or not at all, and never walks a foot
-    /// into a riser it did not see.
-    pub fn climb_in_sight(&self) -> Result<Plan, PlanError> {
+    /// The climb from the floor it starts on (the closed loop; `seen` is everything the lidar
+    /// saw), which commits the robot to the flight:
+    /// - the first riser may be out of the lidar's sight: a climb that would first walk the
+    ///   floor toward the lowest step is refused as [`riser_in_sight`] refuses it, unless that
+    ///   riser is in sight. A robot set down near the first riser plans from where it stands
+    ///   (its first stance onto the step) or not at all, and never walks a foot into a riser
+    ///   it did not see;
+    /// - the lanes it chooses are kept up the flight, so a sole may overhang a step's side
+    ///   by [`GaitParams::side_commit_margin_m`] less than on the flight
+    ///   ([`GaitParams::committing`]).
+    pub fn climb_from_the_floor(&self) -> Result<Plan, PlanError> {
         self.plan_climb(true)
     }
 
@@ -185,13 +189,17 @@ impl<'a> PlanRequest<'a> {
         self.plan_stances(|start, pts, _| Ok(retreat(start, self.rects, pts, &self.params.gait)))
     }
 
-    /// The climb of the `below` lowest rectangles, its first riser required in sight when
-    /// the climb starts with a floor walk and `in_sight` is set.
-    fn plan_climb(&self, in_sight: bool) -> Result<Plan, PlanError> {
-        let (rects, gait) = (self.rects, &self.params.gait);
+    /// The climb of the `below` lowest rectangles; `from_the_floor` as
+    /// [`PlanRequest::climb_from_the_floor`] plans it.
+    fn plan_climb(&self, from_the_floor: bool) -> Result<Plan, PlanError> {
+        let rects = self.rects;
+        let gait = &match from_the_floor {
+            true => self.params.gait.committing(),
+            false => self.params.gait.clone(),
+        };
         self.plan_stances(|start, pts, legs| {
             let stances = footholds_below(start, rects, self.below, pts, legs, gait)?;
-            if in_sight && stances.first().is_some_and(|s| s.step.is_none()) {
+            if from_the_floor && stances.first().is_some_and(|s| s.step.is_none()) {
                 riser_in_sight(start, rects, pts, gait)?;
             }
             Ok(stances)
