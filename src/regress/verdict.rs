@@ -1,6 +1,7 @@
 //! A case's verdict: what the climb did against what was expected. A case passes when it
 //! climbed clean, or when it was refused (or found nothing to climb) as expected before a
-//! foot was set on the staircase; walking closer on the floor to look is allowed.
+//! foot was set on the staircase, no check violated on the way; walking closer on the floor
+//! to look is allowed.
 
 use crate::climb::{ClimbReport, Footing, StopReason};
 use crate::scenario::ExpectedOutcome;
@@ -108,6 +109,12 @@ pub fn classify(
     if matches!(report.stop, Some(StopReason::StoppedByUser { .. })) {
         return Verdict::Timeout;
     }
+    // A check violated fails the case whatever came after it: a refusal later on does not
+    // undo a foot that pushed past the surface's friction on the way (regress `real`'s
+    // real-0034 was counted refused as expected).
+    if report.first_violation().is_some() {
+        return Verdict::CheckViolated;
+    }
     let stopped_short =
         matches!(report.stop, Some(StopReason::Refused { .. } | StopReason::NoStaircaseAhead { .. }));
     match expect {
@@ -116,7 +123,6 @@ pub fn classify(
         ExpectedOutcome::Refuse => Verdict::SteppedOntoUnclimbable,
         ExpectedOutcome::Either if !stepped && stopped_short => Verdict::RefusedAsExpected,
         _ if report.success => Verdict::ClimbedClean,
-        _ if report.first_violation().is_some() => Verdict::CheckViolated,
         _ => match report.stop {
             Some(StopReason::Refused { .. }) => Verdict::FalseRefusal,
             Some(StopReason::NoStaircaseAhead { .. }) => Verdict::NoStaircaseFound,
@@ -220,6 +226,12 @@ mod tests {
         assert_eq!(classify(Refuse, None, &nothing, false), Verdict::RefusedAsExpected);
         let hit = report(&[Floor, Step(1), Step(2), Step(3)], None, true);
         assert_eq!(classify(Climb, None, &hit, false), Verdict::CheckViolated);
+        // A check violated on the way up and then refused where a refusal was expected: the
+        // violation stands.
+        let hit_then_refused = report(&[Step(1)], refused(2), true);
+        for expect in [Refuse, Either] {
+            assert_eq!(classify(expect, Some(2), &hit_then_refused, false), Verdict::CheckViolated);
+        }
         let fell = report(&[Step(1)], Some(StopReason::Fell { cycle: 1 }), true);
         assert_eq!(classify(Climb, None, &fell, false), Verdict::Fell);
         let gave_up = report(&[Floor], Some(StopReason::CyclesExhausted { cycles: 40 }), false);
