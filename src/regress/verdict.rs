@@ -110,8 +110,7 @@ pub fn classify(
         return Verdict::Timeout;
     }
     // A check violated fails the case whatever came after it: a refusal later on does not
-    // undo a foot that pushed past the surface's friction on the way (regress `real`'s
-    // real-0034 was counted refused as expected).
+    // undo a foot that pushed past the surface's friction on the way up.
     if report.first_violation().is_some() {
         return Verdict::CheckViolated;
     }
