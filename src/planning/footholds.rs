@@ -1139,6 +1139,25 @@ mod tests {
         );
     }
 
+    /// Regression `lanes-at-the-limit-refused-on-the-flight`: a lane whose sole overhangs the
+    /// steps' side by 15 mm is within the flight's 20 mm, but not within what a climb planned
+    /// from the floor keeps (`side_commit_margin_m` less), where the lanes are chosen for the
+    /// whole flight.
+    #[test]
+    fn a_lane_near_the_side_is_kept_on_the_flight_and_refused_from_the_floor() {
+        let p = GaitParams::default();
+        let over_m = 0.015;
+        let (rects, stance) = flight_and_stance(0.45 + over_m - p.sole_width_m / 2.0 - 0.095);
+        assert!(footholds(&stance, &rects, &[], &LEGS, &p).is_ok(), "within side_overhang_m");
+        match footholds(&stance, &rects, &[], &LEGS, &p.committing()) {
+            Err(PlanError::OffTheSide { foot: Foot::Left, overhang_m, max_m, .. }) => {
+                assert!((overhang_m - over_m).abs() < 1e-9, "{overhang_m}");
+                assert!((max_m - (p.side_overhang_m - p.side_commit_margin_m)).abs() < 1e-12, "{max_m}");
+            }
+            other => panic!("expected the left lane refused from the floor, got {other:?}"),
+        }
+    }
+
     /// Regression `chest-between-two-rails`: handrails on both sides of a 0.82 m flight. The
     /// lanes went to the middle and the IK was left to keep the body off both rails; holding
     /// each capsule off its one nearest point, it let the chest come to 7 mm of a rail and

@@ -193,10 +193,7 @@ impl<'a> PlanRequest<'a> {
     /// [`PlanRequest::climb_from_the_floor`] plans it.
     fn plan_climb(&self, from_the_floor: bool) -> Result<Plan, PlanError> {
         let rects = self.rects;
-        let gait = &match from_the_floor {
-            true => self.params.gait.committing(),
-            false => self.params.gait.clone(),
-        };
+        let gait = &if from_the_floor { self.params.gait.committing() } else { self.params.gait.clone() };
         self.plan_stances(|start, pts, legs| {
             let stances = footholds_below(start, rects, self.below, pts, legs, gait)?;
             if from_the_floor && stances.first().is_some_and(|s| s.step.is_none()) {
