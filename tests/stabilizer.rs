@@ -423,7 +423,8 @@ fn a_contact_moved_by_centimetres_is_reached_without_an_infeasible_ik() {
     let mut moved = kin.frame_pose(soles[0]);
     moved.translation.vector += Vector3::new(0.06, -0.05, 0.0);
     let support = [(Foot::Right, moved), (Foot::Left, kin.frame_pose(soles[1]))];
-    let targets = Targets { com, com_velocity: Vector3::zeros(), swing: None, support: &support };
+    let targets =
+        Targets { com, com_velocity: Vector3::zeros(), swing: None, support: &support, lifting: [false; 2] };
     let uncapped = IkParams {
         max_contact_correction_m_s: f64::INFINITY,
         max_contact_correction_rad_s: f64::INFINITY,

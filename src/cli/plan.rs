@@ -238,6 +238,11 @@ fn print_tables(p: &Plan, wall_s: f64) {
         t.max_touchdown_error_m * 1e3,
         t.max_contact_drift_m * 1e3
     );
+    println!(
+        "posture: the waist tilts at most {:.1} deg from upright; the loaded knees bend at least {}",
+        t.max_base_tilt_rad.to_degrees(),
+        t.min_loaded_knee_rad.map_or("(none loaded)".to_string(), |k| format!("{:.1} deg", k.to_degrees()))
+    );
     match t.min_leg_clearance_m {
         Some(d) => println!("legs: at least {:.1} mm from the steps", d * 1e3),
         None => println!("legs: never near a step"),

@@ -12,7 +12,7 @@ use super::params::StabilizerParams;
 use crate::planning::contact::Contact;
 use crate::planning::gait::Segment;
 use crate::planning::ik::IkError;
-use crate::planning::motion::{com_target, swing_target, Targets, Tracker};
+use crate::planning::motion::{com_target, lifting, swing_target, Targets, Tracker};
 use crate::planning::{Foot, Plan, PlanError, PlanParams};
 use crate::robot::model::{base_pose, RobotModel, Q_JOINTS};
 use crate::robot::{hrp4, Kinematics};
@@ -360,7 +360,13 @@ impl<'m> Stabilizer<'m> {
         let (com_next, com_v_next) = com_target(seg, tau);
         let com_v_next = if hold { Vector3::zeros() } else { com_v_next };
         self.t_s = t_s + step_s;
-        let targets = Targets { com: com_next, com_velocity: com_v_next, swing, support: &supports };
+        let targets = Targets {
+            com: com_next,
+            com_velocity: com_v_next,
+            swing,
+            support: &supports,
+            lifting: lifting(seg, tau),
+        };
         self.tracker.tick(&targets, dt)?;
         self.record = TickRecord {
             t_s,

@@ -568,8 +568,17 @@ pub fn clearance(
 }
 
 /// §6.1's first-order velocity regulation: qd <= min(qd_max, K (q_max - q)) and
-/// qd >= max(-qd_max, K (q_min - q)) for every joint; the free-flyer is unbounded.
-pub fn joint_limits(model: &RobotModel, q: &[f64], max_speed_rad_s: f64, gain: f64) -> Bounds {
+/// qd >= max(-qd_max, K (q_min - q)) for every joint, q_min being `lower_rad` (the model's
+/// lower limits, or tighter ones the planner keeps: see [`super::motion::ik_lower_limits`]);
+/// a joint already below its q_min is not pushed back, only kept from going further. The
+/// free-flyer is unbounded.
+pub fn joint_limits(
+    model: &RobotModel,
+    q: &[f64],
+    lower_rad: &[f64],
+    max_speed_rad_s: f64,
+    gain: f64,
+) -> Bounds {
     let nv = model.nv();
     let mut lower = DVector::from_element(nv, f64::NEG_INFINITY);
     let mut upper = DVector::from_element(nv, f64::INFINITY);
@@ -577,7 +586,7 @@ pub fn joint_limits(model: &RobotModel, q: &[f64], max_speed_rad_s: f64, gain: f
         let qi = q[Q_JOINTS + i];
         let vmax = max_speed_rad_s.min(jt.velocity_rad_s);
         upper[V_JOINTS + i] = vmax.min(gain * (jt.upper_rad - qi)).max(0.0);
-        lower[V_JOINTS + i] = (-vmax).max(gain * (jt.lower_rad - qi)).min(0.0);
+        lower[V_JOINTS + i] = (-vmax).max(gain * (lower_rad[i] - qi)).min(0.0);
     }
     Bounds { lower, upper }
 }

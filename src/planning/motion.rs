@@ -8,7 +8,7 @@ use super::ik::{self, Task};
 use super::stance::Foot;
 use super::PlanError;
 use crate::robot::hrp4;
-use crate::robot::model::{normalize_base_rotation, RobotModel};
+use crate::robot::model::{normalize_base_rotation, RobotError, RobotModel};
 use crate::robot::Kinematics;
 use crate::scene::SceneBox;
 use nalgebra::{Isometry3, Point3, Translation3, Vector6};
@@ -95,6 +95,20 @@ pub struct IkParams {
     /// stray that far (at 3 sigma of 20 mm, strays of treads under 21-25 mm of noise keep
     /// the legs off and leave the IK no solution).
     pub leg_surface_band_m: f64,
+    /// Least knee bend the IK allows a leg carrying weight (a support, or lifting off: see
+    /// [`ik_lower_limits`]), radians (HRP-4's knee stops at 0, straight). Near
+    /// straight a leg is a strut: a sole's height, which the stabilizer's foot force
+    /// difference control moves through the knee, takes 1/(l sin(knee/2)) of knee per metre
+    /// (l = 0.353 m, thigh and shank), so the leg's axial stiffness grows as
+    /// 1/sin^2(knee/2): at 0.1 rad 50 times half-sitting's (0.72 rad), and what the leg
+    /// carries runs along it, tangential to the tread as much as the leg leans. A trailing
+    /// knee let straighten to 0.097 rad at the end of a weight shift rocked its foot heel
+    /// to toe at 65 Hz and pushed 32 N tangential on 52 N (regression
+    /// `trailing-knee-straightened-into-a-strut`). 0.2 rad keeps that stiffness within 12
+    /// times half-sitting's. The loaded knees of Exp. 1's, Exp. 2's and the 24 cm step's
+    /// plans bend at least 32, 30 and 26 deg (`stairbench plan`): the limit leaves them as
+    /// they were (Exp. 1's climb is the same to the last figure).
+    pub min_knee_rad: f64,
 }
 
 impl Default for IkParams {
@@ -122,6 +136,7 @@ impl Default for IkParams {
             body_clearance_m: 0.03,
             min_body_clearance_m: 0.02,
             leg_surface_band_m: 0.09,
+            min_knee_rad: 0.2,
         }
     }
 }
@@ -206,6 +221,15 @@ pub struct Tracking {
     pub ik_interior_point_qps: usize,
     /// Wall time in the IK (kinematics, QP build, solve), seconds, over every round.
     pub ik_time_s: f64,
+    /// Largest tilt of the base (the waist) from upright over the trajectory, radians: the
+    /// IK keeps the CoM on its path by bowing the body where the legs cannot take it there
+    /// (their clearance from the steps holds the knees back).
+    #[serde(default)]
+    pub max_base_tilt_rad: f64,
+    /// Least knee bend of a leg carrying weight (a support, or lifting off) over the
+    /// trajectory, radians (see `IkParams::min_knee_rad`); `None` without one.
+    #[serde(default)]
+    pub min_loaded_knee_rad: Option<f64>,
 }
 
 /// Where the body came nearest a surface the lidar saw.
@@ -246,6 +270,35 @@ fn along_path(sw: &Swing, tau: f64, duration_s: f64) -> (Isometry3<f64>, Vector6
         start += share;
     }
     (sw.path[sw.path.len() - 1], Vector6::zeros())
+}
+
+/// The joints' lower limits the IK keeps, radians, in the model's joint order: the model's,
+/// but the knees of the feet `loaded` (right then left: those carrying weight), which stay
+/// `p.min_knee_rad` from straight. A leg in the air keeps the model's limit: it carries
+/// nothing, and held bent it reaches by turning the pelvis instead (regression
+/// `riser-strays-under-the-floor-toes` then brought a shoulder within 19 mm of the steps
+/// ahead); where it lands is [`super::reach`]'s. A foot lifting off counts as loaded
+/// ([`lifting`]): let go at the plan's lift-off, the trailing knee of regression
+/// `trailing-knee-straightened-into-a-strut` straightened as its sole bounced, under 58 N
+/// with 37 N tangential.
+pub fn ik_lower_limits(model: &RobotModel, loaded: [bool; 2], p: &IkParams) -> Result<Vec<f64>, RobotError> {
+    let mut lower: Vec<f64> = model.joints().iter().map(|j| j.lower_rad).collect();
+    set_knee_limits(&mut lower, model, hrp4::knee_joints(model)?, loaded, p);
+    Ok(lower)
+}
+
+/// The knees' entries of `lower` (the IK's lower limits) for the feet in `support`.
+fn set_knee_limits(
+    lower: &mut [f64],
+    model: &RobotModel,
+    knees: [usize; 2],
+    support: [bool; 2],
+    p: &IkParams,
+) {
+    for (k, down) in knees.into_iter().zip(support) {
+        let own = model.joints()[k].lower_rad;
+        lower[k] = if down { own.max(p.min_knee_rad) } else { own };
+    }
 }
 
 /// The joints of the upper body: every joint not on a chain from the root to a foot
@@ -321,6 +374,28 @@ pub struct Targets<'a> {
     pub swing: Option<(Foot, Isometry3<f64>, Vector6<f64>)>,
     /// The feet held in contact and where.
     pub support: &'a [(Foot, Isometry3<f64>)],
+    /// The swinging foot while it lifts off ([`lifting`]), right then left: its knee, as a
+    /// support's, stays `min_knee_rad` from straight ([`ik_lower_limits`]).
+    pub lifting: [bool; 2],
+}
+
+impl Targets<'_> {
+    /// The feet whose knees stay bent: the supports and the foot lifting off, right then left.
+    fn loaded(&self) -> [bool; 2] {
+        Foot::BOTH.map(|f| self.lifting[f.index()] || self.support.iter().any(|(s, _)| *s == f))
+    }
+}
+
+/// The swinging foot of `seg` at fraction `tau` while in its swing's first piece, the lift
+/// (right then left): the sole leaves the ground then, and in its first ticks it still
+/// bounces on it and carries weight (20-65 N over 50 ms on regression
+/// `trailing-knee-straightened-into-a-strut`).
+pub fn lifting(seg: &Segment, tau: f64) -> [bool; 2] {
+    let mut out = [false; 2];
+    if let Some(sw) = &seg.swing {
+        out[sw.foot.index()] = tau < sw.shares[0];
+    }
+    out
 }
 
 /// The QP IK of §6.1 as a stream of ticks from a configuration: the planner runs it over the
@@ -334,6 +409,11 @@ pub struct Tracker<'m> {
     q: Vec<f64>,
     q_ref: Vec<f64>,
     upper: Vec<bool>,
+    /// The joints' lower limits the IK keeps ([`ik_lower_limits`]), set each tick for the
+    /// feet then down.
+    lower_rad: Vec<f64>,
+    /// The knee joints, right then left.
+    knees: [usize; 2],
     limbs: Vec<Limb>,
     blocks: Vec<SceneBox>,
     upper_limbs: Vec<Limb>,
@@ -401,6 +481,8 @@ impl<'m> Tracker<'m> {
             // would keep whatever the last plan left, and the upper body's drift would add
             // up over the cycles (regression `chest-between-two-rails`).
             q_ref: hrp4::half_sitting_joints(model)?,
+            lower_rad: ik_lower_limits(model, [false; 2], p)?,
+            knees: hrp4::knee_joints(model)?,
             upper,
             limbs,
             blocks: blocks.to_vec(),
@@ -467,6 +549,19 @@ impl<'m> Tracker<'m> {
     /// The kinematics at the configuration reached.
     pub fn kinematics(&self) -> &Kinematics<'m> {
         &self.kin
+    }
+
+    /// Adds the posture it holds now to `stats`: the base's tilt, and the knees of the feet
+    /// `loaded`.
+    fn note_posture(&self, loaded: [bool; 2], stats: &mut Tracking) {
+        let up = self.kin.link_pose(0).rotation * nalgebra::Vector3::z();
+        stats.max_base_tilt_rad = stats.max_base_tilt_rad.max(up.angle(&nalgebra::Vector3::z()));
+        for (&k, down) in self.knees.iter().zip(loaded) {
+            if down {
+                let q = self.q[crate::robot::model::Q_JOINTS + k];
+                stats.min_loaded_knee_rad = Some(stats.min_loaded_knee_rad.map_or(q, |m: f64| m.min(q)));
+            }
+        }
     }
 
     /// The sole frames, right then left.
@@ -567,7 +662,14 @@ impl<'m> Tracker<'m> {
                 )
             })
             .collect();
-        let bounds = [ik::joint_limits(self.model, &self.q, p.max_joint_speed_rad_s, p.limit_gain_per_s)];
+        set_knee_limits(&mut self.lower_rad, self.model, self.knees, targets.loaded(), p);
+        let bounds = [ik::joint_limits(
+            self.model,
+            &self.q,
+            &self.lower_rad,
+            p.max_joint_speed_rad_s,
+            p.limit_gain_per_s,
+        )];
         let qd = self.qp.solve(&tasks, &equalities, &self.clear, &bounds)?;
         ik::integrate(&mut self.q, qd.as_slice(), dt_s);
         self.kin.update(&self.q).map_err(|e| ik::IkError::Setup(e.to_string()))?;
@@ -647,9 +749,11 @@ pub fn track(
                 com_velocity: com_v,
                 swing: swing_target(seg, tau),
                 support: &seg.support,
+                lifting: lifting(seg, tau),
             };
             tracker.tick(&targets, dt).map_err(|error| PlanError::Ik { t_s: t, segment: si, error })?;
             stats.ik_time_s += started.elapsed().as_secs_f64();
+            tracker.note_posture(targets.loaded(), &mut stats);
             stats.ik_ticks += 1;
             tick += 1;
             if let Some((d, limb, block)) = tracker.least_clearance() {
@@ -772,6 +876,110 @@ mod tests {
         assert!((d - 0.02).abs() < 1e-3, "{d}");
     }
 
+    /// A CoM wanted higher than the legs reach: the IK stretches them as far as it may, and
+    /// no further than `min_knee_rad` from straight (with the model's own limit, 0, they go
+    /// straight: the property holds because of the limit, not of the posture).
+    #[test]
+    fn the_knees_stop_short_of_straight_when_the_com_is_wanted_out_of_reach() {
+        let model = hrp4::model().expect("the model");
+        let q0 = hrp4::half_sitting_at(&model, &Isometry3::identity()).expect("standing at the origin");
+        let knees = hrp4::knee_joints(&model).expect("knees");
+        let least_knee = |p: &IkParams| {
+            let mut tracker =
+                Tracker::new(&model, &q0, &[], Arc::new(SeenPoints::new(vec![])), p).expect("a tracker");
+            let soles = tracker.sole_frames();
+            let kin = tracker.kinematics();
+            let support = [(Foot::Right, kin.frame_pose(soles[0])), (Foot::Left, kin.frame_pose(soles[1]))];
+            let com = kin.com() + nalgebra::Vector3::new(0.0, 0.0, 0.2);
+            let targets = Targets {
+                com,
+                com_velocity: nalgebra::Vector3::zeros(),
+                swing: None,
+                support: &support,
+                lifting: [false; 2],
+            };
+            let mut least = f64::INFINITY;
+            for _ in 0..300 {
+                tracker.tick(&targets, 0.01).expect("a tick");
+                least = knees
+                    .iter()
+                    .map(|&k| tracker.q()[crate::robot::model::Q_JOINTS + k])
+                    .fold(least, f64::min);
+            }
+            least
+        };
+        let p = IkParams::default();
+        let kept = least_knee(&p);
+        assert!(kept >= p.min_knee_rad - 1e-6 && kept < p.min_knee_rad + 0.01, "{kept}");
+        let straight = least_knee(&IkParams { min_knee_rad: 0.0, ..p.clone() });
+        assert!(straight < 0.05, "the model's own limit lets them straighten: {straight}");
+    }
+
+    /// Standing on the left foot, the right one wanted out of its reach, forward and down:
+    /// in the air its knee straightens as far as the model allows (a leg carrying nothing
+    /// is no strut, and held bent it would reach by turning the pelvis), lifting off it
+    /// stops at `min_knee_rad` as a support's does.
+    #[test]
+    fn a_swinging_knee_is_held_bent_only_while_it_lifts_off() {
+        let model = hrp4::model().expect("the model");
+        let q0 = hrp4::half_sitting_at(&model, &Isometry3::identity()).expect("standing at the origin");
+        let right_knee = hrp4::knee_joints(&model).expect("knees")[0];
+        let p = IkParams::default();
+        let least_knee = |lifting: [bool; 2]| {
+            let mut tracker =
+                Tracker::new(&model, &q0, &[], Arc::new(SeenPoints::new(vec![])), &p).expect("a tracker");
+            let soles = tracker.sole_frames();
+            let kin = tracker.kinematics();
+            let support = [(Foot::Left, kin.frame_pose(soles[1]))];
+            let mut far = kin.frame_pose(soles[0]);
+            far.translation.vector += nalgebra::Vector3::new(0.8, 0.0, -0.2);
+            let targets = Targets {
+                com: kin.com(),
+                com_velocity: nalgebra::Vector3::zeros(),
+                swing: Some((Foot::Right, far, Vector6::zeros())),
+                support: &support,
+                lifting,
+            };
+            let mut least = f64::INFINITY;
+            for _ in 0..300 {
+                tracker.tick(&targets, 0.01).expect("a tick");
+                least = least.min(tracker.q()[crate::robot::model::Q_JOINTS + right_knee]);
+            }
+            least
+        };
+        let in_the_air = least_knee([false; 2]);
+        assert!(in_the_air < 0.05, "{in_the_air}");
+        let lifting_off = least_knee([true, false]);
+        assert!(lifting_off >= p.min_knee_rad - 1e-6, "{lifting_off}");
+    }
+
+    /// The swing's first piece is its lift: the swinging foot is lifting until it ends, no
+    /// foot of a segment without a swing ever is.
+    #[test]
+    fn a_foot_lifts_off_in_its_swings_first_piece() {
+        let sw = Swing {
+            foot: Foot::Left,
+            path: vec![sole(0.0); 4],
+            shares: vec![0.25, 0.5, 0.25],
+            natural_s: 2.0,
+        };
+        let seg = |swing: Option<Swing>| Segment {
+            phase: super::super::gait::Phase::LiftSwingLeft,
+            stance: 0,
+            duration_s: 2.0,
+            com_start: Point3::origin(),
+            com_end: Point3::origin(),
+            support: vec![],
+            swing,
+            polygon: vec![],
+            margin_m: 0.0,
+        };
+        let swinging = seg(Some(sw));
+        assert_eq!(lifting(&swinging, 0.1), [false, true]);
+        assert_eq!(lifting(&swinging, 0.3), [false, false]);
+        assert_eq!(lifting(&seg(None), 0.1), [false, false]);
+    }
+
     #[test]
     fn the_heading_is_the_feet_mean_across_the_wrap() {
         let heading = |support: &[(Foot, Isometry3<f64>)], swing: Option<f64>| {
@@ -780,6 +988,7 @@ mod tests {
                 com_velocity: nalgebra::Vector3::zeros(),
                 swing: swing.map(|y| (Foot::Right, sole(y), Vector6::zeros())),
                 support,
+                lifting: [false; 2],
             };
             feet_heading(&targets).map(f64::to_degrees)
         };

@@ -66,6 +66,14 @@ pub fn sole_frames(model: &RobotModel) -> Result<[usize; 2], RobotError> {
     Ok([model.frame_id(R_SOLE)?, model.frame_id(L_SOLE)?])
 }
 
+/// The knee joints' names, right then left.
+pub const KNEES: [&str; 2] = ["R_KNEE_P", "L_KNEE_P"];
+
+/// The knee joints' indices, right then left.
+pub fn knee_joints(model: &RobotModel) -> Result<[usize; 2], RobotError> {
+    Ok([model.joint_id(KNEES[0])?, model.joint_id(KNEES[1])?])
+}
+
 /// Half length and half width of each sole, right then left, from the model's foot boxes
 /// ([`RobotModel::sole_half_m`]), metres.
 pub fn sole_half_m(model: &RobotModel) -> Result<[[f64; 2]; 2], RobotError> {

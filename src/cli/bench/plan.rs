@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use nalgebra::{Point3, Vector3};
 use stairbench::planning::clearance::SeenPoints;
 use stairbench::planning::ik::{self, Solver};
-use stairbench::planning::motion::IkParams;
+use stairbench::planning::motion::{self, IkParams};
 use stairbench::planning::{rectangles, Plan, PlanParams, PlanRequest};
 use stairbench::robot::model::Q_JOINTS;
 use stairbench::robot::{hrp4, Kinematics};
@@ -94,7 +94,8 @@ fn qp_reuse(repeat: usize) -> Result<(f64, f64, f64)> {
             )
         })
         .collect();
-    let bounds = [ik::joint_limits(&model, &q, p.max_joint_speed_rad_s, p.limit_gain_per_s)];
+    let lower = motion::ik_lower_limits(&model, [true; 2], &p)?;
+    let bounds = [ik::joint_limits(&model, &q, &lower, p.max_joint_speed_rad_s, p.limit_gain_per_s)];
     let fresh = ik::solve(model.nv(), &tasks, &eqs, &[], &bounds, p.damping)?;
     let mut solver = Solver::new(model.nv(), p.damping);
     let reused = solver.solve(&tasks, &eqs, &[], &bounds)?;
