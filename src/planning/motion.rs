@@ -279,7 +279,7 @@ fn along_path(sw: &Swing, tau: f64, duration_s: f64) -> (Isometry3<f64>, Vector6
 /// `riser-strays-under-the-floor-toes` then brought a shoulder within 19 mm of the steps
 /// ahead); where it lands is [`super::reach`]'s. A foot lifting off counts as loaded
 /// ([`lifting`]): let go at the plan's lift-off, the trailing knee of regression
-/// `trailing-knee-straightened-into-a-strut` straightened as its sole bounced, under 58 N
+/// `trailing-knee-straightened-into-a-strut` straightened as its sole bounced, under 66 N
 /// with 37 N tangential.
 pub fn ik_lower_limits(model: &RobotModel, loaded: [bool; 2], p: &IkParams) -> Result<Vec<f64>, RobotError> {
     let mut lower: Vec<f64> = model.joints().iter().map(|j| j.lower_rad).collect();
