@@ -292,10 +292,10 @@ fn set_knee_limits(
     lower: &mut [f64],
     model: &RobotModel,
     knees: [usize; 2],
-    support: [bool; 2],
+    loaded: [bool; 2],
     p: &IkParams,
 ) {
-    for (k, down) in knees.into_iter().zip(support) {
+    for (k, down) in knees.into_iter().zip(loaded) {
         let own = model.joints()[k].lower_rad;
         lower[k] = if down { own.max(p.min_knee_rad) } else { own };
     }
@@ -393,7 +393,7 @@ impl Targets<'_> {
 pub fn lifting(seg: &Segment, tau: f64) -> [bool; 2] {
     let mut out = [false; 2];
     if let Some(sw) = &seg.swing {
-        out[sw.foot.index()] = tau < sw.shares[0];
+        out[sw.foot.index()] = sw.shares.first().is_some_and(|&lift| tau < lift);
     }
     out
 }
