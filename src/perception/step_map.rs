@@ -19,6 +19,17 @@ fn median(values: impl Iterator<Item = f64>) -> f64 {
     }
 }
 
+/// The median of `values` when they agree: more than half of them within `tolerance` of it
+/// (0 without any); `None` when they do not. A drift moves every step of a view alike, so
+/// steps that disagree beyond what a view errs by show a mismatch, which a median of two
+/// would split: regression `a-deep-read-tread-dragged-the-registration`.
+fn agreed_median(values: impl Iterator<Item = f64>, tolerance: f64) -> Option<f64> {
+    let v: Vec<f64> = values.collect();
+    let m = median(v.iter().copied());
+    let near = v.iter().filter(|x| (*x - m).abs() <= tolerance).count();
+    (v.is_empty() || 2 * near > v.len()).then_some(m)
+}
+
 /// Parameters of the step map.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -49,7 +60,8 @@ pub struct StepMapParams {
     pub max_overlap_m: f64,
     /// A registration's correction (see [`StepMap::register`]) under this, along the ascent
     /// or in height, is left alone: a view's fronts on their risers err by about a
-    /// centimetre under noise, and a correction from them would move a true estimate. Metres.
+    /// centimetre under noise, and a correction from them would move a true estimate; the
+    /// matched steps' shifts must agree within it too ([`StepMap::register`]). Metres.
     pub register_min_m: f64,
     /// A registration's correction over this is no drift but a mismatch (another step taken
     /// for a known one), and nothing is corrected. Metres.
@@ -128,9 +140,11 @@ impl StepMap {
     /// - in height, from the treads' heights.
     ///
     /// A turn under `register_min_rad` and a shift under `register_min_m` are left at zero;
-    /// a view that matches nothing, asks for a turn over 10 times `register_min_rad` or a
-    /// shift over `register_max_m`, or would move the robot (at `viewpoint`, where the view
-    /// was taken) by more than `register_max_m`, gives `None` (a mismatch, not drift).
+    /// a view that matches nothing, whose matched steps disagree on a shift (fewer than
+    /// half of them within `register_min_m` of the median), asks for a turn over 10 times
+    /// `register_min_rad` or a shift over `register_max_m`, or would move the robot (at
+    /// `viewpoint`, where the view was taken) by more than `register_max_m`, gives `None` (a
+    /// mismatch, not drift).
     pub fn register(
         &self,
         seen: &[PlaneSegment],
@@ -183,14 +197,17 @@ impl StepMap {
             pairs.into_iter().map(|(k, s)| (k, s.transformed(&turned))).collect();
         let across = Vector3::z().cross(&along);
         let keep = |d: f64| if d.abs() < p.register_min_m { 0.0 } else { d };
-        let dz = keep(median(pairs.iter().map(|(k, s)| k.height_m() - s.height_m())));
-        let d_along = keep(median(pairs.iter().filter(on_risers).map(|(k, s)| riser(k) - riser(s))));
-        let d_across = keep(median(
+        let tolerance = p.register_min_m;
+        let dz = keep(agreed_median(pairs.iter().map(|(k, s)| k.height_m() - s.height_m()), tolerance)?);
+        let d_along =
+            keep(agreed_median(pairs.iter().filter(on_risers).map(|(k, s)| riser(k) - riser(s)), tolerance)?);
+        let d_across = keep(agreed_median(
             pairs
                 .iter()
                 .filter(|(k, s)| (k.width_m() - s.width_m()).abs() < p.register_min_m)
                 .map(|(k, s)| (k.center() - s.center()).dot(&across)),
-        ));
+            tolerance,
+        )?);
         let shift = along * d_along + across * d_across + Vector3::z() * dz;
         if [d_along, d_across, dz].iter().any(|d| d.abs() > p.register_max_m) {
             return None;
@@ -581,6 +598,43 @@ mod tests {
             seen.iter().map(|s| s.clone().moved(&Vector3::new(-0.04, 0.0, 0.0))).collect();
         let dx = map.register(&drifted, &origin, &p).expect("a correction").translation.vector.x;
         assert!((dx - 0.04).abs() < 1e-9, "{dx}");
+    }
+
+    /// `regress real` case real-0034, third draw, on the robot's estimate: from step 2, a
+    /// tread two steps up read 61 mm deep toward the robot, its riser with it, while the
+    /// next matched its known riser within 0.1 mm; the median of the two moved the estimate
+    /// 30.5 mm where it was 1.9 mm off, and both feet landed over a nose. Steps that disagree
+    /// on a shift are a mismatch; a step off among agreeing ones is outvoted.
+    #[test]
+    fn steps_that_disagree_on_the_shift_are_not_drift() {
+        let p = StepMapParams::default();
+        let origin = Point3::new(0.3, 0.0, 1.4);
+        let risers = [(0.60, 0.18), (0.88, 0.36), (1.16, 0.54)];
+        let known: Vec<PlaneSegment> =
+            risers.iter().map(|&(x, z)| step(x + 0.14, z, 0.28).with_front(FrontMark::Riser)).collect();
+        let map = StepMap { known };
+        let deep = |x: f64, z: f64| step(x + 0.14 - 0.0305, z, 0.28 + 0.061).with_front(FrontMark::Riser);
+        let two = vec![
+            deep(risers[1].0, risers[1].1),
+            step(risers[2].0 + 0.14, risers[2].1, 0.28).with_front(FrontMark::Riser),
+        ];
+        assert_eq!(map.register(&two, &origin, &p), None, "a median of two would move the estimate 30.5 mm");
+        let drifted: Vec<PlaneSegment> = risers
+            .iter()
+            .enumerate()
+            .map(
+                |(i, &(x, z))| {
+                    if i == 1 {
+                        deep(x, z)
+                    } else {
+                        step(x + 0.14, z, 0.28).with_front(FrontMark::Riser)
+                    }
+                },
+            )
+            .map(|s| s.moved(&Vector3::new(-0.03, 0.0, 0.0)))
+            .collect();
+        let dx = map.register(&drifted, &origin, &p).expect("a correction").translation.vector.x;
+        assert!((dx - 0.03).abs() < 1e-9, "{dx}");
     }
 
     /// `regress ci` case ci-0195, third draw, on the robot's estimate: a 0.45 m wide
