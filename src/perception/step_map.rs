@@ -19,14 +19,16 @@ fn median(values: impl Iterator<Item = f64>) -> f64 {
     }
 }
 
-/// The median of `values` when they agree: more than half of them within `tolerance` of it
-/// (0 without any); `None` when they do not. A drift moves every step of a view alike, so
-/// steps that disagree beyond what a view errs by show a mismatch, which a median of two
-/// would split: regression `a-deep-read-tread-dragged-the-registration`.
-fn agreed_median(values: impl Iterator<Item = f64>, tolerance: f64) -> Option<f64> {
+/// The median of `values` when they agree: more than half of them within `agree_m` of it (0
+/// without any, and one value agrees with itself); `None` when they do not, or for a NaN. A
+/// drift moves every step of a view alike, so steps that disagree beyond what a view errs by
+/// show a misread step, which a median of two would split: regression
+/// `a-deep-read-tread-dragged-the-registration`. Two values agree when they lie within
+/// twice `agree_m` of each other (their median is their middle).
+fn agreed_median(values: impl Iterator<Item = f64>, agree_m: f64) -> Option<f64> {
     let v: Vec<f64> = values.collect();
     let m = median(v.iter().copied());
-    let near = v.iter().filter(|x| (*x - m).abs() <= tolerance).count();
+    let near = v.iter().filter(|x| (*x - m).abs() <= agree_m).count();
     (v.is_empty() || 2 * near > v.len()).then_some(m)
 }
 
@@ -140,11 +142,12 @@ impl StepMap {
     /// - in height, from the treads' heights.
     ///
     /// A turn under `register_min_rad` and a shift under `register_min_m` are left at zero;
-    /// a view that matches nothing, whose matched steps disagree on a shift (fewer than
-    /// half of them within `register_min_m` of the median), asks for a turn over 10 times
-    /// `register_min_rad` or a shift over `register_max_m`, or would move the robot (at
-    /// `viewpoint`, where the view was taken) by more than `register_max_m`, gives `None` (a
-    /// mismatch, not drift).
+    /// a view that matches nothing, whose matched steps disagree on a shift (half or fewer
+    /// of them within `register_min_m` of the median: the whole view is then not trusted),
+    /// asks for a turn over 10 times `register_min_rad` or a shift over `register_max_m`, or
+    /// would move the robot (at `viewpoint`, where the view was taken) by more than
+    /// `register_max_m`, gives `None` (a mismatch, not drift). The turn is a plain median,
+    /// and one matched step agrees with itself.
     pub fn register(
         &self,
         seen: &[PlaneSegment],
@@ -197,16 +200,16 @@ impl StepMap {
             pairs.into_iter().map(|(k, s)| (k, s.transformed(&turned))).collect();
         let across = Vector3::z().cross(&along);
         let keep = |d: f64| if d.abs() < p.register_min_m { 0.0 } else { d };
-        let tolerance = p.register_min_m;
-        let dz = keep(agreed_median(pairs.iter().map(|(k, s)| k.height_m() - s.height_m()), tolerance)?);
+        let agree_m = p.register_min_m;
+        let dz = keep(agreed_median(pairs.iter().map(|(k, s)| k.height_m() - s.height_m()), agree_m)?);
         let d_along =
-            keep(agreed_median(pairs.iter().filter(on_risers).map(|(k, s)| riser(k) - riser(s)), tolerance)?);
+            keep(agreed_median(pairs.iter().filter(on_risers).map(|(k, s)| riser(k) - riser(s)), agree_m)?);
         let d_across = keep(agreed_median(
             pairs
                 .iter()
                 .filter(|(k, s)| (k.width_m() - s.width_m()).abs() < p.register_min_m)
                 .map(|(k, s)| (k.center() - s.center()).dot(&across)),
-            tolerance,
+            agree_m,
         )?);
         let shift = along * d_along + across * d_across + Vector3::z() * dz;
         if [d_along, d_across, dz].iter().any(|d| d.abs() > p.register_max_m) {
