@@ -30,16 +30,12 @@ pub struct IkParams {
     /// §6.1 objective (3): deviation from the reference posture, w_ref = 0.001.
     pub weight_posture: f64,
     /// Weight of the base's orientation task (the pelvis held upright, facing where the feet
-    /// point), beyond the paper, whose objective (3) holds the posture alone: the posture's
-    /// weight. The IK reaches the CoM partly by bowing the waist (Exp. 1's plan 40 deg from
-    /// upright, the 24 cm step's 53), and in `ci-0109` a roll of the bowed pelvis of 0.066 rad
-    /// in 0.13 s before a touchdown swung the landing sole 5 mm sideways in simulation (the
-    /// servos lagging) to meet the tread on its edge at a friction ratio of 0.71 (its surface
-    /// 0.74). At 0.01 the bows are 26 deg and 35 deg and that landing 0.13, the CoM still
-    /// tracked within 1.2 mm, but `real`'s friction ratios rose (largest 0.416 -> 0.661,
-    /// `hrp4-like` bodies' 90th percentile 0.36 -> 0.45, the upper steps' landings of
-    /// `real-0037` 0.35 -> 0.59 and 0.14 -> 0.66): held upright, the pelvis leaves the reach
-    /// to the legs. At 0.1 the CoM tracks only within 4-6 mm.
+    /// point), beyond the paper, whose objective (3) holds the posture alone: by default the
+    /// posture's. The IK reaches the CoM partly by bowing the waist, and a quick roll of a
+    /// bowed pelvis before a touchdown swings the landing sole sideways in simulation (the
+    /// servos lag it). Raised, the waist bows less but the legs take the reach, and over
+    /// `regress real` the landings' friction ratios rose at ten times this; at a hundred
+    /// times the base task fights the CoM's (CHANGELOG's fifteenth session has the figures).
     pub weight_base_orientation: f64,
     /// Gain turning CoM and foot errors into velocities, 1/s.
     pub task_gain_per_s: f64,
