@@ -85,6 +85,15 @@ fn negative_rise_names_the_field_and_line() {
 }
 
 #[test]
+fn a_bound_on_the_estimate_that_is_not_positive_names_the_field_and_line() {
+    let e = err("[expect]\noutcome = \"climb\"\nmax_estimate_error_m = -0.02\n");
+    assert!(
+        e.contains("expect.max_estimate_error_m") && e.contains("bad.toml:3") && e.contains("> 0"),
+        "{e}"
+    );
+}
+
+#[test]
 fn zero_steps_is_refused() {
     let e = err("[staircase]\nsteps = 0\n");
     assert!(e.contains("staircase.steps") && e.contains("bad.toml:2"), "{e}");

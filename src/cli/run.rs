@@ -8,7 +8,7 @@ use stairbench::climb::speed_margin::speed_margin;
 use stairbench::climb::{ClimbReport, CycleReport, Each, Event, Observer, Watch};
 use stairbench::params::ClimbParams;
 use stairbench::record::viewer::{RerunLogger, Sink};
-use stairbench::regress::verdict::classify;
+use stairbench::regress::verdict::verdict_of;
 use stairbench::scenario::Scenario;
 use stairbench::sim::climb_scenario;
 use std::path::PathBuf;
@@ -198,7 +198,7 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
     }
     print_summary(&report);
     // A scenario written by `regress` says what the bench should do: the verdict against it.
-    let verdict = scenario.expect.as_ref().map(|e| (e, classify(e.outcome, e.before_step, &report, false)));
+    let verdict = scenario.expect.as_ref().map(|e| (e, verdict_of(e, &report, false)));
     if let Some((e, v)) = &verdict {
         println!("verdict: {v} (expected {:?}: {})", e.outcome, e.reason);
     }

@@ -137,13 +137,14 @@ impl StepMap {
     ///   views placed on their risers (a riser is a long straight edge), about the view's
     ///   matched steps' middle;
     /// - along the ascent, from those steps' risers (where the flight is);
-    /// - across it, from the treads' middles, of the steps both views saw as wide (within
-    ///   `register_min_m`; a view's side is the side it saw, not the tread's, otherwise);
+    /// - across it, from the treads' side edges, each edge of each matched step one vote (a
+    ///   view's side edge is where its sight ended: a shadow, a post, the view's reach);
     /// - in height, from the treads' heights.
     ///
     /// A turn under `register_min_rad` and a shift under `register_min_m` are left at zero;
-    /// a view that matches nothing, whose matched steps disagree on a shift (half or fewer
-    /// of them within `register_min_m` of the median: the whole view is then not trusted),
+    /// side edges that disagree (half or fewer within `register_min_m` of their median) leave
+    /// the view uncorrected across only; a view that matches nothing, whose matched steps
+    /// disagree in height or along the ascent (likewise: the whole view is then not trusted),
     /// asks for a turn over 10 times `register_min_rad` or a shift over `register_max_m`, or
     /// would move the robot (at `viewpoint`, where the view was taken) by more than
     /// `register_max_m`, gives `None` (a mismatch, not drift). The turn is a plain median,
@@ -204,13 +205,22 @@ impl StepMap {
         let dz = keep(agreed_median(pairs.iter().map(|(k, s)| k.height_m() - s.height_m()), agree_m)?);
         let d_along =
             keep(agreed_median(pairs.iter().filter(on_risers).map(|(k, s)| riser(k) - riser(s)), agree_m)?);
-        let d_across = keep(agreed_median(
-            pairs
-                .iter()
-                .filter(|(k, s)| (k.width_m() - s.width_m()).abs() < p.register_min_m)
-                .map(|(k, s)| (k.center() - s.center()).dot(&across)),
+        // Across, from the treads' side edges, each one vote: an edge cut short by a shadow, a
+        // handrail's post or the view's reach is one misread edge among them, where a tread's
+        // middle would move with it (regression `one-tread-dragged-the-estimate-across`).
+        // Edges that disagree say nothing across; the risers and the heights still stand.
+        let edges = |r: &PlaneSegment| {
+            let (r, middle) = (axis_nearest(r, &along), r.center().coords.dot(&across));
+            [middle - r.width_m() / 2.0, middle + r.width_m() / 2.0]
+        };
+        let d_across = agreed_median(
+            pairs.iter().flat_map(|(k, s)| {
+                let (k, s) = (edges(k), edges(s));
+                [k[0] - s[0], k[1] - s[1]]
+            }),
             agree_m,
-        )?);
+        )
+        .map_or(0.0, keep);
         let shift = along * d_along + across * d_across + Vector3::z() * dz;
         if [d_along, d_across, dz].iter().any(|d| d.abs() > p.register_max_m) {
             return None;
@@ -518,6 +528,12 @@ mod tests {
         level(Point3::new(x, 0.0, z), Vector3::x(), depth_m, 0.5, 10)
     }
 
+    /// A flight along x: treads 0.28 m deep whose fronts stand on their risers, at `(riser
+    /// x, height)` each.
+    fn on_risers(risers: &[(f64, f64)]) -> Vec<PlaneSegment> {
+        risers.iter().map(|&(x, z)| step(x + 0.14, z, 0.28).with_front(FrontMark::Riser)).collect()
+    }
+
     /// A view taken under odometry drift (the robot believes itself 4 cm farther up the
     /// flight and 2.5 cm higher than it is) is registered on the known steps before it is
     /// merged: merged as it came, each step would stretch 4 cm toward the robot (the nearer
@@ -560,11 +576,7 @@ mod tests {
     fn a_strip_by_the_next_front_is_not_matched_a_rise_away() {
         let p = StepMapParams::default();
         let origin = Point3::new(0.5, 0.0, 1.5);
-        let known: Vec<PlaneSegment> = [(0.74, 0.1), (1.02, 0.2), (1.30, 0.3)]
-            .iter()
-            .map(|&(x, z)| step(x, z, 0.28).with_front(FrontMark::Riser))
-            .collect();
-        let map = StepMap { known };
+        let map = StepMap { known: on_risers(&[(0.60, 0.1), (0.88, 0.2), (1.16, 0.3)]) };
         let seen = vec![step(1.128, 0.199, 0.067), step(1.30, 0.299, 0.28).with_front(FrontMark::Riser)];
         assert_eq!(map.register(&seen, &origin, &p), None);
         // Drift of 2.5 cm in height is still found on such a flight.
@@ -594,8 +606,7 @@ mod tests {
             })
             .collect();
         let map = StepMap { known };
-        let seen: Vec<PlaneSegment> =
-            risers.iter().map(|&(x, z)| step(x + 0.14, z, 0.28).with_front(FrontMark::Riser)).collect();
+        let seen = on_risers(&risers);
         assert_eq!(map.register(&seen, &origin, &p), None);
         let drifted: Vec<PlaneSegment> =
             seen.iter().map(|s| s.clone().moved(&Vector3::new(-0.04, 0.0, 0.0))).collect();
@@ -603,41 +614,62 @@ mod tests {
         assert!((dx - 0.04).abs() < 1e-9, "{dx}");
     }
 
-    /// `regress real` case real-0034, third draw, on the robot's estimate: from step 2, a
-    /// tread two steps up read 61 mm deep toward the robot, its riser with it, while the
-    /// next matched its known riser within 0.1 mm; the median of the two moved the estimate
-    /// 30.5 mm where it was 1.9 mm off, and both feet landed over a nose. Steps that disagree
-    /// on a shift are a mismatch; a step off among agreeing ones is outvoted.
+    /// Regression `a-deep-read-tread-dragged-the-registration`: one tread read a tread's
+    /// depth too deep toward the robot (its riser with it), the next as known. Steps that
+    /// disagree on a shift are a mismatch (a median of two would split them); a step off
+    /// among agreeing ones is outvoted.
     #[test]
     fn steps_that_disagree_on_the_shift_are_not_drift() {
         let p = StepMapParams::default();
         let origin = Point3::new(0.3, 0.0, 1.4);
         let risers = [(0.60, 0.18), (0.88, 0.36), (1.16, 0.54)];
-        let known: Vec<PlaneSegment> =
-            risers.iter().map(|&(x, z)| step(x + 0.14, z, 0.28).with_front(FrontMark::Riser)).collect();
-        let map = StepMap { known };
-        let deep = |x: f64, z: f64| step(x + 0.14 - 0.0305, z, 0.28 + 0.061).with_front(FrontMark::Riser);
-        let two = vec![
-            deep(risers[1].0, risers[1].1),
-            step(risers[2].0 + 0.14, risers[2].1, 0.28).with_front(FrontMark::Riser),
-        ];
-        assert_eq!(map.register(&two, &origin, &p), None, "a median of two would move the estimate 30.5 mm");
-        let drifted: Vec<PlaneSegment> = risers
-            .iter()
-            .enumerate()
-            .map(
-                |(i, &(x, z))| {
-                    if i == 1 {
-                        deep(x, z)
-                    } else {
-                        step(x + 0.14, z, 0.28).with_front(FrontMark::Riser)
-                    }
-                },
-            )
-            .map(|s| s.moved(&Vector3::new(-0.03, 0.0, 0.0)))
-            .collect();
+        let map = StepMap { known: on_risers(&risers) };
+        let deep_m = 0.061;
+        let mut seen = on_risers(&risers);
+        seen[1] =
+            step(risers[1].0 + 0.14 - deep_m / 2.0, risers[1].1, 0.28 + deep_m).with_front(FrontMark::Riser);
+        assert_eq!(map.register(&seen[1..], &origin, &p), None, "two steps that disagree");
+        let drifted: Vec<PlaneSegment> =
+            seen.into_iter().map(|s| s.moved(&Vector3::new(-0.03, 0.0, 0.0))).collect();
         let dx = map.register(&drifted, &origin, &p).expect("a correction").translation.vector.x;
         assert!((dx - 0.03).abs() < 1e-9, "{dx}");
+    }
+
+    /// Regression `one-tread-dragged-the-estimate-across`: four treads between handrails,
+    /// each side edge read differently by two views (posts and shadows cut them short by
+    /// centimetres either way), one tread's width alike in both and its middle moved. The
+    /// edges do not agree on a shift: nothing is corrected across (a shift taken from the
+    /// one tread of like width would move the estimate 41 mm), while a drift in height is
+    /// still found. A drift across moves every edge alike and is found with one edge cut
+    /// short.
+    #[test]
+    fn edges_that_disagree_across_are_not_drift() {
+        let p = StepMapParams::default();
+        let origin = Point3::new(0.0, 0.0, 1.4);
+        let risers = [(0.94, 0.18), (1.21, 0.36), (1.48, 0.55), (1.75, 0.73)];
+        let across = |edges: [(f64, f64); 4]| -> Vec<PlaneSegment> {
+            risers
+                .iter()
+                .zip(edges)
+                .map(|(&(x, z), (lo, hi))| {
+                    level(Point3::new(x + 0.135, (lo + hi) / 2.0, z), Vector3::x(), 0.27, hi - lo, 10)
+                        .with_front(FrontMark::Riser)
+                })
+                .collect()
+        };
+        let known = [(-0.434, 0.535), (-0.423, 0.501), (-0.416, 0.497), (-0.358, 0.497)];
+        let seen = [(-0.411, 0.521), (-0.424, 0.528), (-0.382, 0.545), (-0.327, 0.488)];
+        let map = StepMap { known: across(known) };
+        assert_eq!(map.register(&across(seen), &origin, &p), None);
+        let lower: Vec<PlaneSegment> =
+            across(seen).into_iter().map(|s| s.moved(&Vector3::new(0.0, 0.0, -0.03))).collect();
+        let shift = map.register(&lower, &origin, &p).expect("a correction").translation.vector;
+        assert!((shift - Vector3::new(0.0, 0.0, 0.03)).norm() < 1e-9, "{shift}");
+        let drift_m = 0.03;
+        let mut drifted = known.map(|(lo, hi)| (lo - drift_m, hi - drift_m));
+        drifted[2].1 -= 0.05;
+        let dy = map.register(&across(drifted), &origin, &p).expect("a correction").translation.vector.y;
+        assert!((dy - drift_m).abs() < 1e-9, "{dy}");
     }
 
     /// `regress ci` case ci-0195, third draw, on the robot's estimate: a 0.45 m wide

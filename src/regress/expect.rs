@@ -140,6 +140,7 @@ pub fn expect(s: &Scenario, gait: &GaitParams, feet_half_spacing_m: f64) -> Expe
     if either.is_empty() {
         ExpectSpec {
             before_step: None,
+            max_estimate_error_m: None,
             outcome: ExpectedOutcome::Climb,
             reason: format!(
                 "every step within the planner's limits: rise {max_rise_m:.3} <= {:.3} m, tread {min_tread_m:.3} >= {:.3} m, soles {:.3} m inside the flight's sides ({:.3} m over allowed)",
@@ -147,7 +148,12 @@ pub fn expect(s: &Scenario, gait: &GaitParams, feet_half_spacing_m: f64) -> Expe
             ),
         }
     } else {
-        ExpectSpec { outcome: ExpectedOutcome::Either, reason: either.join("; "), before_step: object_step }
+        ExpectSpec {
+            outcome: ExpectedOutcome::Either,
+            reason: either.join("; "),
+            before_step: object_step,
+            max_estimate_error_m: None,
+        }
     }
 }
 
@@ -287,7 +293,7 @@ pub fn lanes_m(s: &Scenario, feet_half_spacing_m: f64) -> [f64; 2] {
 }
 
 fn refuse(reason: String) -> ExpectSpec {
-    ExpectSpec { outcome: ExpectedOutcome::Refuse, reason, before_step: None }
+    ExpectSpec { outcome: ExpectedOutcome::Refuse, reason, before_step: None, max_estimate_error_m: None }
 }
 
 /// How far the worse foot's sole overhangs the flight's side when it keeps its start lane,

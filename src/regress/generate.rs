@@ -132,11 +132,17 @@ fn description(suite: &Suite, index: usize, name: Option<&str>, from: &str) -> S
 
 /// The expectation set by the suite's hand.
 fn by_hand_spec((outcome, why): &(crate::scenario::ExpectedOutcome, String)) -> ExpectSpec {
-    ExpectSpec { outcome: *outcome, reason: format!("set by the suite: {why}"), before_step: None }
+    ExpectSpec {
+        outcome: *outcome,
+        reason: format!("set by the suite: {why}"),
+        before_step: None,
+        max_estimate_error_m: None,
+    }
 }
 
 /// A case that is a scenario file as it stands, its own seed noise draw 0's; its
-/// expectation the suite's, else the file's, else the one the ground truth gives.
+/// expectation the suite's (with the file's bound on the estimate), else the file's, else
+/// the one the ground truth gives.
 fn from_file(
     suite: &Suite,
     robot: &Robot,
@@ -148,7 +154,10 @@ fn from_file(
     let mut scenario =
         Scenario::load(file).map_err(|e| GenerateError::Scenario { id: id.clone(), error: e.to_string() })?;
     let expected = match (&plan.by_hand, scenario.expect.take()) {
-        (Some(hand), _) => by_hand_spec(hand),
+        (Some(hand), own) => ExpectSpec {
+            max_estimate_error_m: own.and_then(|o| o.max_estimate_error_m),
+            ..by_hand_spec(hand)
+        },
         (None, Some(own)) => own,
         (None, None) => expect(&scenario, &robot.gait, robot.feet_half_spacing_m),
     };
@@ -584,6 +593,33 @@ mod tests {
         let s = parse("[[case]]\nname = \"gone\"\nscenario = \"no/such.toml\"\n", "s", "x").expect("valid");
         let e = cases(&s, &robot()).expect_err("no file").to_string();
         assert!(e.contains("x-0000") && e.contains("no/such.toml"), "{e}");
+    }
+
+    /// A suite's expectation set by hand on a scenario file's case keeps the file's bound on
+    /// the estimate (the incident that the bound guards is the file's).
+    #[test]
+    fn an_expectation_by_hand_keeps_the_files_bound_on_the_estimate() {
+        use crate::scenario::{ExpectSpec, ExpectedOutcome, Scenario};
+        let file = std::env::temp_dir().join(format!("stairbench-bound-{}.toml", std::process::id()));
+        let scenario = Scenario {
+            expect: Some(ExpectSpec {
+                outcome: ExpectedOutcome::Either,
+                reason: "the file's".into(),
+                before_step: None,
+                max_estimate_error_m: Some(0.025),
+            }),
+            ..Scenario::default()
+        };
+        std::fs::write(&file, scenario.to_toml_string().expect("toml")).expect("written");
+        let text = format!(
+            "[[case]]\nname = \"b\"\nscenario = {:?}\nexpect = \"climb\"\nexpect_reason = \"the suite's\"\n",
+            file.display().to_string()
+        );
+        let c = cases(&parse(&text, "s", "x").expect("valid"), &robot());
+        let _ = std::fs::remove_file(&file);
+        let e = c.expect("drawn")[0].scenario.expect.clone().expect("an expectation");
+        assert_eq!((e.outcome, e.max_estimate_error_m), (ExpectedOutcome::Climb, Some(0.025)));
+        assert!(e.reason.contains("the suite's"), "{}", e.reason);
     }
 
     #[test]

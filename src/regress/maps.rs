@@ -17,6 +17,7 @@ fn colour(v: Verdict) -> RGBColor {
         Verdict::CheckViolated => RGBColor(214, 39, 40),
         Verdict::Fell => RGBColor(0, 0, 0),
         Verdict::SteppedOntoUnclimbable => RGBColor(148, 103, 189),
+        Verdict::EstimateStrayed => RGBColor(188, 189, 34),
         Verdict::NoStaircaseFound => RGBColor(140, 86, 75),
         Verdict::Error => RGBColor(227, 119, 194),
         Verdict::Timeout => RGBColor(127, 127, 127),

@@ -6,12 +6,12 @@
 
 use super::generate::{noise_seed, Case};
 use super::results::{Appender, CaseResult};
-use super::verdict::{classify, Verdict};
+use super::verdict::{verdict_of, Verdict};
 use crate::cancel::Cancel;
 use crate::climb::{Nobody, Observer, StageTimes};
 use crate::params::ClimbParams;
 use crate::record::Recorder;
-use crate::scenario::ExpectedOutcome;
+use crate::scenario::{ExpectSpec, ExpectedOutcome};
 use std::collections::{BTreeSet, VecDeque};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{channel, RecvTimeoutError};
@@ -205,8 +205,12 @@ fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
     };
     let mut scenario = case.scenario.clone();
     scenario.seed = seed;
-    let (expect, before_step) =
-        scenario.expect.clone().map_or((ExpectedOutcome::Climb, None), |e| (e.outcome, e.before_step));
+    let spec = scenario.expect.clone().unwrap_or(ExpectSpec {
+        outcome: ExpectedOutcome::Climb,
+        reason: String::new(),
+        before_step: None,
+        max_estimate_error_m: None,
+    });
     let mut result = CaseResult {
         suite: info.name.clone(),
         suite_hash: info.hash.clone(),
@@ -218,8 +222,8 @@ fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
         seed_index: job.seed_index,
         noise_seed: seed,
         params: case.values.clone(),
-        expect,
-        expect_reason: scenario.expect.as_ref().map(|e| e.reason.clone()).unwrap_or_default(),
+        expect: spec.outcome,
+        expect_reason: spec.reason.clone(),
         verdict: Verdict::Error,
         pass: false,
         stop: None,
@@ -267,8 +271,15 @@ fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
     match outcome {
         Ok(Ok(report)) => {
             result = result.with_report(&report);
-            result.verdict = classify(expect, before_step, &report, timed_out);
-            result.message = report.why_failed();
+            result.verdict = verdict_of(&spec, &report, timed_out);
+            result.message = match (result.verdict, spec.max_estimate_error_m, report.max_estimate_error_m()) {
+                (Verdict::EstimateStrayed, Some(most), Some(e)) => Some(format!(
+                    "the robot's estimate strayed {:.1} mm from the truth at a sweep (at most {:.1} mm allowed)",
+                    e * 1e3,
+                    most * 1e3
+                )),
+                _ => report.why_failed(),
+            };
         }
         Ok(Err(e)) => {
             result.error = Some(e.clone());

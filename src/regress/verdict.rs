@@ -1,10 +1,10 @@
 //! A case's verdict: what the climb did against what was expected. A case passes when it
 //! climbed clean, or when it was refused (or found nothing to climb) as expected before a
-//! foot was set on the staircase, no check violated on the way; walking closer on the floor
-//! to look is allowed.
+//! foot was set on the staircase, no check violated on the way (walking closer on the floor
+//! to look is allowed), and the robot's own estimate stayed within the case's bound.
 
 use crate::climb::{ClimbReport, Footing, StopReason};
-use crate::scenario::ExpectedOutcome;
+use crate::scenario::{ExpectSpec, ExpectedOutcome};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
@@ -24,6 +24,9 @@ pub enum Verdict {
     Fell,
     /// A foot was set on a staircase the planner's limits say must be refused.
     SteppedOntoUnclimbable,
+    /// Climbed clean or refused as expected, but the robot's own estimate of its base
+    /// strayed from the truth beyond the case's `max_estimate_error_m`.
+    EstimateStrayed,
     /// Perception found no staircase to climb before the top.
     NoStaircaseFound,
     /// The bench failed (a setup or executor error, a sensor failure, unstable physics, the
@@ -35,13 +38,14 @@ pub enum Verdict {
 
 impl Verdict {
     /// Every class, in report order.
-    pub const ALL: [Verdict; 9] = [
+    pub const ALL: [Verdict; 10] = [
         Verdict::ClimbedClean,
         Verdict::RefusedAsExpected,
         Verdict::FalseRefusal,
         Verdict::CheckViolated,
         Verdict::Fell,
         Verdict::SteppedOntoUnclimbable,
+        Verdict::EstimateStrayed,
         Verdict::NoStaircaseFound,
         Verdict::Error,
         Verdict::Timeout,
@@ -61,6 +65,7 @@ impl Verdict {
             Verdict::CheckViolated => "check_violated",
             Verdict::Fell => "fell",
             Verdict::SteppedOntoUnclimbable => "stepped_onto_unclimbable",
+            Verdict::EstimateStrayed => "estimate_strayed",
             Verdict::NoStaircaseFound => "no_staircase_found",
             Verdict::Error => "error",
             Verdict::Timeout => "timeout",
@@ -71,6 +76,20 @@ impl Verdict {
 impl fmt::Display for Verdict {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.pad(&self.name().replace('_', " "))
+    }
+}
+
+/// The verdict of `report` against `expect` ([`classify`]'s on its outcome), and a passing
+/// one `estimate_strayed` when the robot's estimate strayed beyond the expectation's bound;
+/// `timed_out` when the runner cancelled it.
+pub fn verdict_of(expect: &ExpectSpec, report: &ClimbReport, timed_out: bool) -> Verdict {
+    let v = classify(expect.outcome, expect.before_step, report, timed_out);
+    let strayed =
+        expect.max_estimate_error_m.zip(report.max_estimate_error_m()).is_some_and(|(most, e)| e > most);
+    if v.pass() && strayed {
+        Verdict::EstimateStrayed
+    } else {
+        v
     }
 }
 
@@ -236,5 +255,37 @@ mod tests {
         let gave_up = report(&[Floor], Some(StopReason::CyclesExhausted { cycles: 40 }), false);
         assert_eq!(classify(Climb, None, &gave_up, false), Verdict::Error);
         assert!(Verdict::ALL.iter().filter(|v| v.pass()).count() == 2);
+    }
+
+    /// A run that passed with its estimate farther off than the case allows is
+    /// `estimate_strayed`; a failing one keeps its own verdict, and without a bound the
+    /// estimate is not judged.
+    #[test]
+    fn an_estimate_beyond_the_bound_fails_a_run_that_passed_otherwise() {
+        use Footing::*;
+        let off = |mut r: ClimbReport, position_m: f64| {
+            r.cycles[0].estimate_error =
+                Some(crate::estimate::EstimateError { position_m, height_m: 0.0, yaw_rad: 0.0 });
+            r
+        };
+        let spec = |max_estimate_error_m| ExpectSpec {
+            outcome: ExpectedOutcome::Climb,
+            reason: String::new(),
+            before_step: None,
+            max_estimate_error_m,
+        };
+        let climbed = report(&[Floor, Step(1), Step(2), Step(3)], None, false);
+        assert_eq!(
+            verdict_of(&spec(Some(0.025)), &off(climbed.clone(), 0.042), false),
+            Verdict::EstimateStrayed
+        );
+        assert_eq!(
+            verdict_of(&spec(Some(0.025)), &off(climbed.clone(), 0.010), false),
+            Verdict::ClimbedClean
+        );
+        assert_eq!(verdict_of(&spec(None), &off(climbed, 0.042), false), Verdict::ClimbedClean);
+        let hit = report(&[Floor, Step(1)], None, true);
+        assert_eq!(verdict_of(&spec(Some(0.025)), &off(hit, 0.042), false), Verdict::CheckViolated);
+        assert!(!Verdict::EstimateStrayed.pass());
     }
 }

@@ -295,6 +295,9 @@ impl Scenario {
                 format!("a sweep of {rows:.0} rows is too long (at most 100000)"),
             );
         }
+        if let Some(m) = self.expect.as_ref().and_then(|e| e.max_estimate_error_m) {
+            positive(&mut v, "expect.max_estimate_error_m", m);
+        }
         for (field, reason) in self.plant.issues() {
             check(&mut v, false, &field, reason);
         }
