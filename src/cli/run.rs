@@ -8,7 +8,7 @@ use stairbench::climb::speed_margin::speed_margin;
 use stairbench::climb::{ClimbReport, CycleReport, Each, Event, Observer, Watch};
 use stairbench::params::ClimbParams;
 use stairbench::record::viewer::{RerunLogger, Sink};
-use stairbench::regress::verdict::verdict_of;
+use stairbench::regress::verdict::{strayed, verdict_of};
 use stairbench::scenario::Scenario;
 use stairbench::sim::climb_scenario;
 use std::path::PathBuf;
@@ -201,6 +201,9 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
     let verdict = scenario.expect.as_ref().map(|e| (e, verdict_of(e, &report, false)));
     if let Some((e, v)) = &verdict {
         println!("verdict: {v} (expected {:?}: {})", e.outcome, e.reason);
+        if let Some(why) = strayed(e, &report) {
+            println!("  {why}");
+        }
     }
     if let Some(path) = &a.json {
         let mut json = serde_json::to_value(&report)?;

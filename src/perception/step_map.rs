@@ -138,7 +138,8 @@ impl StepMap {
     ///   matched steps' middle;
     /// - along the ascent, from those steps' risers (where the flight is);
     /// - across it, from the treads' side edges, each edge of each matched step one vote (a
-    ///   view's side edge is where its sight ended: a shadow, a post, the view's reach);
+    ///   view's side edge is where its sight ended: a shadow, a post, the view's reach),
+    ///   agreeing within `register_min_m` of each other;
     /// - in height, from the treads' heights.
     ///
     /// A turn under `register_min_rad` and a shift under `register_min_m` are left at zero;
@@ -207,18 +208,22 @@ impl StepMap {
             keep(agreed_median(pairs.iter().filter(on_risers).map(|(k, s)| riser(k) - riser(s)), agree_m)?);
         // Across, from the treads' side edges, each one vote: an edge cut short by a shadow, a
         // handrail's post or the view's reach is one misread edge among them, where a tread's
-        // middle would move with it (regression `one-tread-dragged-the-estimate-across`).
-        // Edges that disagree say nothing across; the risers and the heights still stand.
+        // middle would move with it (regression `one-tread-dragged-the-estimate-across`). An
+        // edge is its width about its middle, whatever its rectangle's turn. The votes agree
+        // within `register_min_m` of each other (half the radius of the other shifts): the
+        // two edges of a lone tread agree as its widths do. Edges that disagree say nothing
+        // across; the risers and the heights still stand.
         let edges = |r: &PlaneSegment| {
-            let (r, middle) = (axis_nearest(r, &along), r.center().coords.dot(&across));
-            [middle - r.width_m() / 2.0, middle + r.width_m() / 2.0]
+            let (middle, half_width) =
+                (r.center().coords.dot(&across), axis_nearest(r, &along).width_m() / 2.0);
+            [middle - half_width, middle + half_width]
         };
         let d_across = agreed_median(
             pairs.iter().flat_map(|(k, s)| {
                 let (k, s) = (edges(k), edges(s));
                 [k[0] - s[0], k[1] - s[1]]
             }),
-            agree_m,
+            agree_m / 2.0,
         )
         .map_or(0.0, keep);
         let shift = along * d_along + across * d_across + Vector3::z() * dz;
@@ -640,8 +645,8 @@ mod tests {
     /// centimetres either way), one tread's width alike in both and its middle moved. The
     /// edges do not agree on a shift: nothing is corrected across (a shift taken from the
     /// one tread of like width would move the estimate 41 mm), while a drift in height is
-    /// still found. A drift across moves every edge alike and is found with one edge cut
-    /// short.
+    /// still found. A lone tread's edges must agree as its widths do. A drift across moves
+    /// every edge alike and is found with one edge cut short.
     #[test]
     fn edges_that_disagree_across_are_not_drift() {
         let p = StepMapParams::default();
@@ -665,6 +670,12 @@ mod tests {
             across(seen).into_iter().map(|s| s.moved(&Vector3::new(0.0, 0.0, -0.03))).collect();
         let shift = map.register(&lower, &origin, &p).expect("a correction").translation.vector;
         assert!((shift - Vector3::new(0.0, 0.0, 0.03)).norm() < 1e-9, "{shift}");
+        // One tread alone, 10 mm off and one edge read 38 mm short besides: its edges do not
+        // agree (taken as agreeing at their middle, they would ask for 29 mm).
+        let lone = StepMap { known: across(known)[..1].to_vec() };
+        let (lo, hi) = known[0];
+        let cut = [(lo - 0.01, hi - 0.01 - 0.038), (0.0, 0.1), (0.0, 0.1), (0.0, 0.1)];
+        assert_eq!(lone.register(&across(cut)[..1], &origin, &p), None);
         let drift_m = 0.03;
         let mut drifted = known.map(|(lo, hi)| (lo - drift_m, hi - drift_m));
         drifted[2].1 -= 0.05;

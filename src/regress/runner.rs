@@ -6,7 +6,7 @@
 
 use super::generate::{noise_seed, Case};
 use super::results::{Appender, CaseResult};
-use super::verdict::{verdict_of, Verdict};
+use super::verdict::{strayed, verdict_of, Verdict};
 use crate::cancel::Cancel;
 use crate::climb::{Nobody, Observer, StageTimes};
 use crate::params::ClimbParams;
@@ -272,12 +272,8 @@ fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
         Ok(Ok(report)) => {
             result = result.with_report(&report);
             result.verdict = verdict_of(&spec, &report, timed_out);
-            result.message = match (result.verdict, spec.max_estimate_error_m, report.max_estimate_error_m()) {
-                (Verdict::EstimateStrayed, Some(most), Some(e)) => Some(format!(
-                    "the robot's estimate strayed {:.1} mm from the truth at a sweep (at most {:.1} mm allowed)",
-                    e * 1e3,
-                    most * 1e3
-                )),
+            result.message = match result.verdict {
+                Verdict::EstimateStrayed => strayed(&spec, &report),
                 _ => report.why_failed(),
             };
         }

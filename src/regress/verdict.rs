@@ -84,13 +84,24 @@ impl fmt::Display for Verdict {
 /// `timed_out` when the runner cancelled it.
 pub fn verdict_of(expect: &ExpectSpec, report: &ClimbReport, timed_out: bool) -> Verdict {
     let v = classify(expect.outcome, expect.before_step, report, timed_out);
-    let strayed =
-        expect.max_estimate_error_m.zip(report.max_estimate_error_m()).is_some_and(|(most, e)| e > most);
-    if v.pass() && strayed {
+    if v.pass() && strayed(expect, report).is_some() {
         Verdict::EstimateStrayed
     } else {
         v
     }
+}
+
+/// How far the robot's estimate strayed beyond `expect`'s bound: what it says, `None` within
+/// the bound or without one (or without the truth to judge it by).
+pub fn strayed(expect: &ExpectSpec, report: &ClimbReport) -> Option<String> {
+    let (most, e) = expect.max_estimate_error_m.zip(report.max_estimate_error_m())?;
+    (e > most).then(|| {
+        format!(
+            "the robot's estimate strayed {:.1} mm from the truth at a sweep (at most {:.1} mm allowed)",
+            e * 1e3,
+            most * 1e3
+        )
+    })
 }
 
 /// The verdict of `report` against `expect`; `timed_out` when the runner cancelled it. A
@@ -279,6 +290,8 @@ mod tests {
             verdict_of(&spec(Some(0.025)), &off(climbed.clone(), 0.042), false),
             Verdict::EstimateStrayed
         );
+        let why = strayed(&spec(Some(0.025)), &off(climbed.clone(), 0.042)).expect("strayed");
+        assert!(why.contains("42.0 mm") && why.contains("25.0 mm"), "{why}");
         assert_eq!(
             verdict_of(&spec(Some(0.025)), &off(climbed.clone(), 0.010), false),
             Verdict::ClimbedClean

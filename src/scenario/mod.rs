@@ -74,7 +74,8 @@ pub struct ExpectSpec {
     /// The most the robot's own estimate of its base may stray from the truth at a sweep,
     /// metres: a run that passed otherwise, its estimate farther off, is `estimate_strayed`
     /// (a misread view taken for drift moves the estimate while the climb still succeeds:
-    /// regression `one-tread-dragged-the-estimate-across`). Absent: not judged.
+    /// regression `one-tread-dragged-the-estimate-across`). Absent, or without the truth to
+    /// judge it by (a real robot): not judged.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_estimate_error_m: Option<f64>,
 }
