@@ -440,15 +440,9 @@ struct Limits {
 /// ([`CellParams::split_rows`]): the half with more points, or of two as full the flatter.
 /// `None` when neither is a known level plane, or for cells of under 4 rows (a half of one
 /// row is a line, of any tilt).
-fn level_half(
-    grid: &ScanGrid,
-    points: &[Point3<f32>],
-    origin: &Vector3<f64>,
-    p: &CellParams,
-    (cr, cb): (usize, usize),
-    l: &Limits,
-) -> Option<(Moments, Plane, f64)> {
-    let (r0, r2) = cell_rows(grid, p, cr);
+fn level_half(g: &Grid, (cr, cb): (usize, usize), l: &Limits) -> Option<(Moments, Plane, f64)> {
+    let p = g.p;
+    let (r0, r2) = g.rows_of(cr);
     let r1 = r0 + p.rows / 2;
     if p.rows < 4 || r1 >= r2 {
         return None;
@@ -460,7 +454,7 @@ fn level_half(
             let min_points = (p.min_fill * (full * p.beams) as f64).ceil().max(3.0);
             let mut m = Moments::default();
             let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
-            for_rows_points(grid, points, origin, p, (a, b), cb, |_, q| {
+            g.for_points((a, b), cb, |_, q| {
                 m.add(&q);
                 lo = lo.inf(&q);
                 hi = hi.sup(&q);
@@ -472,37 +466,46 @@ fn level_half(
         .max_by(|(a, f, _), (b, g, _)| a.n.total_cmp(&b.n).then(g.rms_m.total_cmp(&f.rms_m)))
 }
 
-/// The grid's cell rows and columns for `p`.
-fn cell_dims(grid: &ScanGrid, p: &CellParams) -> (usize, usize) {
-    (grid.rows().div_ceil(p.rows), grid.beams().div_ceil(p.beams))
+/// A sweep's scan grid as the cells read it: the grid, its points, the sensor's origin (the
+/// points are read from it) and the cells' parameters.
+#[derive(Clone, Copy)]
+struct Grid<'a> {
+    grid: &'a ScanGrid,
+    points: &'a [Point3<f32>],
+    origin: Vector3<f64>,
+    p: &'a CellParams,
 }
 
-/// The scan rows of cell row `cr`.
-fn cell_rows(grid: &ScanGrid, p: &CellParams, cr: usize) -> (usize, usize) {
-    let r0 = cr * p.rows;
-    (r0, (r0 + p.rows).min(grid.rows()))
-}
+impl<'a> Grid<'a> {
+    /// `cloud`'s grid for `p`; `None` without one.
+    fn of(cloud: &'a PointCloud, p: &'a CellParams) -> Option<Self> {
+        Some(Self { grid: cloud.grid()?, points: cloud.points(), origin: cloud.viewpoint().coords, p })
+    }
 
-/// Calls `f` with each finite point of rows `r0..r1` of cell column `cb` (a cell's:
-/// [`cell_rows`]): its index and position from `origin`, row by row.
-#[inline(always)]
-fn for_rows_points(
-    grid: &ScanGrid,
-    points: &[Point3<f32>],
-    origin: &Vector3<f64>,
-    p: &CellParams,
-    (r0, r1): (usize, usize),
-    cb: usize,
-    mut f: impl FnMut(u32, Vector3<f64>),
-) {
-    let beams = grid.beams();
-    let b0 = cb * p.beams;
-    let b1 = (b0 + p.beams).min(beams);
-    for r in r0..r1 {
-        for &c in &grid.cells()[r * beams + b0..r * beams + b1] {
-            let Some(q) = points.get(c as usize) else { continue };
-            if q.x.is_finite() && q.y.is_finite() && q.z.is_finite() {
-                f(c, q.coords.cast::<f64>() - origin);
+    /// Its cell rows and columns.
+    fn dims(&self) -> (usize, usize) {
+        (self.grid.rows().div_ceil(self.p.rows), self.grid.beams().div_ceil(self.p.beams))
+    }
+
+    /// The scan rows of cell row `cr`.
+    fn rows_of(&self, cr: usize) -> (usize, usize) {
+        let r0 = cr * self.p.rows;
+        (r0, (r0 + self.p.rows).min(self.grid.rows()))
+    }
+
+    /// Calls `f` with each finite point of rows `r0..r1` of cell column `cb` (a cell's:
+    /// [`Grid::rows_of`]): its index and position from the origin, row by row.
+    #[inline(always)]
+    fn for_points(&self, (r0, r1): (usize, usize), cb: usize, mut f: impl FnMut(u32, Vector3<f64>)) {
+        let beams = self.grid.beams();
+        let b0 = cb * self.p.beams;
+        let b1 = (b0 + self.p.beams).min(beams);
+        for r in r0..r1 {
+            for &c in &self.grid.cells()[r * beams + b0..r * beams + b1] {
+                let Some(q) = self.points.get(c as usize) else { continue };
+                if q.x.is_finite() && q.y.is_finite() && q.z.is_finite() {
+                    f(c, q.coords.cast::<f64>() - self.origin);
+                }
             }
         }
     }
@@ -520,40 +523,26 @@ struct CellSums {
 }
 
 /// The sums of cell `(cr, cb)`.
-fn sums_of(
-    grid: &ScanGrid,
-    points: &[Point3<f32>],
-    origin: &Vector3<f64>,
-    p: &CellParams,
-    cr: usize,
-    cb: usize,
-) -> CellSums {
+fn sums_of(g: &Grid, cr: usize, cb: usize) -> CellSums {
     let mut m = Moments::default();
     let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
     // The box in the points' own coordinates, as step 4 bins them.
     let mut box_m = [[f32::INFINITY; 2], [f32::NEG_INFINITY; 2]];
-    for_rows_points(grid, points, origin, p, cell_rows(grid, p, cr), cb, |i, q| {
+    g.for_points(g.rows_of(cr), cb, |i, q| {
         m.add(&q);
         lo = lo.inf(&q);
         hi = hi.sup(&q);
-        let w = &points[i as usize];
+        let w = &g.points[i as usize];
         box_m = [[box_m[0][0].min(w.x), box_m[0][1].min(w.y)], [box_m[1][0].max(w.x), box_m[1][1].max(w.y)]];
     });
     let reach_m = if m.n > 0.0 { REACH_DIAGONALS * (hi - lo).norm() } else { 0.0 };
     CellSums { moments: m, reach_m, box_m }
 }
 
-/// Cell `(cr, cb)` of sums `s` judged (step 1): a level plane, a steep one, or neither, and
-/// then perhaps level by a half ([`CellParams::split_rows`]).
-fn judge(
-    s: &CellSums,
-    grid: &ScanGrid,
-    points: &[Point3<f32>],
-    origin: &Vector3<f64>,
-    p: &CellParams,
-    (cr, cb): (usize, usize),
-    l: &Limits,
-) -> Cell {
+/// Cell `cell` (its row and column) of sums `s` judged (step 1): a level plane, a steep one,
+/// or neither, and then perhaps level by a half ([`CellParams::split_rows`]).
+fn judge(s: &CellSums, g: &Grid, cell: (usize, usize), l: &Limits) -> Cell {
+    let p = g.p;
     let m = s.moments;
     let plane =
         (m.n >= l.min_points).then(|| m.plane(l.noise_var_m2)).flatten().filter(|f| f.rms_m <= l.max_rms_m);
@@ -566,7 +555,7 @@ fn judge(
     // half reaches its neighbours' points from its own centre and box: the whole cell's may
     // span a depth jump.
     if p.split_rows && level.is_none() && steep.is_none() && m.n >= l.min_points {
-        if let Some((half, f, r)) = level_half(grid, points, origin, p, (cr, cb), l) {
+        if let Some((half, f, r)) = level_half(g, cell, l) {
             (fit, level, reach_m) = (half, Some(f), r);
         }
     }
@@ -575,16 +564,9 @@ fn judge(
 
 /// The sums of every cell of `cloud`'s grid, row-major; `None` without a grid.
 fn all_sums(cloud: &PointCloud, p: &CellParams) -> Option<Vec<CellSums>> {
-    let grid = cloud.grid()?;
-    let origin = cloud.viewpoint().coords;
-    let points = cloud.points();
-    let (crs, cbs) = cell_dims(grid, p);
-    Some(
-        (0..crs)
-            .into_par_iter()
-            .flat_map_iter(|cr| (0..cbs).map(move |cb| sums_of(grid, points, &origin, p, cr, cb)))
-            .collect(),
-    )
+    let g = Grid::of(cloud, p)?;
+    let (crs, cbs) = g.dims();
+    Some((0..crs).into_par_iter().flat_map_iter(|cr| (0..cbs).map(move |cb| sums_of(&g, cr, cb))).collect())
 }
 
 /// Step 1's sums gathered as a sweep's rows arrive, each row of cells as soon as its last
@@ -608,12 +590,11 @@ impl Stream {
     /// The sweep's first `rows` scan rows have arrived (of `cloud`, the one given to `new`):
     /// sums the rows of cells they complete.
     pub fn arrived(&mut self, cloud: &PointCloud, rows: usize, p: &CellParams) {
-        let Some(grid) = cloud.grid() else { return };
-        let origin = cloud.viewpoint().coords;
-        let (crs, cbs) = cell_dims(grid, p);
-        let complete = if rows >= grid.rows() { crs } else { rows / p.rows };
+        let Some(g) = Grid::of(cloud, p) else { return };
+        let (crs, cbs) = g.dims();
+        let complete = if rows >= g.grid.rows() { crs } else { rows / p.rows };
         for cr in self.cell_rows..complete {
-            self.sums.extend((0..cbs).map(|cb| sums_of(grid, cloud.points(), &origin, p, cr, cb)));
+            self.sums.extend((0..cbs).map(|cb| sums_of(&g, cr, cb)));
         }
         self.cell_rows = self.cell_rows.max(complete);
     }
@@ -652,11 +633,10 @@ pub fn extract(cloud: &PointCloud, s: &Setting) -> Option<Regions> {
 /// `start`.
 fn regions(cloud: &PointCloud, sums: &[CellSums], start: Instant, s: &Setting) -> Option<Regions> {
     let Setting { voxel_m, cos_slope, noise_m, params: p } = *s;
-    let grid = cloud.grid()?;
-    let origin = cloud.viewpoint().coords;
+    let g = Grid::of(cloud, p)?;
+    let (origin, points) = (g.origin, g.points);
     let up = -cloud.gravity().into_inner();
-    let points = cloud.points();
-    let (crs, cbs) = cell_dims(grid, p);
+    let (crs, cbs) = g.dims();
     let min_points = (p.min_fill * (p.rows * p.beams) as f64).ceil().max(3.0);
     let max_rms_m = (p.planarity_noise_factor * noise_m).max(p.planarity_floor_m);
     let max_tilt_rad = cos_slope.clamp(-1.0, 1.0).acos();
@@ -664,11 +644,8 @@ fn regions(cloud: &PointCloud, sums: &[CellSums], start: Instant, s: &Setting) -
     let limits = Limits { min_points, up, max_tilt_rad, noise_var_m2, max_rms_m };
 
     // 1. Cells.
-    let cells: Vec<Cell> = sums
-        .par_iter()
-        .enumerate()
-        .map(|(i, s)| judge(s, grid, points, &origin, p, (i / cbs, i % cbs), &limits))
-        .collect();
+    let cells: Vec<Cell> =
+        sums.par_iter().enumerate().map(|(i, s)| judge(s, &g, (i / cbs, i % cbs), &limits)).collect();
     let fitted = cells.iter().filter(|c| c.moments.n >= min_points).count();
 
     let cells_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -702,7 +679,7 @@ fn regions(cloud: &PointCloud, sums: &[CellSums], start: Instant, s: &Setting) -
                     if !near_planes(&cells, &label, &planes, (crs, cbs), (cr, cb), &mut near) {
                         continue;
                     }
-                    for_rows_points(grid, points, &origin, p, cell_rows(grid, p, cr), cb, |i, q| {
+                    g.for_points(g.rows_of(cr), cb, |i, q| {
                         if let Some(id) = region_of(&q, &near, &planes, noise_m, p) {
                             tables.add(&mut out, id, i, &points[i as usize]);
                         }
