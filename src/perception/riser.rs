@@ -271,8 +271,22 @@ pub fn place_edges(
     // `FACE_BAND_M[1]`.
     let tops: Vec<f64> = segments.iter().map(|s| s.height_m()).collect();
     let index = ByHeight::new(points, &tops, p.band_m[1].max(FACE_BAND_M[1]));
-    let (riser_fronts, face_fronts) = place_fronts(segments, &index, points, viewpoint, ground_m, noise_m, p);
-    Placed { riser_fronts, face_fronts, riser_backs: place_backs(segments, &index, viewpoint, p) }
+    let view = ViewPoints { index: &index, cloud: points, viewpoint: *viewpoint, ground_m, noise_m };
+    let (riser_fronts, face_fronts) = place_fronts(segments, &view, p);
+    Placed { riser_fronts, face_fronts, riser_backs: place_backs(segments, &view, p) }
+}
+
+/// A view as the edge searches read it: its points, indexed by height about the treads'
+/// tops and all of them, where it was seen from, the height of the surface the sensor
+/// stands over (the floor, or the tread under the robot) and the sweep's measured range
+/// noise.
+#[derive(Clone, Copy)]
+struct ViewPoints<'a> {
+    index: &'a ByHeight,
+    cloud: &'a [Point3<f32>],
+    viewpoint: Point3<f64>,
+    ground_m: Option<f64>,
+    noise_m: Option<f64>,
 }
 
 /// How many of a view's edges [`place_edges`] moved.
@@ -302,24 +316,16 @@ enum Front {
 /// Where no riser is seen whole (an open riser, a riser shadowed), the front goes onto the
 /// tread's own face where that is seen ([`face_along`]), marked
 /// [`PlaneSegment::front_on_face`].
-/// `ground_m` is the height of the surface the sensor stands over (the floor, or the tread
-/// under the robot), which bounds the band of the lowest segment as a tread below does;
-/// `noise_m`, the sweep's measured range noise, sets the least nosing believed.
+/// The view's `ground_m` bounds the band of the lowest segment as a tread below does; its
+/// `noise_m` sets the least nosing believed.
 /// Left as they are: a segment whose front does not face the sensor (the sensor past its
 /// middle: a tread under or behind the robot), and a lone segment deeper than wide (with
 /// no flight to give its ascent, its "front" may be a side: the step's side face or a
 /// wall would be taken for its riser). Returns how many fronts moved onto risers and how
-/// many onto faces. `points` must hold every point of `cloud` within `band_m[1]` and
-/// `FACE_BAND_M[1]` of each segment's top ([`place_edges`] builds it so).
-fn place_fronts(
-    segments: &mut [PlaneSegment],
-    points: &ByHeight,
-    cloud: &[Point3<f32>],
-    viewpoint: &Point3<f64>,
-    ground_m: Option<f64>,
-    noise_m: Option<f64>,
-    p: &RiserParams,
-) -> (usize, usize) {
+/// many onto faces. The view's index must hold every point of its cloud within `band_m[1]`
+/// and `FACE_BAND_M[1]` of each segment's top ([`place_edges`] builds it so).
+fn place_fronts(segments: &mut [PlaneSegment], view: &ViewPoints, p: &RiserParams) -> (usize, usize) {
+    let ViewPoints { index: points, cloud, viewpoint, ground_m, noise_m } = *view;
     if !p.enabled {
         return (0, 0);
     }
@@ -677,7 +683,7 @@ fn densest(ts: &[f64], half_m: f64) -> Option<f64> {
 }
 
 /// Places each tread's back edge (its end up its ascent) on the riser rising from it, where
-/// `points` show that riser's foot, within `back_inward_m` inside the edge or
+/// the view's points show that riser's foot, within `back_inward_m` inside the edge or
 /// `half_window_m` past it: the returns in a band above the tread's top (from `band_m[0]`
 /// to `band_m[1]` up, and `band_m[0]` short of the next tread up), its lower half, in which
 /// the riser's are a peak (twice the share an even spread would give), stand (the upper
@@ -689,14 +695,10 @@ fn densest(ts: &[f64], half_m: f64) -> Option<f64> {
 /// middle stands against the riser). The segment keeps its front edge (and whether it was
 /// placed), width, height and normal, and is marked [`PlaneSegment::back_on_riser`]. Left
 /// as they are: a segment whose back the sensor stands at or past, and a lone segment
-/// deeper than wide (see [`place_fronts`]). Returns how many backs moved. `points` must
-/// hold every point within `band_m[1]` of each segment's top, as for [`place_fronts`].
-fn place_backs(
-    segments: &mut [PlaneSegment],
-    points: &ByHeight,
-    viewpoint: &Point3<f64>,
-    p: &RiserParams,
-) -> usize {
+/// deeper than wide (see [`place_fronts`]). Returns how many backs moved. The view's index
+/// must hold every point within `band_m[1]` of each segment's top, as for [`place_fronts`].
+fn place_backs(segments: &mut [PlaneSegment], view: &ViewPoints, p: &RiserParams) -> usize {
+    let (points, viewpoint) = (view.index, view.viewpoint);
     if !(p.enabled && p.backs) {
         return 0;
     }
@@ -829,6 +831,33 @@ mod tests {
         ByHeight::new(points, &[0.0], f64::INFINITY)
     }
 
+    /// [`place_fronts`] over all of `cloud`, seen from `eye`.
+    fn fronts(
+        segments: &mut [PlaneSegment],
+        cloud: &[Point3<f32>],
+        eye: &Point3<f64>,
+        ground_m: Option<f64>,
+        noise_m: Option<f64>,
+        p: &RiserParams,
+    ) -> (usize, usize) {
+        let view = ViewPoints { index: &all(cloud), cloud, viewpoint: *eye, ground_m, noise_m };
+        place_fronts(segments, &view, p)
+    }
+
+    /// [`place_backs`] over all of `cloud`, seen from `eye`.
+    fn backs(
+        segments: &mut [PlaneSegment],
+        cloud: &[Point3<f32>],
+        eye: &Point3<f64>,
+        p: &RiserParams,
+    ) -> usize {
+        place_backs(
+            segments,
+            &ViewPoints { index: &all(cloud), cloud, viewpoint: *eye, ground_m: None, noise_m: None },
+            p,
+        )
+    }
+
     /// A level tread 1 m wide ascending along x, its nose at `front`, its top at `z`.
     fn tread(front: f64, z: f64, depth: f64) -> PlaneSegment {
         PlaneSegment::level_along_x(front, z, depth)
@@ -923,11 +952,13 @@ mod tests {
         let mut one = steps.clone();
         let moved = place_edges(&mut one, &cloud, &eye, Some(0.0), None, &p);
         let mut every = steps.clone();
-        let index = all(&cloud);
-        let (fronts, faces) = place_fronts(&mut every, &index, &cloud, &eye, Some(0.0), None, &p);
-        let backs = place_backs(&mut every, &index, &eye, &p);
-        assert_eq!(moved, Placed { riser_fronts: fronts, face_fronts: faces, riser_backs: backs });
-        assert!(fronts >= 1 && backs >= 1, "fronts {fronts}, backs {backs}: the test places something");
+        let (riser_fronts, face_fronts) = fronts(&mut every, &cloud, &eye, Some(0.0), None, &p);
+        let riser_backs = backs(&mut every, &cloud, &eye, &p);
+        assert_eq!(moved, Placed { riser_fronts, face_fronts, riser_backs });
+        assert!(
+            riser_fronts >= 1 && riser_backs >= 1,
+            "fronts {riser_fronts}, backs {riser_backs}: the test places something"
+        );
         assert_eq!(one, every);
     }
 
@@ -935,15 +966,8 @@ mod tests {
     /// `noise_m`: how many fronts moved, and where its front edge lies along x.
     fn front_over(seg: &PlaneSegment, cloud: &[Point3<f32>], noise_m: Option<f64>) -> (usize, PlaneSegment) {
         let mut one = [seg.clone()];
-        let (risers, faces) = place_fronts(
-            &mut one,
-            &all(cloud),
-            cloud,
-            &Point3::new(0.0, 0.0, 1.4),
-            None,
-            noise_m,
-            &RiserParams::default(),
-        );
+        let (risers, faces) =
+            fronts(&mut one, cloud, &Point3::new(0.0, 0.0, 1.4), None, noise_m, &RiserParams::default());
         let [placed] = one;
         (risers + faces, placed)
     }
@@ -1098,7 +1122,7 @@ mod tests {
         // tread ahead of and behind the window.
         let mut riser = wall(1.0, 0.15, 0.3);
         riser.extend(wall(1.2, 0.285, 0.3));
-        assert_eq!(place_fronts(&mut one, &all(&riser), &riser, &eye, None, None, &p), (1, 0));
+        assert_eq!(fronts(&mut one, &riser, &eye, None, None, &p), (1, 0));
         let front = one[0].center().x - one[0].depth_m() / 2.0;
         assert!((front - 1.0).abs() < 1e-3, "front at {front:.4}");
         assert!((one[0].center().x + one[0].depth_m() / 2.0 - 1.3).abs() < 1e-9, "the back kept");
@@ -1107,45 +1131,28 @@ mod tests {
         // A riser seen only in its upper part (a view over the nose), nothing seen before it:
         // not believed, nor is its top for the nose's face.
         let mut part = [seg.clone()];
-        assert_eq!(
-            place_fronts(&mut part, &all(&wall(1.0, 0.25, 0.3)), &wall(1.0, 0.25, 0.3), &eye, None, None, &p),
-            (0, 0)
-        );
+        assert_eq!(fronts(&mut part, &wall(1.0, 0.25, 0.3), &eye, None, None, &p), (0, 0));
         assert_eq!(part[0], seg);
         // Nothing within the window (the true nose 10 cm off): not believed.
         let mut far = [seg.clone()];
-        assert_eq!(
-            place_fronts(&mut far, &all(&wall(0.9, 0.15, 0.3)), &wall(0.9, 0.15, 0.3), &eye, None, None, &p),
-            (0, 0)
-        );
+        assert_eq!(fronts(&mut far, &wall(0.9, 0.15, 0.3), &eye, None, None, &p), (0, 0));
         // Disabled: the rectangles as §4 gives them.
         let mut off = [seg.clone()];
         assert_eq!(
-            place_fronts(
-                &mut off,
-                &all(&riser),
-                &riser,
-                &eye,
-                None,
-                None,
-                &RiserParams { enabled: false, ..p.clone() }
-            ),
+            fronts(&mut off, &riser, &eye, None, None, &RiserParams { enabled: false, ..p.clone() }),
             (0, 0)
         );
         // Seen from past its middle (a tread under or behind the robot), its front does not
         // face the sensor: left as it is, whatever stands under its back edge.
         let mut back = [seg.clone()];
         let behind = Point3::new(1.2, 0.0, 1.4);
-        assert_eq!(place_fronts(&mut back, &all(&riser), &riser, &behind, None, None, &p), (0, 0));
+        assert_eq!(fronts(&mut back, &riser, &behind, None, None, &p), (0, 0));
         assert_eq!(back[0], seg);
         // A lone segment deeper than wide may have its axes swapped: left as it is.
         let deep = PlaneSegment::new(Point3::new(1.5, 0.0, 0.3), Vector3::x(), 1.0, 0.4, Vector3::z(), 100)
             .expect("valid rectangle");
         let mut lone = [deep.clone()];
-        assert_eq!(
-            place_fronts(&mut lone, &all(&wall(1.0, 0.15, 0.3)), &wall(1.0, 0.15, 0.3), &eye, None, None, &p),
-            (0, 0)
-        );
+        assert_eq!(fronts(&mut lone, &wall(1.0, 0.15, 0.3), &eye, None, None, &p), (0, 0));
         assert_eq!(lone[0], deep);
     }
 
@@ -1163,20 +1170,20 @@ mod tests {
                 pts.extend(wall(0.776 + 0.002 * k as f64, z, z + 0.001));
             }
         }
-        place_fronts(&mut segs, &all(&pts), &pts, &eye, None, None, &p);
+        fronts(&mut segs, &pts, &eye, None, None, &p);
         let front = segs[1].center().x - segs[1].depth_m() / 2.0;
         assert!((front - 0.8).abs() < 1e-3, "front at {front:.4}");
         // The same with the lower tread known only as the ground under the sensor (the
         // floor, or the tread the robot stands on).
         let mut upper = [tread(0.825, 0.30, 0.3)];
-        place_fronts(&mut upper, &all(&pts), &pts, &eye, Some(0.22), None, &p);
+        fronts(&mut upper, &pts, &eye, Some(0.22), None, &p);
         let front = upper[0].center().x - upper[0].depth_m() / 2.0;
         assert!((front - 0.8).abs() < 1e-3, "front at {front:.4}");
         // Unbounded, the strays outnumber the riser, and it is not believed; the front goes
         // onto the riser's top, its nose's face, under the tread.
         let mut unbounded = [tread(0.825, 0.30, 0.3)];
         assert_eq!(
-            place_fronts(&mut unbounded, &all(&pts), &pts, &eye, None, None, &p),
+            fronts(&mut unbounded, &pts, &eye, None, None, &p),
             (0, 1),
             "the strays outnumber the riser"
         );
@@ -1218,7 +1225,7 @@ mod tests {
         let mut cloud = wall(1.28, 0.3, 0.45);
         cloud.extend(patch(1.0, 1.28, 0.3));
         let mut one = [seg.clone()];
-        assert_eq!(place_backs(&mut one, &all(&cloud), &eye, &p), 1);
+        assert_eq!(backs(&mut one, &cloud, &eye, &p), 1);
         let (front, back) = edges(&one[0]);
         assert!((back - 1.28).abs() < 1e-3, "back at {back:.4}");
         assert!((front - 1.0).abs() < 1e-9, "the front kept: {front:.4}");
@@ -1226,18 +1233,18 @@ mod tests {
         assert_eq!((one[0].height_m(), one[0].width_m()), (0.3, 1.0));
         // Its foot alone, the sweep ending 4.5 cm above the tread: the riser all the same.
         let mut foot = [seg.clone()];
-        assert_eq!(place_backs(&mut foot, &all(&wall(1.28, 0.3, 0.345)), &eye, &p), 1);
+        assert_eq!(backs(&mut foot, &wall(1.28, 0.3, 0.345), &eye, &p), 1);
         assert!((edges(&foot[0]).1 - 1.28).abs() < 1e-3);
         // A tread's own strays in the band, spread along it (an open riser: no riser
         // above), are no riser.
         let mut strays = [seg.clone()];
-        assert_eq!(place_backs(&mut strays, &all(&patch(1.18, 1.34, 0.325)), &eye, &p), 0);
+        assert_eq!(backs(&mut strays, &patch(1.18, 1.34, 0.325), &eye, &p), 0);
         assert_eq!(strays[0], seg);
         // The sensor past the back edge; backs not asked for: left as they are.
         let mut past = [seg.clone()];
-        assert_eq!(place_backs(&mut past, &all(&cloud), &Point3::new(1.4, 0.0, 1.4), &p), 0);
+        assert_eq!(backs(&mut past, &cloud, &Point3::new(1.4, 0.0, 1.4), &p), 0);
         let mut off = [seg.clone()];
-        assert_eq!(place_backs(&mut off, &all(&cloud), &eye, &RiserParams { backs: false, ..p.clone() }), 0);
+        assert_eq!(backs(&mut off, &cloud, &eye, &RiserParams { backs: false, ..p.clone() }), 0);
         assert_eq!((past[0].clone(), off[0].clone()), (seg.clone(), seg));
     }
 
@@ -1256,7 +1263,7 @@ mod tests {
                 cloud.extend(face(1.25, across, 0.3, 0.3 + tall));
             }
             let mut one = [seg.clone()];
-            place_backs(&mut one, &all(&cloud), &eye, &p);
+            backs(&mut one, &cloud, &eye, &p);
             let back = edges(&one[0]).1;
             assert!(
                 (back - 1.28).abs() < 1e-3 || (back - 1.34).abs() < 1e-9,
@@ -1281,7 +1288,7 @@ mod tests {
         let mut cloud = shoe.clone();
         cloud.extend(&strays);
         let mut alone = [seg.clone()];
-        assert_eq!(place_fronts(&mut alone, &all(&cloud), &cloud, &eye, None, None, &p), (0, 0));
+        assert_eq!(fronts(&mut alone, &cloud, &eye, None, None, &p), (0, 0));
         assert_eq!(alone[0], seg, "the front moved onto the shoe");
         // The riser seen beside it, denser than the shoe's top: the front on the riser.
         let riser = beside(wall(1.0, 0.22, 0.3), [-0.4, -0.28]);
@@ -1289,7 +1296,7 @@ mod tests {
         cloud.extend(shoe);
         cloud.extend(strays);
         let mut beside_it = [seg.clone()];
-        assert_eq!(place_fronts(&mut beside_it, &all(&cloud), &cloud, &eye, None, None, &p), (1, 0));
+        assert_eq!(fronts(&mut beside_it, &cloud, &eye, None, None, &p), (1, 0));
         assert!((edges(&beside_it[0]).0 - 1.0).abs() < 1e-3, "front at {:.4}", edges(&beside_it[0]).0);
     }
     #[test]
@@ -1306,12 +1313,12 @@ mod tests {
             .map(|q| Point3::new((1.0 + f64::from(q.y) * turn) as f32, q.y, q.z))
             .collect();
         let mut one = [seg.clone()];
-        assert_eq!(place_fronts(&mut one, &all(&turned), &turned, &eye, None, None, &p), (1, 0));
+        assert_eq!(fronts(&mut one, &turned, &eye, None, None, &p), (1, 0));
         assert!((edges(&one[0]).0 - 1.0).abs() < 0.005, "front at {:.4}", edges(&one[0]).0);
         // The riser reached across 0.3 m of the tread only, nothing else in the window: the
         // strips the sweep did not reach say nothing.
         let part: Vec<Point3<f32>> = wall(1.0, 0.22, 0.3).into_iter().filter(|q| q.y.abs() < 0.15).collect();
         let mut one = [seg.clone()];
-        assert_eq!(place_fronts(&mut one, &all(&part), &part, &eye, None, None, &p), (1, 0));
+        assert_eq!(fronts(&mut one, &part, &eye, None, None, &p), (1, 0));
     }
 }
