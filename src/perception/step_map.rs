@@ -143,9 +143,10 @@ impl StepMap {
     /// - in height, from the treads' heights.
     ///
     /// A turn under `register_min_rad` and a shift under `register_min_m` are left at zero;
-    /// side edges that disagree (half or fewer within `register_min_m` of their median) leave
-    /// the view uncorrected across only; a view that matches nothing, whose matched steps
-    /// disagree in height or along the ascent (likewise: the whole view is then not trusted),
+    /// side edges that disagree (half or fewer within half `register_min_m` of their
+    /// median) leave the view uncorrected across only; a view that matches nothing, whose
+    /// matched steps disagree in height or along the ascent (half or fewer within
+    /// `register_min_m` of the median: the whole view is then not trusted),
     /// asks for a turn over 10 times `register_min_rad` or a shift over `register_max_m`, or
     /// would move the robot (at `viewpoint`, where the view was taken) by more than
     /// `register_max_m`, gives `None` (a mismatch, not drift). The turn is a plain median,
@@ -619,8 +620,8 @@ mod tests {
         assert!((dx - 0.04).abs() < 1e-9, "{dx}");
     }
 
-    /// Regression `a-deep-read-tread-dragged-the-registration`: one tread read a tread's
-    /// depth too deep toward the robot (its riser with it), the next as known. Steps that
+    /// Regression `a-deep-read-tread-dragged-the-registration`: one tread read 61 mm deeper
+    /// toward the robot than it is (its riser with it), the next as known. Steps that
     /// disagree on a shift are a mismatch (a median of two would split them); a step off
     /// among agreeing ones is outvoted.
     #[test]
