@@ -18,7 +18,8 @@ import sys
 
 
 def runs(path):
-    """(passed, climbed, friction, margin_m, estimate_m, estimate_rad) per run."""
+    """(passed, climbed clean, friction, margin_m, estimate_m, estimate_rad, climbed) per run; a
+    run climbed with every check clean whether or not its estimate strayed."""
     out = []
     if os.path.isdir(path):
         for f in sorted(glob.glob(os.path.join(path, "*.json"))):
@@ -26,24 +27,25 @@ def runs(path):
             errs = [c["estimate_error"] for c in d.get("cycles", []) if c.get("estimate_error")]
             out.append((d["success"], d["success"], d.get("max_friction_ratio"), d.get("min_margin_m"),
                         max((e["position_m"] for e in errs), default=None),
-                        max((abs(e["yaw_rad"]) for e in errs), default=None)))
+                        max((abs(e["yaw_rad"]) for e in errs), default=None), d["success"]))
     else:
         for line in open(path):
             r = json.loads(line)
             out.append((r["pass"], r["verdict"] == "climbed_clean", r.get("max_friction_ratio"), r.get("min_margin_m"),
-                        r.get("max_estimate_error_m"), r.get("max_estimate_yaw_rad")))
+                        r.get("max_estimate_error_m"), r.get("max_estimate_yaw_rad"),
+                        r["verdict"] in ("climbed_clean", "estimate_strayed")))
     return out
 
 
 def row(label, rs):
-    climbed = [r for r in rs if r[1] and r[2] is not None and r[3] is not None]
+    climbed = [r for r in rs if r[6] and r[2] is not None and r[3] is not None]
     fr = [r[2] for r in climbed]
     mm = [r[3] * 1e3 for r in climbed]
     est = [r[4] for r in rs if r[4] is not None]
     yaw = [r[5] for r in rs if r[5] is not None]
     cell = lambda xs, worst, f: f"{statistics.median(xs):{f}} / {worst(xs):{f}}" if xs else "-"  # noqa: E731
     estimate = f"{max(est) * 1e3:.1f} mm / {max(yaw) * 57.29577951308232:.2f} deg" if est else "- (the truth)"
-    return (f"| {label} | {len(rs)} | {sum(r[0] for r in rs)} | {len(climbed)} | {cell(fr, max, '.3f')} | "
+    return (f"| {label} | {len(rs)} | {sum(r[0] for r in rs)} | {sum(r[1] for r in rs)} | {cell(fr, max, '.3f')} | "
             f"{cell(mm, min, '.1f')} | {estimate} |")
 
 

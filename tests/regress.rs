@@ -275,6 +275,27 @@ fn a_planner_broken_on_purpose_is_reported_as_a_regression() {
     assert!(now.reproduce.contains("--params"), "its reproduce command carries the parameters");
 }
 
+/// `--speedup` runs every case at the faster timing `run --speedup` gives, writes it to the
+/// output's parameters and carries it into each reproduce command; a factor that is no
+/// speed-up is refused before any case runs.
+#[test]
+fn a_suite_at_a_faster_timing_carries_it_into_each_run() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let out = dir("faster");
+    let (o, results) = regress(&out, &["--speedup", "1.5"]);
+    assert_eq!(o.status.code(), Some(0), "every case passes at x 1.5");
+    let written: stairbench::params::ClimbParams =
+        toml::from_str(&std::fs::read_to_string(out.join("params.toml")).unwrap()).unwrap();
+    assert_eq!(written.plan, stairbench::params::ClimbParams::default().plan.faster(1.5));
+    assert!((written.plan.step.com_speed_m_s - 0.09).abs() < 1e-12);
+    assert!(results.len() == 4 && results.iter().all(|r| r.reproduce.contains("--params")));
+    let bad = dir("no-speedup");
+    let (o, results) = regress(&bad, &["--speedup", "0"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--speedup must be a positive number"));
+    assert!(results.is_empty(), "nothing ran");
+}
+
 #[test]
 fn the_smoke_suite_passes_every_case_and_refuses_the_unclimbable_ones_in_time() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());

@@ -52,6 +52,17 @@ pub fn climb_params(path: Option<&Path>) -> Result<stairbench::params::ClimbPara
     toml::from_str(&text).with_context(|| format!("{}: not climb parameters", p.display()))
 }
 
+/// `params` with the planned motion `speedup` times faster (`--speedup`: the CoM's and the
+/// foot's speeds, the shortest segment and swing piece, the IK's joint speed bound).
+pub fn speed_up(params: &mut stairbench::params::ClimbParams, speedup: f64) -> Result<()> {
+    anyhow::ensure!(
+        speedup.is_finite() && speedup > 0.0,
+        "--speedup must be a positive number, got {speedup}"
+    );
+    params.plan = params.plan.faster(speedup);
+    Ok(())
+}
+
 /// The scenario named on the command line: a path, a name in `scenarios/`, or (none) the
 /// built-in default, the paper's Exp. 1.
 pub fn load_scenario(arg: Option<&Path>) -> Result<Scenario> {

@@ -69,6 +69,11 @@ pub struct RegressArgs {
     /// Climb parameters as TOML (as for `run --params`).
     #[arg(long)]
     params: Option<PathBuf>,
+    /// Every case's planned motion this many times faster (as `run --speedup`): the suite's
+    /// verdicts, friction and seconds per stair at a faster timing. The parameters go to
+    /// OUT/params.toml, and each run's reproduce command carries them.
+    #[arg(long, default_value_t = 1.0)]
+    speedup: f64,
     /// Every case in this simulated body (`nominal` or `hrp4-like`, as for `run --plant`):
     /// sets each case's [plant] preset, the errors a case sets itself stay. Each draw's body
     /// comes from its noise seed.
@@ -117,7 +122,8 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
     );
     anyhow::ensure!(a.timeout > 0.0, "--timeout must be positive");
     let suite = suite::load(&resolve(suite_arg)?)?;
-    let params: ClimbParams = super::climb_params(a.params.as_deref())?;
+    let mut params: ClimbParams = super::climb_params(a.params.as_deref())?;
+    super::speed_up(&mut params, a.speedup)?;
     let robot = bench_robot(&params.plan.gait)?;
     let seeds = a.seeds.unwrap_or(suite.seeds).max(1);
     let (all, cases) = select_cases(&a, &suite, &robot, seeds)?;
@@ -126,14 +132,13 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
         return list(&out, &cases);
     }
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
-    let params_file = match &a.params {
-        Some(_) => {
-            let path = out.join("params.toml");
-            std::fs::write(&path, toml::to_string(&params)?)
-                .with_context(|| format!("cannot write {}", path.display()))?;
-            Some(path)
-        }
-        None => None,
+    let params_file = if a.params.is_some() || a.speedup != 1.0 {
+        let path = out.join("params.toml");
+        std::fs::write(&path, toml::to_string(&params)?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        Some(path)
+    } else {
+        None
     };
     let jobs = a.jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
     let opt = Options {

@@ -102,12 +102,7 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         scenario.plant.preset = p.preset();
     }
     let mut params: ClimbParams = super::climb_params(a.params.as_deref())?;
-    anyhow::ensure!(
-        a.speedup.is_finite() && a.speedup > 0.0,
-        "--speedup must be a positive number, got {}",
-        a.speedup
-    );
-    params.plan = params.plan.faster(a.speedup);
+    super::speed_up(&mut params, a.speedup)?;
     if let Some(s) = a.stabilizer {
         params.stabilizer.enabled = s == OnOff::On;
     }

@@ -138,22 +138,15 @@ pub fn expect(s: &Scenario, gait: &GaitParams, feet_half_spacing_m: f64) -> Expe
         either.push(why);
     }
     if either.is_empty() {
-        ExpectSpec {
-            before_step: None,
-            max_estimate_error_m: None,
-            outcome: ExpectedOutcome::Climb,
-            reason: format!(
+        ExpectSpec::new(
+            ExpectedOutcome::Climb,
+            format!(
                 "every step within the planner's limits: rise {max_rise_m:.3} <= {:.3} m, tread {min_tread_m:.3} >= {:.3} m, soles {:.3} m inside the flight's sides ({:.3} m over allowed)",
                 gait.max_rise_m, gait.min_tread_m, -over, gait.side_overhang_m
             ),
-        }
+        )
     } else {
-        ExpectSpec {
-            outcome: ExpectedOutcome::Either,
-            reason: either.join("; "),
-            before_step: object_step,
-            max_estimate_error_m: None,
-        }
+        ExpectSpec { before_step: object_step, ..ExpectSpec::new(ExpectedOutcome::Either, either.join("; ")) }
     }
 }
 
@@ -293,7 +286,7 @@ pub fn lanes_m(s: &Scenario, feet_half_spacing_m: f64) -> [f64; 2] {
 }
 
 fn refuse(reason: String) -> ExpectSpec {
-    ExpectSpec { outcome: ExpectedOutcome::Refuse, reason, before_step: None, max_estimate_error_m: None }
+    ExpectSpec::new(ExpectedOutcome::Refuse, reason)
 }
 
 /// How far the worse foot's sole overhangs the flight's side when it keeps its start lane,

@@ -132,12 +132,7 @@ fn description(suite: &Suite, index: usize, name: Option<&str>, from: &str) -> S
 
 /// The expectation set by the suite's hand.
 fn by_hand_spec((outcome, why): &(crate::scenario::ExpectedOutcome, String)) -> ExpectSpec {
-    ExpectSpec {
-        outcome: *outcome,
-        reason: format!("set by the suite: {why}"),
-        before_step: None,
-        max_estimate_error_m: None,
-    }
+    ExpectSpec::new(*outcome, format!("set by the suite: {why}"))
 }
 
 /// A case that is a scenario file as it stands, its own seed noise draw 0's; its

@@ -205,12 +205,7 @@ fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
     };
     let mut scenario = case.scenario.clone();
     scenario.seed = seed;
-    let spec = scenario.expect.clone().unwrap_or(ExpectSpec {
-        outcome: ExpectedOutcome::Climb,
-        reason: String::new(),
-        before_step: None,
-        max_estimate_error_m: None,
-    });
+    let spec = scenario.expect.clone().unwrap_or(ExpectSpec::new(ExpectedOutcome::Climb, String::new()));
     let mut result = CaseResult {
         suite: info.name.clone(),
         suite_hash: info.hash.clone(),

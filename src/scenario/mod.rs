@@ -80,6 +80,14 @@ pub struct ExpectSpec {
     pub max_estimate_error_m: Option<f64>,
 }
 
+impl ExpectSpec {
+    /// `outcome` for `reason`, a refusal before any foot is on the staircase, the estimate not
+    /// judged.
+    pub fn new(outcome: ExpectedOutcome, reason: String) -> Self {
+        Self { outcome, reason, before_step: None, max_estimate_error_m: None }
+    }
+}
+
 impl Default for Scenario {
     fn default() -> Self {
         Self {
