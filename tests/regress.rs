@@ -289,6 +289,16 @@ fn a_suite_at_a_faster_timing_carries_it_into_each_run() {
     assert_eq!(written.plan, stairbench::params::ClimbParams::default().plan.faster(1.5));
     assert!((written.plan.step.com_speed_m_s - 0.09).abs() < 1e-12);
     assert!(results.len() == 4 && results.iter().all(|r| r.reproduce.contains("--params")));
+    // The climbs themselves ran faster: Exp. 1's motion per stair against the same suite at x 1.
+    let (_, plain) = regress(&dir("plain-timing"), &[]);
+    let per_stair = |rs: &[CaseResult]| {
+        rs.iter()
+            .find(|r| r.name.as_deref() == Some("exp1"))
+            .and_then(|r| r.s_per_stair)
+            .expect("exp1 climbed")
+    };
+    let ratio = per_stair(&plain) / per_stair(&results);
+    assert!(ratio > 1.3 && ratio < 1.6, "x 1.5 took {ratio} times less time a stair");
     let bad = dir("no-speedup");
     let (o, results) = regress(&bad, &["--speedup", "0"]);
     assert_eq!(o.status.code(), Some(2));
