@@ -6,7 +6,7 @@
 use super::plant::{Plant, ServoLine};
 use crate::robot::model::{Q_JOINTS, V_JOINTS};
 use crate::robot::{self, hrp4};
-use crate::scene::mjcf::{world_xml, RobotFragment, ROBOT_GEOM_GROUP};
+use crate::scene::mjcf::{world_xml_with, BoxBodies, RobotFragment, ROBOT_GEOM_GROUP};
 use crate::scene::Scene;
 use crate::sensor::{RayCaster, RayHit};
 use mujoco_rs::mujoco_c::{mjNGROUP, mj_ray};
@@ -64,8 +64,13 @@ pub struct World {
 impl World {
     /// Compiles the world of `scene` with `robot` in it and runs forward kinematics once.
     pub fn new(scene: &Scene, robot: &RobotFragment) -> Result<Self, SimError> {
-        let xml = world_xml(scene, robot);
-        Self::from_xml(xml)
+        Self::laid_out(scene, robot, BoxBodies::default())
+    }
+
+    /// [`World::new`] with the world's boxes laid out in the body tree as `layout` says (the
+    /// same physics; see [`BoxBodies`]).
+    pub fn laid_out(scene: &Scene, robot: &RobotFragment, layout: BoxBodies) -> Result<Self, SimError> {
+        Self::from_xml(world_xml_with(scene, robot, layout))
     }
 
     /// The world of `scene` with the bench's robot, the HRP-4-class model, standing in
@@ -78,10 +83,16 @@ impl World {
 
     /// [`World::for_scene`] with the robot's body `plant` (drawn for the bench's model).
     pub fn with_plant(scene: &Scene, plant: &Plant) -> Result<Self, SimError> {
+        Self::with_plant_laid_out(scene, plant, BoxBodies::default())
+    }
+
+    /// [`World::with_plant`] with the world's boxes laid out as `layout` says.
+    pub fn with_plant_laid_out(scene: &Scene, plant: &Plant, layout: BoxBodies) -> Result<Self, SimError> {
         let model = hrp4::model()?;
         let q = hrp4::half_sitting_at(&model, &scene.robot_start())?;
         let soles = [hrp4::R_SOLE, hrp4::L_SOLE];
-        let mut world = Self::new(scene, &robot::mjcf::fragment_varied(&model, &q, &soles, &plant.body)?)?;
+        let robot = robot::mjcf::fragment_varied(&model, &q, &soles, &plant.body)?;
+        let mut world = Self::laid_out(scene, &robot, layout)?;
         let a = &plant.actuation;
         if a.latency_s > 0.0 || a.backlash_rad > 0.0 {
             let dt = world.model.opt().timestep;
