@@ -39,23 +39,24 @@ pub enum BoxBodies {
     /// against the few boxes near it.
     #[default]
     OneEach,
-    /// Every box in the world body: for each robot body near the whole world's bounding
-    /// box (most of them, always), MuJoCo walks the world body's tree of boxes
-    /// (`mj_collideTree`, `mj_collideOBB`: a tenth of a climb's wall time). `bench robot`
-    /// keeps it as the baseline.
+    /// Every box in the world body: for each robot body whose bounding box overlaps the
+    /// world body's (nearly every one, since the world body's spans the whole scene),
+    /// MuJoCo walks the world body's tree of boxes (`mj_collideTree`, `mj_collideOBB`).
+    /// `bench robot`'s baseline.
     InWorldBody,
 }
 
 /// The MJCF text of `scene` with `robot` in it.
 pub fn world_xml(scene: &Scene, robot: &RobotFragment) -> String {
-    world_xml_with(scene, robot, BoxBodies::default())
+    world_xml_laid_out(scene, robot, BoxBodies::default())
 }
 
 /// [`world_xml`] with the boxes laid out as `layout` says.
-pub fn world_xml_with(scene: &Scene, robot: &RobotFragment, layout: BoxBodies) -> String {
-    let (open, close) = match layout {
-        BoxBodies::OneEach => ("    <body>\n  ", "    </body>\n"),
-        BoxBodies::InWorldBody => ("", ""),
+pub fn world_xml_laid_out(scene: &Scene, robot: &RobotFragment, layout: BoxBodies) -> String {
+    // Each box's geom line, with what opens and closes around it.
+    let (open, indent, close) = match layout {
+        BoxBodies::OneEach => ("    <body>\n", "      ", "    </body>\n"),
+        BoxBodies::InWorldBody => ("", "    ", ""),
     };
     let mut geoms = String::new();
     for b in scene.boxes() {
@@ -73,7 +74,7 @@ pub fn world_xml_with(scene: &Scene, robot: &RobotFragment, layout: BoxBodies) -
         geoms.push_str(open);
         let _ = writeln!(
             geoms,
-            r#"    <geom class="world" name="{}" pos="{} {} {}" euler="0 0 {}" size="{} {} {}" friction="{} 0.005 0.0001" rgba="{}"/>"#,
+            r#"{indent}<geom class="world" name="{}" pos="{} {} {}" euler="0 0 {}" size="{} {} {}" friction="{} 0.005 0.0001" rgba="{}"/>"#,
             xml_escape(b.name()),
             p.x,
             p.y,

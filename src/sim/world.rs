@@ -6,7 +6,7 @@
 use super::plant::{Plant, ServoLine};
 use crate::robot::model::{Q_JOINTS, V_JOINTS};
 use crate::robot::{self, hrp4};
-use crate::scene::mjcf::{world_xml_with, BoxBodies, RobotFragment, ROBOT_GEOM_GROUP};
+use crate::scene::mjcf::{world_xml_laid_out, BoxBodies, RobotFragment, ROBOT_GEOM_GROUP};
 use crate::scene::Scene;
 use crate::sensor::{RayCaster, RayHit};
 use mujoco_rs::mujoco_c::{mjNGROUP, mj_ray};
@@ -70,7 +70,7 @@ impl World {
     /// [`World::new`] with the world's boxes laid out in the body tree as `layout` says (the
     /// same physics; see [`BoxBodies`]).
     pub fn laid_out(scene: &Scene, robot: &RobotFragment, layout: BoxBodies) -> Result<Self, SimError> {
-        Self::from_xml(world_xml_with(scene, robot, layout))
+        Self::from_xml(world_xml_laid_out(scene, robot, layout))
     }
 
     /// The world of `scene` with the bench's robot, the HRP-4-class model, standing in
