@@ -95,10 +95,11 @@ pub fn run(repeat: usize) -> Result<String> {
     // boxes each in a body of their own (the default) against all in the world body.
     let nominal = Plant::nominal(&model);
     let root_name = &model.root().name;
-    // Wall seconds of the standing run in `layout`, and the time step it ran at.
-    let stand_s = |layout: BoxBodies| -> Result<(f64, f64)> {
+    // Every world is generated at the same time step.
+    let timestep_s = world.model().opt().timestep;
+    // Wall seconds of the standing run in `layout`.
+    let stand_s = |layout: BoxBodies| -> Result<f64> {
         let mut stand = World::with_plant_laid_out(&scene, &nominal, layout)?;
-        let timestep_s = stand.model().opt().timestep;
         let steps = (STAND_S / timestep_s).round() as usize;
         let t0 = Instant::now();
         for _ in 0..steps {
@@ -108,12 +109,11 @@ pub fn run(repeat: usize) -> Result<String> {
         // The root's id in this layout (the boxes' bodies come before the robot's).
         let root = stand.body_id(root_name)?;
         anyhow::ensure!(stand.data().subtree_com()[root][2].is_finite(), "the standing simulation diverged");
-        Ok((wall_s, timestep_s))
+        Ok(wall_s)
     };
     // The two layouts in turn, each first in every other round.
     let rounds = repeat.max(1);
     let (mut one_each, mut in_world) = (Vec::with_capacity(rounds), Vec::with_capacity(rounds));
-    let mut timestep_s = f64::NAN;
     for round in 0..rounds {
         let order = if round % 2 == 0 {
             [BoxBodies::OneEach, BoxBodies::InWorldBody]
@@ -121,8 +121,7 @@ pub fn run(repeat: usize) -> Result<String> {
             [BoxBodies::InWorldBody, BoxBodies::OneEach]
         };
         for layout in order {
-            let (wall_s, dt_s) = stand_s(layout)?;
-            timestep_s = dt_s;
+            let wall_s = stand_s(layout)?;
             match layout {
                 BoxBodies::OneEach => one_each.push(wall_s),
                 BoxBodies::InWorldBody => in_world.push(wall_s),
