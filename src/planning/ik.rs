@@ -127,6 +127,9 @@ pub struct Solver {
     tolerance: f64,
     qp: Option<(Shape, DefaultSolver<f64>)>,
     active_set_first: bool,
+    full_kkt: bool,
+    /// A row's nonzero entries (column, value), reused.
+    nonzeros: Vec<(usize, f64)>,
     working: Vec<Limit>,
     interior_point_qps: usize,
     h: DMatrix<f64>,
@@ -152,6 +155,8 @@ impl Solver {
             tolerance,
             qp: None,
             active_set_first: false,
+            full_kkt: false,
+            nonzeros: Vec::new(),
             working: Vec::new(),
             interior_point_qps: 0,
             h: DMatrix::zeros(nv, nv),
@@ -169,6 +174,14 @@ impl Solver {
     /// little from one tick to the next.
     pub fn with_active_set(mut self, on: bool) -> Self {
         self.active_set_first = on;
+        self
+    }
+
+    /// The same solver, with `on`, solving each active-set guess's KKT system whole by one
+    /// LU instead of by the Schur complement on the objective's Cholesky factor (see
+    /// `Kkt`): the same solutions to rounding, slower; the baseline `bench plan` measures.
+    pub fn with_full_kkt(mut self, on: bool) -> Self {
+        self.full_kkt = on;
         self
     }
 
@@ -225,37 +238,34 @@ impl Solver {
         };
         let mut working: Vec<Limit> = self.working.iter().copied().filter(held).collect();
         let m: usize = equalities.iter().map(|e| e.jacobian.nrows()).sum();
+        // The equalities' rows and right-hand sides, the same for every guess.
+        let mut eq_rows = DMatrix::zeros(m, nv);
+        let mut eq_rhs = DVector::zeros(m);
+        let mut row = 0;
+        for e in equalities {
+            let r = e.jacobian.nrows();
+            eq_rows.view_mut((row, 0), (r, nv)).copy_from(&e.jacobian);
+            eq_rhs.rows_mut(row, r).copy_from(&e.velocity);
+            row += r;
+        }
+        let kkt = Kkt::new(&self.h, &self.c, eq_rows, eq_rhs, self.full_kkt);
         for _ in 0..GUESSES {
-            let n = nv + m + working.len();
-            let mut kkt = DMatrix::zeros(n, n);
-            let mut b = DVector::zeros(n);
-            kkt.view_mut((0, 0), (nv, nv)).copy_from(&self.h);
-            b.rows_mut(0, nv).copy_from(&(-&self.c));
-            let mut row = nv;
-            for e in equalities {
-                let r = e.jacobian.nrows();
-                kkt.view_mut((row, 0), (r, nv)).copy_from(&e.jacobian);
-                kkt.view_mut((0, row), (nv, r)).copy_from(&e.jacobian.transpose());
-                b.rows_mut(row, r).copy_from(&e.velocity);
-                row += r;
-            }
-            for &l in &working {
+            // The held limits' rows (row . x = rhs).
+            let mut held_rows = DMatrix::zeros(working.len(), nv);
+            let mut held_rhs = DVector::zeros(working.len());
+            for (k, &l) in working.iter().enumerate() {
                 match l {
-                    Limit::Row(r) => {
-                        let g = rows[r].0.jacobian.row(rows[r].1);
-                        kkt.view_mut((row, 0), (1, nv)).copy_from(&g);
-                        kkt.view_mut((0, row), (nv, 1)).copy_from(&g.transpose());
-                    }
-                    Limit::Upper(i) => (kkt[(row, i)], kkt[(i, row)]) = (1.0, 1.0),
-                    Limit::Lower(i) => (kkt[(row, i)], kkt[(i, row)]) = (-1.0, -1.0),
+                    Limit::Row(r) => held_rows.row_mut(k).copy_from(&rows[r].0.jacobian.row(rows[r].1)),
+                    Limit::Upper(i) => held_rows[(k, i)] = 1.0,
+                    Limit::Lower(i) => held_rows[(k, i)] = -1.0,
                 }
-                b[row] = rhs(l);
-                row += 1;
+                held_rhs[k] = rhs(l);
             }
-            let solution = kkt.lu().solve(&b).filter(|s| s.iter().all(|v| v.is_finite()))?;
-            let x = solution.rows(0, nv).into_owned();
-            let pulling = (0..working.len())
-                .map(|j| (j, solution[nv + m + j]))
+            let (x, held_mu) = kkt.solve(&held_rows, &held_rhs)?;
+            let pulling = held_mu
+                .iter()
+                .copied()
+                .enumerate()
                 .filter(|(_, mu)| *mu < -SLACK)
                 .min_by(|a, b| a.1.total_cmp(&b.1));
             if let Some((j, _)) = pulling {
@@ -294,9 +304,10 @@ impl Solver {
         for t in tasks {
             check(nv, t.jacobian.ncols())?;
             // 0.5 x' P x + c' x with P = 2 w J'J, c = -2 w J'v.
-            self.h.gemm_tr(2.0 * t.weight, &t.jacobian, &t.jacobian, 1.0);
+            add_gram_upper(&mut self.h, 2.0 * t.weight, &t.jacobian, &mut self.nonzeros);
             self.c.gemv_tr(-2.0 * t.weight, &t.jacobian, &t.velocity, 1.0);
         }
+        self.h.fill_lower_triangle_with_upper_triangle();
         self.b.clear();
         for e in equalities {
             check(nv, e.jacobian.ncols())?;
@@ -410,6 +421,130 @@ impl Solver {
         let cones = [SupportedConeT::ZeroConeT(n_eq), SupportedConeT::NonnegativeConeT(m - n_eq)];
         DefaultSolver::new(&p, self.c.as_slice(), &a, &self.b, &cones, settings(self.tolerance))
             .map_err(|e| IkError::Setup(e.to_string()))
+    }
+}
+
+/// Adds `scale J'J` to the upper triangle of `h`, row by row over each row's nonzero
+/// entries: a posture task's rows hold one each, and its dense product would cost as much
+/// as the rest of the QP.
+fn add_gram_upper(h: &mut DMatrix<f64>, scale: f64, j: &DMatrix<f64>, nonzeros: &mut Vec<(usize, f64)>) {
+    for r in 0..j.nrows() {
+        nonzeros.clear();
+        nonzeros.extend(j.row(r).iter().enumerate().filter(|(_, v)| **v != 0.0).map(|(c, v)| (c, *v)));
+        for (k, &(a, va)) in nonzeros.iter().enumerate() {
+            let sa = scale * va;
+            for &(b, vb) in &nonzeros[k..] {
+                h[(a, b)] += sa * vb;
+            }
+        }
+    }
+}
+
+/// The KKT system of an equality-constrained least squares, `[H A'; A 0] [x; mu] = [-c; b]`,
+/// whose rows `A` are a QP's equalities (the same for every active-set guess) over the limits
+/// a guess holds.
+enum Kkt {
+    /// By the Schur complement on `H`'s Cholesky factor `L L' = H`: with `z0 = L^-1 c` and
+    /// `Z = L^-1 A'`, the multipliers solve `(Z'Z) mu = -Z' z0 - b` and
+    /// `x = -L'^-1 (z0 + Z mu)`. The equalities' part of `Z` and `Z'Z` is taken once per
+    /// QP; each guess adds its held rows' columns.
+    Schur {
+        /// `L`, its upper triangle not zeroed.
+        l: DMatrix<f64>,
+        z0: DVector<f64>,
+        /// `L^-1 E'` for the equalities' rows `E`.
+        eq_z: DMatrix<f64>,
+        /// `eq_z' eq_z`.
+        eq_s: DMatrix<f64>,
+        /// `-eq_z' z0 - e`, `e` the equalities' right-hand sides.
+        eq_r: DVector<f64>,
+    },
+    /// The whole system by one LU with partial pivoting each guess: where `H` is not
+    /// positive definite as rounded or its pivots span over 12 orders of magnitude, and the
+    /// baseline `bench plan` measures against.
+    Full { h: DMatrix<f64>, c: DVector<f64>, eq_rows: DMatrix<f64>, eq_rhs: DVector<f64> },
+}
+
+impl Kkt {
+    /// The system of `h` (symmetric), `c` and the equalities' rows and right-hand sides;
+    /// `full` forces [`Kkt::Full`].
+    fn new(
+        h: &DMatrix<f64>,
+        c: &DVector<f64>,
+        eq_rows: DMatrix<f64>,
+        eq_rhs: DVector<f64>,
+        full: bool,
+    ) -> Self {
+        let chol = (!full).then(|| h.clone().cholesky()).flatten();
+        let Some(chol) = chol else {
+            return Self::Full { h: h.clone(), c: c.clone(), eq_rows, eq_rhs };
+        };
+        let l = chol.l_dirty().clone();
+        // `H` singular but for rounding (no damping, tasks that leave a direction free):
+        // the Schur complement would square its conditioning, where the whole system may
+        // still be well posed.
+        let pivots = l.diagonal().map(|d| d * d);
+        if pivots.min() <= 1e-12 * pivots.max() {
+            return Self::Full { h: h.clone(), c: c.clone(), eq_rows, eq_rhs };
+        }
+        let mut z0 = c.clone();
+        let mut eq_z = eq_rows.transpose();
+        if !(l.solve_lower_triangular_mut(&mut z0) && l.solve_lower_triangular_mut(&mut eq_z)) {
+            return Self::Full { h: h.clone(), c: c.clone(), eq_rows, eq_rhs };
+        }
+        let eq_s = eq_z.tr_mul(&eq_z);
+        let eq_r = -eq_z.tr_mul(&z0) - eq_rhs;
+        Self::Schur { l, z0, eq_z, eq_s, eq_r }
+    }
+
+    /// The solution holding also `held` (rows) at `held_rhs`, and the held rows'
+    /// multipliers; `None` when the rows are dependent (the system singular).
+    fn solve(&self, held: &DMatrix<f64>, held_rhs: &DVector<f64>) -> Option<(DVector<f64>, DVector<f64>)> {
+        let finite = |v: &DVector<f64>| v.iter().all(|x| x.is_finite());
+        let k = held.nrows();
+        match self {
+            Self::Schur { l, z0, eq_z, eq_s, eq_r } => {
+                let m = eq_z.ncols();
+                let mut held_z = held.transpose();
+                if !l.solve_lower_triangular_mut(&mut held_z) {
+                    return None;
+                }
+                let mut s = DMatrix::zeros(m + k, m + k);
+                s.view_mut((0, 0), (m, m)).copy_from(eq_s);
+                let cross = held_z.tr_mul(eq_z);
+                s.view_mut((m, 0), (k, m)).copy_from(&cross);
+                s.view_mut((0, m), (m, k)).copy_from(&cross.transpose());
+                s.view_mut((m, m), (k, k)).copy_from(&held_z.tr_mul(&held_z));
+                let mut r = DVector::zeros(m + k);
+                r.rows_mut(0, m).copy_from(eq_r);
+                r.rows_mut(m, k).copy_from(&(-held_z.tr_mul(z0) - held_rhs));
+                let mu = match s.clone().cholesky() {
+                    Some(f) => f.solve(&r),
+                    None => s.lu().solve(&r)?,
+                };
+                let mut x = -(z0 + eq_z * mu.rows(0, m) + &held_z * mu.rows(m, k));
+                if !l.tr_solve_lower_triangular_mut(&mut x) {
+                    return None;
+                }
+                (finite(&x) && finite(&mu)).then(|| (x, mu.rows(m, k).into_owned()))
+            }
+            Self::Full { h, c, eq_rows, eq_rhs } => {
+                let (nv, m) = (h.nrows(), eq_rows.nrows());
+                let n = nv + m + k;
+                let mut kkt = DMatrix::zeros(n, n);
+                let mut b = DVector::zeros(n);
+                kkt.view_mut((0, 0), (nv, nv)).copy_from(h);
+                b.rows_mut(0, nv).copy_from(&(-c));
+                for (at, rows, rhs) in [(nv, eq_rows, eq_rhs), (nv + m, held, held_rhs)] {
+                    let r = rows.nrows();
+                    kkt.view_mut((at, 0), (r, nv)).copy_from(rows);
+                    kkt.view_mut((0, at), (nv, r)).copy_from(&rows.transpose());
+                    b.rows_mut(at, r).copy_from(rhs);
+                }
+                let solution = kkt.lu().solve(&b).filter(finite)?;
+                Some((solution.rows(0, nv).into_owned(), solution.rows(nv + m, k).into_owned()))
+            }
+        }
     }
 }
 
@@ -688,6 +823,7 @@ mod tests {
         let b = [Bounds { lower: DVector::from_element(n, -0.8), upper: DVector::from_element(n, 0.6) }];
         let phases: Vec<f64> = (0..n).map(|_| 3.0 * rnd()).collect();
         let mut kept = Solver::new(n, 1e-6).with_active_set(true);
+        let mut full = Solver::new(n, 1e-6).with_active_set(true).with_full_kkt(true);
         let (mut binding, mut sets) = (0, std::collections::HashSet::new());
         const TICKS: usize = 300;
         for tick in 0..TICKS {
@@ -696,6 +832,9 @@ mod tests {
             let slow = Solver::with_tolerance(n, 1e-6, 1e-10).solve(&t, &e, &g, &b).unwrap();
             let fast = kept.solve(&t, &e, &g, &b).unwrap();
             assert!((&slow - &fast).amax() < 1e-6, "tick {tick}: {slow} against {fast}");
+            // The Schur complement and the whole system's LU find the same optimum.
+            let by_lu = full.solve(&t, &e, &g, &b).unwrap();
+            assert!((&by_lu - &fast).amax() < 1e-9, "tick {tick}: {by_lu} by one LU against {fast}");
             assert!(
                 (e[0].jacobian.row(0).tr_dot(&fast) - 0.1).abs() < 1e-9,
                 "tick {tick}: the equality holds"
@@ -717,6 +856,28 @@ mod tests {
         );
         let by_clarabel = kept.interior_point_qps();
         assert!(by_clarabel < TICKS / 5, "clarabel solved {by_clarabel} of {TICKS}");
+    }
+
+    /// The objective's matrix taken over each row's nonzero entries is the dense `J'J`.
+    #[test]
+    fn the_sparse_gram_is_the_dense_product() {
+        let mut seed = 3u64;
+        let mut rnd = move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        // Rows of one, a few and every entry, as the posture, a foot's and the CoM's tasks.
+        let j = DMatrix::from_fn(9, 12, |r, c| match r % 3 {
+            0 if c == r => 1.0,
+            1 if c % 4 == r % 4 => rnd(),
+            2 => rnd(),
+            _ => 0.0,
+        });
+        let mut h = DMatrix::identity(12, 12);
+        add_gram_upper(&mut h, 0.7, &j, &mut Vec::new());
+        h.fill_lower_triangle_with_upper_triangle();
+        let dense = DMatrix::identity(12, 12) + j.tr_mul(&j) * 0.7;
+        assert!((&h - &dense).amax() < 1e-14, "{h} against {dense}");
     }
 
     #[test]
