@@ -75,61 +75,96 @@ pub fn distribute(
     point: &Point3<f64>,
     p: &StabilizerParams,
 ) -> Result<Vec<SoleWrench>, DistributionError> {
-    let n = supports.len();
-    let force = wanted.fixed_rows::<3>(0).norm();
-    if n == 0 {
-        return match force > 0.0 {
-            true => Err(DistributionError::Infeasible {
-                force_n: force,
-                torque_nm: wanted.fixed_rows::<3>(3).norm(),
-            }),
-            false => Ok(Vec::new()),
-        };
+    Distributor::default().distribute(supports, wanted, point, p)
+}
+
+/// [`distribute`] for a stream of ticks: a solver kept for each number of feet, so a tick's
+/// active-set guess starts from the cone faces that bound the last tick's wrenches, as
+/// the IK's does. A fresh solver's guesses start from none, and where more faces bind than
+/// its few guesses reach (a CoM near a sole's edge) the QP goes to the interior-point
+/// solver, at about ten times the cost.
+#[derive(Default)]
+pub struct Distributor {
+    /// For one foot, then two.
+    solvers: [Option<ik::Solver>; 2],
+    /// QPs the interior-point solver took.
+    interior_point_qps: usize,
+}
+
+impl Distributor {
+    /// How many of its QPs went to the interior-point solver (the others: active sets).
+    pub fn interior_point_qps(&self) -> usize {
+        self.interior_point_qps
     }
-    let nv = 6 * n;
-    let mut net = DMatrix::zeros(6, nv);
-    let mut cones = Inequality { jacobian: DMatrix::zeros(16 * n, nv), bound: DVector::zeros(16 * n) };
-    let mut regular = DMatrix::zeros(nv, nv);
-    let diag = regularization_weights(p).map(f64::sqrt);
-    let diag = Vector6::from_column_slice(&diag);
-    for (i, s) in supports.iter().enumerate() {
-        net.view_mut((0, 6 * i), (6, 6)).copy_from(&to_world(&s.contact, point));
-        cones.jacobian.view_mut((16 * i, 6 * i), (16, 6)).copy_from(&s.contact.local_faces());
-        regular.view_mut((6 * i, 6 * i), (6, 6)).copy_from(&Matrix6::from_diagonal(&diag));
-    }
-    let mut tasks = vec![
-        Task {
-            jacobian: net,
-            velocity: DVector::from_column_slice(wanted.as_slice()),
-            weight: p.weight_net_wrench,
-        },
-        Task { jacobian: regular, velocity: DVector::zeros(nv), weight: 1.0 },
-    ];
-    if n > 1 {
-        // (1 - rho) f_z,0 - rho sum_{i>0} f_z,i = 0, each normal force along its sole's normal.
-        let rho = supports[0].share.clamp(0.0, 1.0);
-        let mut row = DMatrix::zeros(1, nv);
-        row[(0, 2)] = 1.0 - rho;
-        for i in 1..n {
-            row[(0, 6 * i + 2)] = -rho;
+
+    /// As [`distribute`].
+    pub fn distribute(
+        &mut self,
+        supports: &[Support],
+        wanted: &Vector6<f64>,
+        point: &Point3<f64>,
+        p: &StabilizerParams,
+    ) -> Result<Vec<SoleWrench>, DistributionError> {
+        let n = supports.len();
+        let force = wanted.fixed_rows::<3>(0).norm();
+        if n == 0 {
+            return match force > 0.0 {
+                true => Err(DistributionError::Infeasible {
+                    force_n: force,
+                    torque_nm: wanted.fixed_rows::<3>(3).norm(),
+                }),
+                false => Ok(Vec::new()),
+            };
         }
-        tasks.push(Task { jacobian: row, velocity: DVector::zeros(1), weight: p.weight_pressure });
+        let nv = 6 * n;
+        let mut net = DMatrix::zeros(6, nv);
+        let mut cones = Inequality { jacobian: DMatrix::zeros(16 * n, nv), bound: DVector::zeros(16 * n) };
+        let mut regular = DMatrix::zeros(nv, nv);
+        let diag = regularization_weights(p).map(f64::sqrt);
+        let diag = Vector6::from_column_slice(&diag);
+        for (i, s) in supports.iter().enumerate() {
+            net.view_mut((0, 6 * i), (6, 6)).copy_from(&to_world(&s.contact, point));
+            cones.jacobian.view_mut((16 * i, 6 * i), (16, 6)).copy_from(&s.contact.local_faces());
+            regular.view_mut((6 * i, 6 * i), (6, 6)).copy_from(&Matrix6::from_diagonal(&diag));
+        }
+        let mut tasks = vec![
+            Task {
+                jacobian: net,
+                velocity: DVector::from_column_slice(wanted.as_slice()),
+                weight: p.weight_net_wrench,
+            },
+            Task { jacobian: regular, velocity: DVector::zeros(nv), weight: 1.0 },
+        ];
+        if n > 1 {
+            // (1 - rho) f_z,0 - rho sum_{i>0} f_z,i = 0, each normal force along its sole's normal.
+            let rho = supports[0].share.clamp(0.0, 1.0);
+            let mut row = DMatrix::zeros(1, nv);
+            row[(0, 2)] = 1.0 - rho;
+            for i in 1..n {
+                row[(0, 6 * i + 2)] = -rho;
+            }
+            tasks.push(Task { jacobian: row, velocity: DVector::zeros(1), weight: p.weight_pressure });
+        }
+        // More than two feet (not a biped's) get a solver of their own.
+        let mut fresh = None;
+        let solver = match self.solvers.get_mut(n - 1) {
+            Some(kept) => kept.get_or_insert_with(|| ik::Solver::new(nv, 1e-9).with_active_set(true)),
+            None => fresh.insert(ik::Solver::new(nv, 1e-9).with_active_set(true)),
+        };
+        let before = solver.interior_point_qps();
+        let x = solver.solve(&tasks, &[], std::slice::from_ref(&cones), &[]);
+        self.interior_point_qps += solver.interior_point_qps() - before;
+        let x = x?;
+        let wrenches: Vec<SoleWrench> =
+            (0..n).map(|i| SoleWrench::from_vector(&x.fixed_rows::<6>(6 * i).into_owned())).collect();
+        let contacts: Vec<&Contact> = supports.iter().map(|s| &s.contact).collect();
+        let miss = net_wrench(&contacts, &wrenches, point) - wanted;
+        let (force_n, torque_nm) = (miss.fixed_rows::<3>(0).norm(), miss.fixed_rows::<3>(3).norm());
+        if force_n > INFEASIBLE_FORCE_FRACTION * force || torque_nm > INFEASIBLE_ARM_M * force {
+            return Err(DistributionError::Infeasible { force_n, torque_nm });
+        }
+        Ok(wrenches)
     }
-    let x = ik::Solver::new(nv, 1e-9).with_active_set(true).solve(
-        &tasks,
-        &[],
-        std::slice::from_ref(&cones),
-        &[],
-    )?;
-    let wrenches: Vec<SoleWrench> =
-        (0..n).map(|i| SoleWrench::from_vector(&x.fixed_rows::<6>(6 * i).into_owned())).collect();
-    let contacts: Vec<&Contact> = supports.iter().map(|s| &s.contact).collect();
-    let miss = net_wrench(&contacts, &wrenches, point) - wanted;
-    let (force_n, torque_nm) = (miss.fixed_rows::<3>(0).norm(), miss.fixed_rows::<3>(3).norm());
-    if force_n > INFEASIBLE_FORCE_FRACTION * force || torque_nm > INFEASIBLE_ARM_M * force {
-        return Err(DistributionError::Infeasible { force_n, torque_nm });
-    }
-    Ok(wrenches)
 }
 
 /// The world wrench (force, torque about `point`) of sole-frame wrenches on `contacts`.

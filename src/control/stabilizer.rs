@@ -6,7 +6,7 @@
 
 use super::admittance::{self, FootOffset};
 use super::attitude::{leaning, TiltFilter};
-use super::distribution::{distribute, DistributionError, Support};
+use super::distribution::{DistributionError, Distributor, Support};
 use super::measurement::{FootSensor, Measurement, SoleWrench, GRAVITY_M_S2};
 use super::params::StabilizerParams;
 use crate::planning::contact::Contact;
@@ -82,6 +82,7 @@ pub struct Stabilizer<'m> {
     pressed_ticks: [usize; 2],
     q_est: Vec<f64>,
     tilt: TiltFilter,
+    distributor: Distributor,
     record: TickRecord,
 }
 
@@ -130,6 +131,7 @@ impl<'m> Stabilizer<'m> {
             pressed_ticks: [0; 2],
             q_est: q0,
             tilt: TiltFilter::new(p.tilt_filter_time_s, p.tilt_accel_tolerance),
+            distributor: Distributor::default(),
             record: TickRecord::default(),
         })
     }
@@ -341,7 +343,7 @@ impl<'m> Stabilizer<'m> {
         // No distribution (the CoM outside what the feet down can hold): the offsets only
         // leak back to the plan this tick, and the record says so.
         let mut wanted_by_foot = [None; 2];
-        let infeasible = match distribute(&contacts, &wanted_net, &com_ref, &self.p) {
+        let infeasible = match self.distributor.distribute(&contacts, &wanted_net, &com_ref, &self.p) {
             Ok(wanted) => {
                 for ((f, _), w) in supports.iter().zip(&wanted) {
                     wanted_by_foot[f.index()] = Some(*w);
