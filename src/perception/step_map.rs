@@ -142,15 +142,19 @@ impl StepMap {
     ///   agreeing within `register_min_m` of each other;
     /// - in height, from the treads' heights.
     ///
-    /// A turn under `register_min_rad` and a shift under `register_min_m` are left at zero;
+    /// A turn under `register_min_rad` and a shift under `register_min_m` are left at zero,
+    /// and so is a turn the side edges do not bear out (turned back, their spread across does
+    /// not fall by half `register_min_m`: the treads' axes misread in place, one matched
+    /// step, steps too close along the flight to tell);
     /// side edges that disagree (half or fewer within half `register_min_m` of their
     /// median) leave the view uncorrected across only; a view that matches nothing, whose
     /// matched steps disagree in height or along the ascent (half or fewer within
     /// `register_min_m` of the median: the whole view is then not trusted),
     /// asks for a turn over 10 times `register_min_rad` or a shift over `register_max_m`, or
     /// would move the robot (at `viewpoint`, where the view was taken) by more than
-    /// `register_max_m`, gives `None` (a mismatch, not drift). The turn is a plain median,
-    /// and one matched step agrees with itself.
+    /// `register_max_m`, gives `None` (a mismatch, not drift). The turn is a plain median
+    /// (the view's steps share one axis), and one matched step's shifts agree with
+    /// themselves.
     pub fn register(
         &self,
         seen: &[PlaneSegment],
@@ -197,36 +201,64 @@ impl StepMap {
         }
         let middle = pairs.iter().map(|(_, s)| s.center().coords).sum::<Vector3<f64>>() / pairs.len() as f64;
         let pivot = nalgebra::Translation3::from(middle);
-        let turned: Isometry3<f64> =
-            pivot * nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn) * pivot.inverse();
-        let pairs: Vec<(&PlaneSegment, PlaneSegment)> =
-            pairs.into_iter().map(|(k, s)| (k, s.transformed(&turned))).collect();
+        let turned_by = |turn: f64| -> Isometry3<f64> {
+            pivot * nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn) * pivot.inverse()
+        };
         let across = Vector3::z().cross(&along);
-        let keep = |d: f64| if d.abs() < p.register_min_m { 0.0 } else { d };
-        let agree_m = p.register_min_m;
-        let dz = keep(agreed_median(pairs.iter().map(|(k, s)| k.height_m() - s.height_m()), agree_m)?);
-        let d_along =
-            keep(agreed_median(pairs.iter().filter(on_risers).map(|(k, s)| riser(k) - riser(s)), agree_m)?);
         // Across, from the treads' side edges, each one vote: an edge cut short by a shadow, a
         // handrail's post or the view's reach is one misread edge among them, where a tread's
         // middle would move with it (regression `one-tread-dragged-the-estimate-across`). An
-        // edge is its width about its middle, whatever its rectangle's turn. The votes agree
-        // within `register_min_m` of each other (half the radius of the other shifts): the
-        // two edges of a lone tread agree as its widths do. Edges that disagree say nothing
-        // across; the risers and the heights still stand.
+        // edge is its width about its middle, whatever its rectangle's turn.
         let edges = |r: &PlaneSegment| {
             let (middle, half_width) =
                 (r.center().coords.dot(&across), axis_nearest(r, &along).width_m() / 2.0);
             [middle - half_width, middle + half_width]
         };
-        let d_across = agreed_median(
-            pairs.iter().flat_map(|(k, s)| {
-                let (k, s) = (edges(k), edges(s));
-                [k[0] - s[0], k[1] - s[1]]
-            }),
-            agree_m / 2.0,
-        )
-        .map_or(0.0, keep);
+        let votes = |pairs: &[(&PlaneSegment, PlaneSegment)], moved: &Isometry3<f64>| -> Vec<f64> {
+            pairs
+                .iter()
+                .flat_map(|(k, s)| {
+                    let (k, s) = (edges(k), edges(&s.clone().transformed(moved)));
+                    [k[0] - s[0], k[1] - s[1]]
+                })
+                .collect()
+        };
+        // A turn is the estimate's only where the steps' places turned with their treads'
+        // axes. A drift turns the whole view: the line of its steps with their treads, and
+        // turned back their side edges agree across better than as they came. Treads whose
+        // axes alone were misread (strays on a riser moved a front edge) turn about their own
+        // middles: turned back, the steps away from the view's middle move across, their
+        // edges agree less, and the turn would carry the robot sideways by the turn times
+        // its distance from that middle (regression `riser-strays-moved-a-front-edge`: a
+        // 4.4 deg misread, the estimate 46 mm and 4.3 deg off). The edges' spread (their
+        // median distance from their median) must fall by more than the half of
+        // `register_min_m` within which edges agree: a side edge errs by a centimetre or two,
+        // and steps close along the flight (one step, pieces of one tread) cannot tell the
+        // two apart, and are not turned.
+        let spread = |v: Vec<f64>| {
+            let m = median(v.iter().copied());
+            median(v.iter().map(|x| (x - m).abs()))
+        };
+        let turn = match turn != 0.0
+            && spread(votes(&pairs, &turned_by(turn))) + p.register_min_m / 2.0
+                < spread(votes(&pairs, &Isometry3::identity()))
+        {
+            true => turn,
+            false => 0.0,
+        };
+        let turned = turned_by(turn);
+        let pairs: Vec<(&PlaneSegment, PlaneSegment)> =
+            pairs.into_iter().map(|(k, s)| (k, s.transformed(&turned))).collect();
+        let keep = |d: f64| if d.abs() < p.register_min_m { 0.0 } else { d };
+        let agree_m = p.register_min_m;
+        let dz = keep(agreed_median(pairs.iter().map(|(k, s)| k.height_m() - s.height_m()), agree_m)?);
+        let d_along =
+            keep(agreed_median(pairs.iter().filter(on_risers).map(|(k, s)| riser(k) - riser(s)), agree_m)?);
+        // Across, the edges' votes agree within `register_min_m` of each other (half the
+        // radius of the other shifts): the two edges of a lone tread agree as its widths do.
+        // Edges that disagree say nothing across; the risers and the heights still stand.
+        let d_across =
+            agreed_median(votes(&pairs, &Isometry3::identity()).into_iter(), agree_m / 2.0).map_or(0.0, keep);
         let shift = along * d_along + across * d_across + Vector3::z() * dz;
         if [d_along, d_across, dz].iter().any(|d| d.abs() > p.register_max_m) {
             return None;
@@ -682,6 +714,34 @@ mod tests {
         drifted[2].1 -= 0.05;
         let dy = map.register(&across(drifted), &origin, &p).expect("a correction").translation.vector.y;
         assert!((dy - drift_m).abs() < 1e-9, "{dy}");
+    }
+
+    /// Regression `riser-strays-moved-a-front-edge`: a view from step 2 whose treads' axes
+    /// were all read 4.4 deg turned (strays on a riser moved a front edge; one axis for the
+    /// view's steps), each rectangle about its own middle, the steps where they are. Turned
+    /// back about the steps' middle, the outer steps would move 20 mm across each way and the
+    /// robot 61 mm sideways: no turn is corrected. The same view turned 4.4 deg about the
+    /// robot, as a drift of its estimate's yaw turns it, is turned back, and the robot stays
+    /// where it was.
+    #[test]
+    fn treads_misread_turned_in_place_are_not_a_turn_of_the_estimate() {
+        let p = StepMapParams::default();
+        let robot = Point3::new(0.5, 0.0, 1.8);
+        let risers = [(0.9, 0.72), (1.165, 0.9), (1.43, 1.08)];
+        let tread = |(x, z): (f64, f64), axis: Vector3<f64>| {
+            level(Point3::new(x + 0.1325, 0.0, z), axis, 0.265, 1.23, 800).with_front(FrontMark::Riser)
+        };
+        let map = StepMap { known: risers.iter().map(|&r| tread(r, Vector3::x())).collect() };
+        let turn = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 4.4f64.to_radians());
+        let misread: Vec<PlaneSegment> = risers.iter().map(|&r| tread(r, turn * Vector3::x())).collect();
+        let yaw = |c: Option<Isometry3<f64>>| c.map_or(0.0, |c| c.rotation.euler_angles().2);
+        assert_eq!(yaw(map.register(&misread, &robot, &p)), 0.0, "a misread is no turn");
+        let about_robot = nalgebra::Translation3::from(robot.coords);
+        let drift: Isometry3<f64> = about_robot * turn * about_robot.inverse();
+        let drifted: Vec<PlaneSegment> = map.known.iter().map(|k| k.clone().transformed(&drift)).collect();
+        let back = map.register(&drifted, &robot, &p).expect("a correction");
+        assert!((back.rotation.euler_angles().2.to_degrees() + 4.4).abs() < 1e-6, "{back:?}");
+        assert!((back * robot - robot).norm() < p.register_min_m, "{back:?}");
     }
 
     /// `regress ci` case ci-0195, third draw, on the robot's estimate: a 0.45 m wide
