@@ -229,8 +229,8 @@ impl StepMap {
         // axes alone were misread (strays on a riser moved a front edge) turn about their own
         // middles: turned back, the steps away from the view's middle move across, their
         // edges agree less, and the turn would carry the robot sideways by the turn times
-        // its distance from that middle (regression `riser-strays-moved-a-front-edge`: a
-        // 4.4 deg misread, the estimate 46 mm and 4.3 deg off). The edges' spread (their
+        // its distance from that middle (regression `riser-strays-moved-a-front-edge`). The
+        // edges' spread (their
         // median distance from their median) must fall by more than the half of
         // `register_min_m` within which edges agree: a side edge errs by a centimetre or two,
         // and steps close along the flight (one step, pieces of one tread) cannot tell the

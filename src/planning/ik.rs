@@ -479,7 +479,7 @@ impl Kkt {
         let Some(chol) = chol else {
             return Self::Full { h: h.clone(), c: c.clone(), eq_rows, eq_rhs };
         };
-        let l = chol.l_dirty().clone();
+        let l = chol.unpack_dirty();
         // `H` singular but for rounding (no damping, tasks that leave a direction free):
         // the Schur complement would square its conditioning, where the whole system may
         // still be well posed.
