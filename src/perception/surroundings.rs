@@ -11,7 +11,7 @@
 use crate::cloud::PointCloud;
 use crate::geom3d::Capsule;
 use nalgebra::{Point3, Vector3};
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 /// How the surroundings are kept.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -55,7 +55,9 @@ struct Cell {
 /// The voxels the lidar's returns fell in, over every sweep so far.
 #[derive(Debug, Clone, Default)]
 pub struct Surroundings {
-    cells: HashMap<[i32; 3], Cell>,
+    /// Each voxel's place in `cells`, by its integer coordinates.
+    index: FxHashMap<[i32; 3], u32>,
+    cells: Vec<Cell>,
 }
 
 impl Surroundings {
@@ -74,6 +76,9 @@ impl Surroundings {
             lo = lo.inf(&(c.a.coords.inf(&c.b.coords) - reach));
             hi = hi.sup(&(c.a.coords.sup(&c.b.coords) + reach));
         }
+        // A scan row's neighbouring returns mostly fall in one voxel: the last one is kept
+        // at hand, and the map is read only when a return leaves it.
+        let mut last: Option<([i32; 3], usize)> = None;
         for q in cloud.points() {
             let q = Point3::new(q.x as f64, q.y as f64, q.z as f64);
             if !(q.x.is_finite() && q.y.is_finite() && q.z.is_finite()) {
@@ -84,7 +89,19 @@ impl Surroundings {
                 continue;
             }
             let key = [0, 1, 2].map(|i| (q[i] / p.voxel_m).floor() as i32);
-            let cell = self.cells.entry(key).or_default();
+            let at = match last {
+                Some((k, at)) if k == key => at,
+                _ => {
+                    let next = self.cells.len() as u32;
+                    let at = *self.index.entry(key).or_insert(next) as usize;
+                    if at == self.cells.len() {
+                        self.cells.push(Cell::default());
+                    }
+                    last = Some((key, at));
+                    at
+                }
+            };
+            let cell = &mut self.cells[at];
             cell.sum += q.coords;
             cell.returns += 1;
         }
@@ -94,11 +111,12 @@ impl Surroundings {
     pub fn points(&self, p: &SurroundingsParams) -> Vec<Point3<f64>> {
         let mut out: Vec<Point3<f64>> = self
             .cells
-            .values()
+            .iter()
             .filter(|c| c.returns >= p.min_returns.max(1))
             .map(|c| Point3::from(c.sum / c.returns as f64))
             .collect();
-        // The map's order is random; the planner's input is not.
+        // The voxels are in the order the returns first met them; the planner's input is in
+        // one order whatever the sweeps' order.
         out.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)).then(a.z.total_cmp(&b.z)));
         out
     }
@@ -143,6 +161,37 @@ mod tests {
         // Another sweep's return in the stray's voxel makes it a surface.
         s.add(&cloud(&[[1.01, 1.01, 1.01]]), &[arm], &p);
         assert_eq!(s.points(&p).len(), 2);
+    }
+
+    #[test]
+    fn returns_that_come_back_to_a_voxel_are_counted_in_it() {
+        // Returns leaving a voxel and coming back to it, within one sweep and over two: the
+        // centroids are each voxel's mean whatever the order, as a plain per-voxel tally has it.
+        let p = SurroundingsParams { min_returns: 1, ..Default::default() };
+        let pts: Vec<[f32; 3]> = (0..200)
+            .map(|i| {
+                let t = i as f32 * 0.37;
+                [(t.sin() * 0.05), (t * 1.7).cos() * 0.05, 0.01 * (i % 3) as f32]
+            })
+            .collect();
+        let (first, second) = pts.split_at(120);
+        let mut s = Surroundings::default();
+        s.add(&cloud(first), &[], &p);
+        s.add(&cloud(second), &[], &p);
+        let mut tally: std::collections::BTreeMap<[i32; 3], (Vector3<f64>, f64)> = Default::default();
+        for q in &pts {
+            let q = Vector3::new(q[0] as f64, q[1] as f64, q[2] as f64);
+            let e = tally.entry([0, 1, 2].map(|i| (q[i] / p.voxel_m).floor() as i32)).or_default();
+            e.0 += q;
+            e.1 += 1.0;
+        }
+        let got = s.points(&p);
+        assert_eq!(got.len(), tally.len());
+        assert_eq!(s.len(), tally.len());
+        for (sum, n) in tally.values() {
+            let c = sum / *n;
+            assert!(got.iter().any(|g| (g.coords - c).norm() < 1e-12), "{c:?} not among {got:?}");
+        }
     }
 
     #[test]
