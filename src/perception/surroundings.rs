@@ -76,8 +76,8 @@ impl Surroundings {
             lo = lo.inf(&(c.a.coords.inf(&c.b.coords) - reach));
             hi = hi.sup(&(c.a.coords.sup(&c.b.coords) + reach));
         }
-        // A scan row's neighbouring returns mostly fall in one voxel: the last one is kept
-        // at hand, and the map is read only when a return leaves it.
+        // Neighbouring returns of a scan row often fall in one voxel: the last one is kept at
+        // hand, and the map is read only when a return leaves it.
         let mut last: Option<([i32; 3], usize)> = None;
         for q in cloud.points() {
             let q = Point3::new(q.x as f64, q.y as f64, q.z as f64);
