@@ -230,11 +230,10 @@ impl StepMap {
         // middles: turned back, the steps away from the view's middle move across, their
         // edges agree less, and the turn would carry the robot sideways by the turn times
         // its distance from that middle (regression `riser-strays-moved-a-front-edge`). The
-        // edges' spread (their
-        // median distance from their median) must fall by more than the half of
-        // `register_min_m` within which edges agree: a side edge errs by a centimetre or two,
-        // and steps close along the flight (one step, pieces of one tread) cannot tell the
-        // two apart, and are not turned.
+        // edges' spread (their median distance from their median) must fall by more than the
+        // half of `register_min_m` within which edges agree: a side edge errs by a centimetre
+        // or two, and steps close along the flight (one step, pieces of one tread) cannot tell
+        // the two apart, and are not turned.
         let spread = |v: Vec<f64>| {
             let m = median(v.iter().copied());
             median(v.iter().map(|x| (x - m).abs()))
