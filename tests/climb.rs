@@ -276,7 +276,7 @@ impl stairbench::climb::Executor for Slipping<'_> {
         self.robot.correct(offset)
     }
 
-    fn settle(&mut self, seconds: f64) -> Result<(), Self::Error> {
+    fn settle(&mut self, seconds: f64) -> Result<stairbench::climb::Standing, Self::Error> {
         self.robot.settle(seconds)
     }
 

@@ -14,7 +14,7 @@ use std::cell::RefCell;
 use std::rc::Rc;
 
 use stairbench::cancel::Cancel;
-use stairbench::climb::{self, Bench, Event, Execution, Executor, Footing, Observer, StopReason};
+use stairbench::climb::{self, Bench, Event, Execution, Executor, Footing, Observer, Standing, StopReason};
 use stairbench::params::ClimbParams;
 use stairbench::planning::Plan;
 use stairbench::robot::{hrp4, Kinematics, RobotModel};
@@ -68,9 +68,9 @@ impl Executor for Teleport {
         self.q.clone()
     }
 
-    fn settle(&mut self, seconds: f64) -> Result<(), Self::Error> {
+    fn settle(&mut self, seconds: f64) -> Result<Standing, Self::Error> {
         self.t_s += seconds;
-        Ok(())
+        Ok(Standing::Upright)
     }
 
     fn execute(&mut self, plan: &Plan, _o: &mut dyn Observer, _c: &Cancel) -> Result<Execution, Self::Error> {
@@ -134,6 +134,14 @@ fn a_cast_source_and_a_fake_robot_drive_the_loop_to_the_top() {
 
 /// The loop on Exp. 1 fed empty sweeps by a fixture source, with `cancel`.
 fn on_empty_sweeps(cancel: &Cancel) -> (climb::ClimbReport, usize) {
+    on_empty_sweeps_by(cancel, |q0| Teleport { q: q0, t_s: 0.0 })
+}
+
+/// [`on_empty_sweeps`], the robot made from its start configuration by `robot`.
+fn on_empty_sweeps_by<E: Executor>(
+    cancel: &Cancel,
+    robot: impl FnOnce(Vec<f64>) -> E,
+) -> (climb::ClimbReport, usize) {
     let scenario = Scenario::default();
     let scene = common::scene_of(&scenario);
     let model = hrp4::model().unwrap();
@@ -141,7 +149,7 @@ fn on_empty_sweeps(cancel: &Cancel) -> (climb::ClimbReport, usize) {
     let lidar = stairbench::sensor::LidarModel::from_spec(&scenario.lidar);
     let empty = Sweep { rows: vec![], lidar, mount_to_world: nalgebra::Isometry3::identity() };
     let mut source = Fixture { sweep: empty, given: 0 };
-    let mut robot = Teleport { q: q0, t_s: 0.0 };
+    let mut robot = robot(q0);
     let bench = Bench { source: &mut source, robot: &mut robot, model: &model, truth: &scene };
     let r = climb::run(bench, ClimbParams::default().loop_params(), &mut climb::Nobody, cancel).unwrap();
     (r, source.given)
@@ -154,6 +162,37 @@ fn a_cancelled_loop_stops_before_its_first_sweep_and_says_so() {
     let (r, sweeps) = on_empty_sweeps(&cancel);
     assert_eq!(r.stop, Some(StopReason::StoppedByUser { cycle: 1 }));
     assert!(!r.success && r.cycles.is_empty() && sweeps == 0);
+}
+
+/// A robot that is down after its first settle (set down badly), teleporting otherwise.
+struct DownAtSetDown(Teleport);
+
+impl Executor for DownAtSetDown {
+    type Error = std::convert::Infallible;
+
+    fn now_s(&self) -> f64 {
+        self.0.now_s()
+    }
+
+    fn configuration(&self) -> Vec<f64> {
+        self.0.configuration()
+    }
+
+    fn settle(&mut self, seconds: f64) -> Result<Standing, Self::Error> {
+        self.0.settle(seconds)?;
+        Ok(Standing::Fell)
+    }
+
+    fn execute(&mut self, plan: &Plan, o: &mut dyn Observer, c: &Cancel) -> Result<Execution, Self::Error> {
+        self.0.execute(plan, o, c)
+    }
+}
+
+#[test]
+fn a_robot_down_after_it_stood_is_a_fall_and_nothing_more_is_swept() {
+    let (r, sweeps) = on_empty_sweeps_by(&Cancel::never(), |q0| DownAtSetDown(Teleport { q: q0, t_s: 0.0 }));
+    assert_eq!(r.stop, Some(StopReason::FellStanding { cycle: 1 }));
+    assert!(!r.success && r.cycles.is_empty() && sweeps == 0, "no sweep from a fallen robot");
 }
 
 #[test]
@@ -207,9 +246,9 @@ impl Executor for Follow {
         self.q.borrow().clone()
     }
 
-    fn settle(&mut self, seconds: f64) -> Result<(), Self::Error> {
+    fn settle(&mut self, seconds: f64) -> Result<Standing, Self::Error> {
         self.t_s += seconds;
-        Ok(())
+        Ok(Standing::Upright)
     }
 
     fn execute(&mut self, plan: &Plan, _o: &mut dyn Observer, _c: &Cancel) -> Result<Execution, Self::Error> {

@@ -7,6 +7,16 @@ use super::execution::Execution;
 use crate::cancel::Cancel;
 use crate::planning::Plan;
 
+/// How the robot came out of a settle: still up, or down (a body that kept no balance while
+/// it stood, after an execution or at the set-down, is a fall as much as one mid-step).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Standing {
+    /// Up, as it was when the settle began.
+    Upright,
+    /// Fallen while it stood.
+    Fell,
+}
+
 /// Runs plans on a robot, checking every instant, and tells the loop where the robot is.
 pub trait Executor {
     /// Why the executor itself failed (not a failed check: those are in the [`Execution`]).
@@ -37,8 +47,8 @@ pub trait Executor {
     }
 
     /// Holds the current posture for at least `seconds` (the servos settle before a scan;
-    /// the simulated robot stands on until it is still).
-    fn settle(&mut self, seconds: f64) -> Result<(), Self::Error>;
+    /// the simulated robot stands on until it is still); whether the robot stayed up.
+    fn settle(&mut self, seconds: f64) -> Result<Standing, Self::Error>;
 
     /// Executes `plan` from the current state with every check; `observer` sees the state
     /// after every physics step. A cancelled `cancel` ends it at the next step.

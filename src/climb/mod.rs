@@ -15,7 +15,7 @@ pub mod speed_margin;
 
 pub use event::{Each, Event, Nobody, Observer, RobotState, Watch};
 pub use execution::{ControlCost, Execution, Touchdown};
-pub use executor::Executor;
+pub use executor::{Executor, Standing};
 pub use outcome::{Check, CheckKind, SimWarning, StopReason, Violation};
 pub use report::{ClimbReport, CycleReport, Footing, StageTimes};
 
@@ -148,7 +148,10 @@ pub fn run<E: Executor>(
     let mut start_floor = None;
     for cycle in 1..=p.run.max_cycles {
         last_cycle = cycle;
-        robot.settle(p.run.settle_s).map_err(failed)?;
+        if robot.settle(p.run.settle_s).map_err(failed)? == Standing::Fell {
+            report.stop = Some(StopReason::FellStanding { cycle });
+            break;
+        }
         let mut q = robot.configuration();
         let start_floor_z_m = *start_floor.get_or_insert_with(|| feet_height_m(model, &q));
         let stamp_s = robot.now_s();

@@ -462,6 +462,12 @@ pub enum StopReason {
         /// The cycle.
         cycle: usize,
     },
+    /// The robot fell while it stood before a cycle's sweep (after the previous cycle's
+    /// execution, or at the set-down before the first).
+    FellStanding {
+        /// The cycle whose sweep it stood for.
+        cycle: usize,
+    },
     /// The physics went wrong (a MuJoCo warning) during a cycle's execution.
     SimulationUnstable {
         /// The cycle.
@@ -490,6 +496,7 @@ impl StopReason {
             StopReason::PerceptionFailed { .. } => "perception_failed",
             StopReason::SensorFailed { .. } => "sensor_failed",
             StopReason::Fell { .. } => "fell",
+            StopReason::FellStanding { .. } => "fell_standing",
             StopReason::SimulationUnstable { .. } => "simulation_unstable",
             StopReason::StoppedByUser { .. } => "stopped_by_user",
             StopReason::CyclesExhausted { .. } => "cycles_exhausted",
@@ -505,6 +512,9 @@ impl fmt::Display for StopReason {
             StopReason::PerceptionFailed { error, .. } => write!(f, "perception failed: {error}"),
             StopReason::SensorFailed { error, .. } => write!(f, "sensor failed: {error}"),
             StopReason::Fell { .. } => write!(f, "the robot fell"),
+            StopReason::FellStanding { cycle } => {
+                write!(f, "the robot fell while it stood before cycle {cycle}'s sweep")
+            }
             StopReason::SimulationUnstable { warning, .. } => {
                 write!(f, "the simulation became unstable (MuJoCo warned {warning:?})")
             }

@@ -1,7 +1,8 @@
 //! Foot admittance: each foot's reference pose yields to the difference between the wrench
 //! its sensor measures and the one the distribution wants (Caron et al. 2019, §IV; hrpsys's
 //! foot force difference control). A rate per unit of error, clamped, with a leak back to
-//! the plan so that offsets never accumulate.
+//! the plan so that offsets never accumulate. In single support the support sole also turns
+//! with the body's lean the IMU sees (a compliant ankle lets the body roll out over it).
 
 use super::measurement::SoleWrench;
 use super::params::StabilizerParams;
@@ -61,6 +62,17 @@ pub fn cop_damping(
     let step = |x, e: f64| integrate(x, a * e, p.cop_max_rate_rad_s, p.cop_max_rad, p.leak_time_s, dt_s);
     offset.roll_rad = step(offset.roll_rad, e.x);
     offset.pitch_rad = step(offset.pitch_rad, e.y);
+}
+
+/// Lean compensation of the support sole in single support: its roll and pitch change at
+/// `lean_follow_rate_per_s` times the body's lean `lean_sole_rad` (a rotation vector in the
+/// sole's axes: what the IMU sees beyond the encoders), leaking back to the plan.
+pub fn follow_lean(offset: &mut FootOffset, lean_sole_rad: &Vector3<f64>, p: &StabilizerParams, dt_s: f64) {
+    let g = p.lean_follow_rate_per_s;
+    let step =
+        |x, lean: f64| integrate(x, g * lean, p.cop_max_rate_rad_s, p.cop_max_rad, p.leak_time_s, dt_s);
+    offset.roll_rad = step(offset.roll_rad, lean_sole_rad.x);
+    offset.pitch_rad = step(offset.pitch_rad, lean_sole_rad.y);
 }
 
 /// Vertical force difference control in double support: the feet's height difference

@@ -104,6 +104,17 @@ pub struct StabilizerParams {
     /// the robot set down at the start, by far more, and its direction then says little of
     /// where up is (test `the_tilt_filter_carries_on_from_plan_to_plan`).
     pub tilt_accel_tolerance: f64,
+    /// Lean compensation in single support: the support sole's commanded roll and pitch
+    /// change at this rate per radian of the body's lean beyond what the encoders say (the
+    /// IMU's, [`super::attitude::TiltFilter::lean`], in the sole's axes), 1/s, within
+    /// `cop_max_rate_rad_s` and `cop_max_rad`, leaking back at `leak_time_s` (on top of the
+    /// leak every offset has in single support); 0 turns it off. Without it a body on
+    /// compliant ankles rolls out over its support sole until the CoM leaves it: the `robust`
+    /// suite's softest ankle bush (500 N m/rad) at x 1.33 leaned 50 mm out at lift-off and
+    /// fell in single support. Default -0.3, by trial on that case
+    /// at x 1.33: -0.15 to -0.5 climb it; +0.3, +1, +3, -1 and -3 fall at once (test
+    /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`, which holds the sign).
+    pub lean_follow_rate_per_s: f64,
 }
 
 impl Default for StabilizerParams {
@@ -137,6 +148,7 @@ impl Default for StabilizerParams {
             max_seek_m: 0.03,
             tilt_filter_time_s: 2.0,
             tilt_accel_tolerance: 0.1,
+            lean_follow_rate_per_s: -0.3,
         }
     }
 }

@@ -349,6 +349,11 @@ impl<'m> Stabilizer<'m> {
                     wanted_by_foot[f.index()] = Some(*w);
                 }
                 self.admit(&supports, &measured, &wanted_by_foot, dt);
+                if let [(f, pose)] = supports.as_slice() {
+                    let lean = self.tilt.lean(&base_pose(&self.q_est).rotation).scaled_axis();
+                    let lean_sole = pose.rotation.inverse() * lean;
+                    admittance::follow_lean(&mut self.offsets[f.index()], &lean_sole, &self.p, dt);
+                }
                 None
             }
             Err(DistributionError::Infeasible { force_n, torque_nm }) => {

@@ -120,7 +120,7 @@ pub fn classify(
     // and above it.
     let first_forbidden = before_step.map_or(1, |k| k as usize);
     let stepped = report.cycles.iter().any(|c| matches!(c.to, Footing::Step(k) if k >= first_forbidden));
-    let fell = matches!(report.stop, Some(StopReason::Fell { .. }))
+    let fell = matches!(report.stop, Some(StopReason::Fell { .. } | StopReason::FellStanding { .. }))
         || report.cycles.iter().any(|c| c.execution.fell);
     if fell {
         return Verdict::Fell;
@@ -263,6 +263,11 @@ mod tests {
         }
         let fell = report(&[Step(1)], Some(StopReason::Fell { cycle: 1 }), true);
         assert_eq!(classify(Climb, None, &fell, false), Verdict::Fell);
+        // Down while standing for the next sweep, after a cycle that passed: a fall too.
+        let down = report(&[Step(1)], Some(StopReason::FellStanding { cycle: 2 }), false);
+        for expect in [Climb, Refuse, Either] {
+            assert_eq!(classify(expect, None, &down, false), Verdict::Fell);
+        }
         let gave_up = report(&[Floor], Some(StopReason::CyclesExhausted { cycles: 40 }), false);
         assert_eq!(classify(Climb, None, &gave_up, false), Verdict::Error);
         assert!(Verdict::ALL.iter().filter(|v| v.pass()).count() == 2);

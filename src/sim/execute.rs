@@ -4,12 +4,12 @@
 //! control rate (interpolated in between), from the robot's own sensors. [`SimRobot`] is the
 //! simulated HRP-4 as the closed loop's [`Executor`].
 
-use super::checks::{Ids, Monitor};
+use super::checks::{fall_check, Ids, Monitor};
 use super::params::{ServoParams, SimParams};
 use super::sensors::SimSensors;
 use super::world::{SimError, World};
 use crate::cancel::Cancel;
-use crate::climb::{ControlCost, Event, Execution, Executor, Observer, RobotState, Watch};
+use crate::climb::{ControlCost, Event, Execution, Executor, Observer, RobotState, Standing, Watch};
 use crate::control::attitude::TiltFilter;
 use crate::control::Stabilizer;
 use crate::estimate::Odometry;
@@ -422,8 +422,9 @@ impl Executor for SimRobot<'_> {
     ///
     /// [`RunParams::still_speed_m_s`]: crate::climb::RunParams::still_speed_m_s
     /// [`RunParams::max_settle_s`]: crate::climb::RunParams::max_settle_s
-    fn settle(&mut self, seconds: f64) -> Result<(), SimError> {
+    fn settle(&mut self, seconds: f64) -> Result<Standing, SimError> {
         let world = &mut self.world.borrow_mut();
+        let start = world.data().qpos().to_vec();
         // The tilt filter fed at the stabilizer's rate.
         let period_s = 1.0 / self.params.stabilizer.rate_hz;
         let (mut since_s, dt) = (0.0, world.model().opt().timestep);
@@ -439,7 +440,10 @@ impl Executor for SimRobot<'_> {
         let run = &self.params.run;
         let max_s = (run.max_settle_s - seconds).max(0.0);
         settle_until_still_watched(world, run.still_speed_m_s, run.still_s, max_s, &mut feed);
-        Ok(())
+        // Judged as an execution's fall, against the pose it stood in when the settle began.
+        let checks = &self.params.checks;
+        let fell = fall_check(world.data().qpos(), &start, start[2] - checks.fall_drop_m, checks).is_some();
+        Ok(if fell { Standing::Fell } else { Standing::Upright })
     }
 
     fn execute(
