@@ -492,9 +492,10 @@ fn a_contact_moved_by_centimetres_is_reached_without_an_infeasible_ik() {
 /// The robust suite's softest ankle bush (`robust-0053`, 500 N m/rad) climbed with the plan
 /// x 1.33 faster: the body rolls out over its compliant support ankle in single support
 /// (50 mm at a lift-off before the lean compensation, then on until the CoM left the sole).
-/// With the compensation as set the climb is clean; with its sign turned the body falls (at
-/// the end of the first cycle, seen while it stands for the next sweep: before standing was
-/// watched, the loop planned on from the floor and reported a refusal).
+/// With the compensation as set the climb is clean; without it the body falls in single
+/// support; with its sign turned it falls too (at the end of the first cycle, seen while it
+/// stands for the next sweep: before standing was watched, the loop planned on from the
+/// floor and reported a refusal).
 #[test]
 fn the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole() {
     let s = Scenario::load(std::path::Path::new("tests/fixtures/soft-ankle-bush.toml")).unwrap();
@@ -513,6 +514,13 @@ fn the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole() {
         );
     }
     assert!(kept.success && kept.steps_climbed == kept.steps_total, "{:?}", kept.stop);
+    let without = climb(0.0);
+    println!("without: {:?}", without.stop);
+    assert!(
+        matches!(without.stop, Some(StopReason::Fell { .. } | StopReason::FellStanding { .. })),
+        "without the compensation this body fell at x 1.33; if it climbs now, say why: {:?}",
+        without.stop
+    );
     let turned = climb(-gain);
     println!("sign turned: {:?}", turned.stop);
     assert!(

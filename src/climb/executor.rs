@@ -4,17 +4,18 @@
 
 use super::event::Observer;
 use super::execution::Execution;
+use super::outcome::Check;
 use crate::cancel::Cancel;
 use crate::planning::Plan;
 
 /// How the robot came out of a settle: still up, or down (a body that kept no balance while
 /// it stood, after an execution or at the set-down, is a fall as much as one mid-step).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Standing {
-    /// Up, as it was when the settle began.
+    /// Up: neither dropped nor tilted past a fall's limits.
     Upright,
-    /// Fallen while it stood.
-    Fell,
+    /// Fallen while it stood, with what the fall check measured.
+    Fell(Check),
 }
 
 /// Runs plans on a robot, checking every instant, and tells the loop where the robot is.

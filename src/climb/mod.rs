@@ -148,8 +148,8 @@ pub fn run<E: Executor>(
     let mut start_floor = None;
     for cycle in 1..=p.run.max_cycles {
         last_cycle = cycle;
-        if robot.settle(p.run.settle_s).map_err(failed)? == Standing::Fell {
-            report.stop = Some(StopReason::FellStanding { cycle });
+        if let Standing::Fell(fall) = robot.settle(p.run.settle_s).map_err(failed)? {
+            report.stop = Some(StopReason::FellStanding { cycle, fall });
             break;
         }
         let mut q = robot.configuration();
@@ -239,6 +239,13 @@ pub fn run<E: Executor>(
         if stop.is_some() {
             report.stop = stop;
             break;
+        }
+    }
+    // The cycles ran out with nothing stopping the loop: it stands once more, so a fall after
+    // the last execution is not a success.
+    if report.stop.is_none() && last_cycle == p.run.max_cycles {
+        if let Standing::Fell(fall) = robot.settle(p.run.settle_s).map_err(failed)? {
+            report.stop = Some(StopReason::FellStanding { cycle: last_cycle + 1, fall });
         }
     }
     let q = robot.true_configuration().unwrap_or_else(|| robot.configuration());

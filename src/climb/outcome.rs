@@ -465,8 +465,10 @@ pub enum StopReason {
     /// The robot fell while it stood before a cycle's sweep (after the previous cycle's
     /// execution, or at the set-down before the first).
     FellStanding {
-        /// The cycle whose sweep it stood for.
+        /// The cycle whose sweep it stood for (never run).
         cycle: usize,
+        /// What the fall check measured.
+        fall: Check,
     },
     /// The physics went wrong (a MuJoCo warning) during a cycle's execution.
     SimulationUnstable {
@@ -512,8 +514,8 @@ impl fmt::Display for StopReason {
             StopReason::PerceptionFailed { error, .. } => write!(f, "perception failed: {error}"),
             StopReason::SensorFailed { error, .. } => write!(f, "sensor failed: {error}"),
             StopReason::Fell { .. } => write!(f, "the robot fell"),
-            StopReason::FellStanding { cycle } => {
-                write!(f, "the robot fell while it stood before cycle {cycle}'s sweep")
+            StopReason::FellStanding { cycle, fall } => {
+                write!(f, "the robot fell while it stood before cycle {cycle}'s sweep: {fall}")
             }
             StopReason::SimulationUnstable { warning, .. } => {
                 write!(f, "the simulation became unstable (MuJoCo warned {warning:?})")

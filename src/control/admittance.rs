@@ -2,7 +2,7 @@
 //! its sensor measures and the one the distribution wants (Caron et al. 2019, §IV; hrpsys's
 //! foot force difference control). A rate per unit of error, clamped, with a leak back to
 //! the plan so that offsets never accumulate. In single support the support sole also turns
-//! with the body's lean the IMU sees (a compliant ankle lets the body roll out over it).
+//! against the body's lean the IMU sees (a compliant ankle lets the body roll out over it).
 
 use super::measurement::SoleWrench;
 use super::params::StabilizerParams;

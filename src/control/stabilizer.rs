@@ -349,7 +349,7 @@ impl<'m> Stabilizer<'m> {
                     wanted_by_foot[f.index()] = Some(*w);
                 }
                 self.admit(&supports, &measured, &wanted_by_foot, dt);
-                if let [(f, pose)] = supports.as_slice() {
+                if let ([(f, pose)], true) = (supports.as_slice(), self.p.lean_follow_rate_per_s != 0.0) {
                     let lean = self.tilt.lean(&base_pose(&self.q_est).rotation).scaled_axis();
                     let lean_sole = pose.rotation.inverse() * lean;
                     admittance::follow_lean(&mut self.offsets[f.index()], &lean_sole, &self.p, dt);

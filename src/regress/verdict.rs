@@ -264,7 +264,14 @@ mod tests {
         let fell = report(&[Step(1)], Some(StopReason::Fell { cycle: 1 }), true);
         assert_eq!(classify(Climb, None, &fell, false), Verdict::Fell);
         // Down while standing for the next sweep, after a cycle that passed: a fall too.
-        let down = report(&[Step(1)], Some(StopReason::FellStanding { cycle: 2 }), false);
+        let fall = crate::climb::Check::Fall {
+            base_z_m: 0.2,
+            min_base_z_m: 0.5,
+            tilt_rad: 1.4,
+            limit_tilt_rad: 0.52,
+            upright_tilt_rad: 1.4,
+        };
+        let down = report(&[Step(1)], Some(StopReason::FellStanding { cycle: 2, fall }), false);
         for expect in [Climb, Refuse, Either] {
             assert_eq!(classify(expect, None, &down, false), Verdict::Fell);
         }

@@ -440,10 +440,16 @@ impl Executor for SimRobot<'_> {
         let run = &self.params.run;
         let max_s = (run.max_settle_s - seconds).max(0.0);
         settle_until_still_watched(world, run.still_speed_m_s, run.still_s, max_s, &mut feed);
-        // Judged as an execution's fall, against the pose it stood in when the settle began.
+        // Judged as an execution's fall against the pose it stood in when the settle began,
+        // and against upright (an execution ending part way down, within its plan's limits,
+        // leaves a start pose that says nothing).
         let checks = &self.params.checks;
-        let fell = fall_check(world.data().qpos(), &start, start[2] - checks.fall_drop_m, checks).is_some();
-        Ok(if fell { Standing::Fell } else { Standing::Upright })
+        let qpos = world.data().qpos();
+        let mut upright = start.clone();
+        upright[3..7].copy_from_slice(&[1.0, 0.0, 0.0, 0.0]);
+        let fall = fall_check(qpos, &start, start[2] - checks.fall_drop_m, checks)
+            .or_else(|| fall_check(qpos, &upright, f64::NEG_INFINITY, checks));
+        Ok(fall.map_or(Standing::Upright, Standing::Fell))
     }
 
     fn execute(
