@@ -87,11 +87,12 @@ pub struct RiserParams {
     /// is taken for the riser, and the tread ends before it.
     pub min_width_share: f64,
     /// Least share, of the strips across the tread in which the front's window shows
-    /// returns in the band, in which they are the riser's (about the middle's peak, or about
-    /// the riser's own line through it where the rectangle is turned against the riser),
-    /// for it to place the front: a riser spans the flight. A thing on the tread below, as
-    /// tall as the band's lower half, shows there as a dense peak across its own width
-    /// alone (regression `shoe-top-taken-for-the-riser-above`). Lower than
+    /// returns in the band, in which returns in the band's lower half are the riser's (about
+    /// the middle's peak, or about the riser's own line through it where the rectangle is
+    /// turned against the riser), for it to place the front: a riser spans the flight (a
+    /// nosing's face, in the upper half, spans it over whatever stands under it). A thing
+    /// on the tread below, as tall as the band's lower half, shows there as a dense peak
+    /// across its own width alone (regression `shoe-top-taken-for-the-riser-above`). Lower than
     /// `min_width_share`: a front not placed stays where the rectangle puts it, out past
     /// the riser by centimetres with the cell method under noise (see `front_inward_m`).
     pub min_front_width_share: f64,
@@ -397,15 +398,22 @@ fn place_fronts(segments: &mut [PlaneSegment], view: &ViewPoints, p: &RiserParam
 /// when the returns in `band` (heights) and the window about the front show one whole,
 /// across `min_front_width_share` of the width they show.
 fn riser_along(s: &PlaneSegment, points: &ByHeight, band: [f64; 2], p: &RiserParams) -> Option<f64> {
+    riser_seen(s, points, &front_look(s, band, p), p)
+        .filter(|r| r.width_share >= p.min_front_width_share)
+        .map(|r| r.at_m)
+}
+
+/// Where the riser under `s`'s front is looked for: heights in `band`, from `front_inward_m`
+/// inside the front to `half_window_m` out past it, a nosing's face before it.
+fn front_look(s: &PlaneSegment, band: [f64; 2], p: &RiserParams) -> Look {
     let front = s.depth_m() / 2.0;
-    let look = Look {
+    Look {
         out: -s.along(),
         window_m: [front - p.front_inward_m, front + p.half_window_m],
         band_m: band,
         nose_outward: true,
         foot_suffices: false,
-    };
-    riser_seen(s, points, &look, p).filter(|r| r.width_share >= p.min_front_width_share).map(|r| r.at_m)
+    }
 }
 
 /// Where a riser is looked for about one edge of a tread.
@@ -432,7 +440,8 @@ struct Seen {
     /// Its distance from the tread's centre along the look's `out`, metres.
     at_m: f64,
     /// Of the strips across the tread (`WIDTH_STRIP_M` wide, inside the side margin) in
-    /// which the window shows returns in the band, the share with returns on the riser.
+    /// which the window shows returns in the band, the share with returns on the riser in
+    /// the band's lower half.
     width_share: f64,
 }
 
@@ -496,13 +505,18 @@ fn riser_seen(s: &PlaneSegment, points: &ByHeight, look: &Look, p: &RiserParams)
     // strips' returns lie off the middle's peak (by 12.5 mm at 1.5 deg on a 1 m tread): the
     // share is also taken about the riser's own line, as its strips place it, where that
     // line passes through the peak (a line through the strips beside a thing that made the
-    // peak is not the peak's).
-    let aligned = width_share(&near, half_width, |t, _| at_riser(t));
+    // peak is not the peak's). The strips on it are those with its returns in the band's
+    // lower half, where its peak was taken; a strip showing the upper half alone counts as
+    // seen, not on it. In the upper half a nosing's face stands across the flight, and a
+    // sparse line of strays in the lower half within `half_window_m / 4` before it would
+    // take the face's width for its own (regression
+    // `stray-line-under-a-nosing-taken-for-its-riser`).
+    let aligned = width_share(&near, half_width, |&(t, z, _)| z < mid && at_riser(t));
     let lower: Vec<(f64, f64)> = near.iter().filter(|r| r.1 < mid).map(|r| (r.0, r.2)).collect();
     let width_share = match riser_line(&lower, half_width, p.half_window_m) {
-        Some((a, b)) if at_riser(a) => {
-            aligned.max(width_share(&near, half_width, |t, y| (t - a - b * y).abs() < p.half_window_m / 4.0))
-        }
+        Some((a, b)) if at_riser(a) => aligned.max(width_share(&near, half_width, |&(t, z, y)| {
+            z < mid && (t - a - b * y).abs() < p.half_window_m / 4.0
+        })),
         _ => aligned,
     };
     Some(Seen { at_m: at, width_share })
@@ -572,15 +586,15 @@ fn strip_of(across_m: f64, half_width_m: f64, strips: usize) -> usize {
 
 /// Of the strips across a tread (`WIDTH_STRIP_M` wide, within `half_width_m` of its middle)
 /// in which `near` (returns as (along, height, across), metres) shows anything, the share in
-/// which some return is `on` the surface sought (by its offsets along and across): a strip
-/// the sweep did not reach says nothing either way.
-fn width_share(near: &[(f64, f64, f64)], half_width_m: f64, on: impl Fn(f64, f64) -> bool) -> f64 {
+/// which some return is `on` the surface sought (the return as (along, height, across)): a
+/// strip the sweep did not reach says nothing either way.
+fn width_share(near: &[(f64, f64, f64)], half_width_m: f64, on: impl Fn(&(f64, f64, f64)) -> bool) -> f64 {
     let strips = strip_count(half_width_m);
     let (mut seen, mut on_it) = (vec![false; strips], vec![false; strips]);
     for r in near {
         let k = strip_of(r.2, half_width_m, strips);
         seen[k] = true;
-        on_it[k] |= on(r.0, r.2);
+        on_it[k] |= on(r);
     }
     let count = |v: &[bool]| v.iter().filter(|b| **b).count() as f64;
     count(&on_it) / count(&seen).max(1.0)
@@ -660,7 +674,7 @@ fn face_along(
     };
     let seen = about >= p.min_returns
         && about as f64 / (2.0 * w) >= 2.0 * flanks
-        && width_share(&near, half_width, |t, _| on_face(t)) >= p.min_width_share
+        && width_share(&near, half_width, |r| on_face(r.0)) >= p.min_width_share
         && seen_past();
     seen.then_some(at)
 }
@@ -1109,6 +1123,37 @@ mod tests {
             let at_x = seg.center().x - riser;
             assert!((at_x - 1.025).abs() < 2e-3, "the riser at {at_x:.4}, not 1.025");
         }
+    }
+
+    #[test]
+    fn a_nosings_face_across_the_flight_does_not_make_a_stray_line_a_riser() {
+        // A tread 0.3 m up, 35 mm thick, its nose 25 mm before its riser at 1.025 m; the
+        // riser shadowed whole in the band, its nosing's face across the flight in the band's
+        // upper half (one row of returns, seen at grazing). In the lower half, 77 mm under
+        // the top, a sparse line of strays across a fifth of the flight, 7-16 mm before the
+        // face (regression `stray-line-under-a-nosing-taken-for-its-riser`). The face stands
+        // within `half_window_m / 4` of the line's peak, so both halves show it whole: only
+        // the width tells the line from a riser, and the face's returns say nothing of it.
+        let p = RiserParams::default();
+        let seg = tread(1.003, 0.3, 0.297);
+        let mut cloud = wall(1.0, 0.27, 0.275);
+        for k in 0..45 {
+            let x = 0.984 + 0.0002 * k as f64;
+            cloud.push(Point3::new(x as f32, (-0.08 + 0.0035 * k as f64) as f32, 0.223));
+        }
+        let band = [0.3 - p.band_m[1], 0.3 - p.band_m[0]];
+        let seen = riser_seen(&seg, &all(&cloud), &front_look(&seg, band, &p), &p).expect("seen whole");
+        let line_x = seg.center().x - seen.at_m;
+        assert!((1.0 - line_x) < p.half_window_m / 4.0, "the line's peak {line_x:.4} near the face");
+        assert!(seen.width_share < p.min_front_width_share, "width share {}", seen.width_share);
+        assert_eq!(riser_along(&seg, &all(&cloud), band, &p), None);
+        // Seen from farther, the face whole and the riser under it across the flight in the
+        // lower half: the riser placed.
+        let mut seen = cloud.clone();
+        seen.extend(wall(1.0, 0.265, 0.3));
+        seen.extend(wall(1.025, 0.2, 0.25));
+        let at = riser_along(&seg, &all(&seen), band, &p).map(|t| seg.center().x - t);
+        assert!(at.is_some_and(|x| (x - 1.025).abs() < 2e-3), "the riser at {at:?}, not 1.025");
     }
 
     #[test]
