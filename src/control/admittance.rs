@@ -1,8 +1,9 @@
 //! Foot admittance: each foot's reference pose yields to the difference between the wrench
 //! its sensor measures and the one the distribution wants (Caron et al. 2019, §IV; hrpsys's
 //! foot force difference control). A rate per unit of error, clamped, with a leak back to
-//! the plan so that offsets never accumulate. In single support the support sole also turns
-//! against the body's lean the IMU sees (a compliant ankle lets the body roll out over it).
+//! the plan so that offsets never accumulate. In single support the support sole's roll and
+//! pitch also follow the body's lean the IMU sees, at a signed rate (`follow_lean`; a
+//! compliant ankle lets the body roll out over the sole).
 
 use super::measurement::SoleWrench;
 use super::params::StabilizerParams;
