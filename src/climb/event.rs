@@ -26,6 +26,8 @@ pub struct RobotState<'a> {
     pub margin_m: f64,
     /// The largest torque demand over its limit among the joints.
     pub max_torque_ratio: f64,
+    /// The base IMU's gyro as the robot reads it (its noise and bias), base axes, rad/s.
+    pub gyro_rad_s: Vector3<f64>,
 }
 
 /// One thing that happened during a climb. `stamp_s` is the robot's clock (the simulation's

@@ -190,3 +190,60 @@ impl<'m> Kinematics<'m> {
         Matrix3xX::zeros(self.model.nv())
     }
 }
+
+/// The pose of frame `frame` in the base's frame at joint angles `joints` (the joints' order,
+/// a missing angle taken as 0), walking only the frame's chain to the root: what
+/// [`Kinematics::frame_pose`] gives at the identity base, without the whole tree.
+pub fn frame_in_base(
+    model: &RobotModel,
+    frame: usize,
+    joints: &[f64],
+) -> Result<Isometry3<f64>, ConfigError> {
+    let f = &model.frames()[frame];
+    let mut pose = f.placement;
+    let mut link = Some(f.link);
+    while let Some(i) = link {
+        let l = &model.links()[i];
+        let local = match (l.parent, l.joint) {
+            (Some(_), Some(j)) => {
+                let angle = joints.get(j).copied().unwrap_or(0.0);
+                if !angle.is_finite() {
+                    return Err(ConfigError::NotFinite(Q_JOINTS + j));
+                }
+                l.placement * UnitQuaternion::from_axis_angle(&l.axis, angle)
+            }
+            (Some(_), None) => l.placement,
+            _ => Isometry3::identity(),
+        };
+        pose = local * pose;
+        link = l.parent;
+    }
+    Ok(pose)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A frame's pose walked up its chain is the whole tree's at the identity base.
+    #[test]
+    fn a_frames_chain_gives_the_trees_pose() {
+        let model = crate::robot::hrp4::model().expect("model");
+        let mut q = vec![0.0; model.nq()];
+        q[3] = 1.0;
+        for (k, x) in q[Q_JOINTS..].iter_mut().enumerate() {
+            *x = 0.3 * ((k as f64) * 1.7).sin();
+        }
+        let mut kin = Kinematics::new(&model);
+        kin.update(&q).expect("kinematics");
+        for frame in crate::robot::hrp4::sole_frames(&model).expect("soles") {
+            let walked = frame_in_base(&model, frame, &q[Q_JOINTS..]).expect("chain");
+            let tree = kin.frame_pose(frame);
+            assert!((walked.translation.vector - tree.translation.vector).norm() < 1e-12);
+            assert!(walked.rotation.angle_to(&tree.rotation) < 1e-12);
+        }
+        let sole = crate::robot::hrp4::sole_frames(&model).expect("soles")[0];
+        let bad = vec![f64::NAN; model.joints().len()];
+        assert!(frame_in_base(&model, sole, &bad).is_err(), "a sole's chain has joints");
+    }
+}

@@ -159,6 +159,9 @@ pub fn execute_from(
     let steps = (traj.duration_s() / dt).round() as usize;
     let last_step = steps + (params.stabilizer.max_hold_s / dt).ceil() as usize + 1;
     let mut q_now = Vec::new();
+    // The gyro as the robot's estimate reads it at every physics step (its noise drawn apart
+    // from the stabilizer's readings of the same IMU).
+    let mut gyro = SimSensors::new(world, [hrp4::R_SOLE, hrp4::L_SOLE], &params.sensors)?.with_stream(1);
     for k in 1..=last_step {
         // The step from k - 1 to k, and where it ends on the plan's clock.
         let t = match control.as_mut() {
@@ -212,7 +215,9 @@ pub fn execute_from(
         let margin_m = mon.margin(world, now, &loads, down, &soles);
         let max_torque_ratio = mon.joints(joints, |a| servos.demand_nm(world, a), |a| world.joint_qd(a), now);
         world.configuration_into(&mut q_now);
-        let state = RobotState { q: &q_now, foot_forces_n: loads.force, margin_m, max_torque_ratio };
+        let gyro_rad_s = gyro.imu(world).gyro_rad_s;
+        let state =
+            RobotState { q: &q_now, foot_forces_n: loads.force, margin_m, max_torque_ratio, gyro_rad_s };
         observer.event(&Event::State { stamp_s: world.data().time(), state: &state });
         // The planned base carried into the world, where the fall is judged.
         let base = mon.plan_to_world * base_pose(&planned.q);
@@ -375,11 +380,24 @@ impl<'a> SimRobot<'a> {
         scene: &'a Scene,
         params: &SimParams,
     ) -> Result<Self, SimError> {
+        let soles = [hrp4::R_SOLE, hrp4::L_SOLE];
         let odometry = match params.estimate.enabled {
-            true => Some(Odometry::new(model, &world.borrow().configuration(), &params.estimate)?),
+            true => {
+                let w = world.borrow();
+                let mut odo = Odometry::new(model, &w.configuration(), &params.estimate)?;
+                // The gyro's start-up calibration: the robot standing still, its readings
+                // differ only by their noise (drawn at the physics' rate, the physics not
+                // stepped), from their own stream.
+                let mut gyro = SimSensors::new(&w, soles, &params.sensors)?.with_stream(2);
+                let n = (params.estimate.gyro_calibration_s / w.model().opt().timestep).round() as usize;
+                for _ in 0..n {
+                    odo.stand(&gyro.imu(&w).gyro_rad_s);
+                }
+                Some(odo)
+            }
             false => None,
         };
-        let imu = SimSensors::new(&world.borrow(), [hrp4::R_SOLE, hrp4::L_SOLE], &params.sensors)?;
+        let imu = SimSensors::new(&world.borrow(), soles, &params.sensors)?;
         let tilt =
             TiltFilter::new(params.stabilizer.tilt_filter_time_s, params.stabilizer.tilt_accel_tolerance);
         Ok(Self { world, model, scene, params: params.clone(), odometry, tilt, imu })
@@ -478,12 +496,18 @@ impl Executor for SimRobot<'_> {
         let truth = world.configuration().to_vec();
         let estimate = odo.configuration(&truth[Q_JOINTS..])?;
         let plan_to_world = base_pose(&truth) * base_pose(&estimate).inverse();
-        // The odometry follows every physics step: the encoders and the feet's loads.
+        // The odometry follows every physics step: the encoders, the feet's loads, the gyro.
         let mut lost = None;
+        let mut last_s = None;
         let mut odometry = Watch(|e: &Event| {
-            if let Event::State { state, .. } = e {
+            if let Event::State { stamp_s, state } = e {
                 let loads = state.foot_forces_n.map(|f| f.z);
-                if let Err(error) = odo.update(&state.q[Q_JOINTS..], loads) {
+                let joints = &state.q[Q_JOINTS..];
+                let since_last_s = last_s.map(|t| stamp_s - t);
+                last_s = Some(*stamp_s);
+                if let Err(error) =
+                    odo.turn(joints, &state.gyro_rad_s, since_last_s).and_then(|()| odo.update(joints, loads))
+                {
                     lost.get_or_insert(error);
                 }
             }

@@ -29,6 +29,10 @@ pub struct SensorParams {
     pub accel_noise_m_s2: f64,
     /// Standard deviation of each gyro axis, rad/s.
     pub gyro_noise_rad_s: f64,
+    /// Bias of each gyro axis, rad/s: none by default, like the force sensors'; a MEMS
+    /// gyro's turn-on bias is of the order of 0.1-1 deg/s (0.002-0.02 rad/s) before it is
+    /// estimated standing still ([`crate::estimate::Odometry::stand`]).
+    pub gyro_bias_rad_s: [f64; 3],
     /// Standard deviation of each joint encoder, rad.
     pub encoder_noise_rad: f64,
     /// Seed of the noise.
@@ -44,6 +48,7 @@ impl Default for SensorParams {
             torque_bias_nm: [0.0; 3],
             accel_noise_m_s2: 0.05,
             gyro_noise_rad_s: 0.005,
+            gyro_bias_rad_s: [0.0; 3],
             encoder_noise_rad: 1e-4,
             seed: 0,
         }
@@ -83,31 +88,45 @@ impl SimSensors {
         })
     }
 
+    /// The same sensors drawing their noise from their own stream `stream` of the seed (a
+    /// second reader of the same sensors, whose noise is not the first reader's again).
+    pub fn with_stream(mut self, stream: u64) -> Self {
+        self.rng.set_stream(stream);
+        self
+    }
+
+    /// What the IMU reads now (after the last physics step).
+    pub fn imu(&mut self, world: &World) -> Imu {
+        let p = &self.p;
+        Imu {
+            accel_m_s2: noisy(world, &mut self.rng, self.adr[0], p.accel_noise_m_s2, [0.0; 3]),
+            gyro_rad_s: noisy(world, &mut self.rng, self.adr[1], p.gyro_noise_rad_s, p.gyro_bias_rad_s),
+        }
+    }
+
     /// What the sensors read now (after the last physics step).
     pub fn read(&mut self, world: &World) -> Measurement {
-        let d = world.data();
-        let data = d.sensordata();
-        let rng = &mut self.rng;
-        let mut noisy = |adr: usize, sigma: f64, bias: [f64; 3]| -> Vector3<f64> {
-            let n = Normal::new(0.0, sigma.max(0.0)).unwrap_or(Normal::new(0.0, 0.0).expect("sigma 0"));
-            Vector3::new(
-                data[adr] + bias[0] + n.sample(rng),
-                data[adr + 1] + bias[1] + n.sample(rng),
-                data[adr + 2] + bias[2] + n.sample(rng),
-            )
-        };
-        let p = &self.p;
-        let imu = Imu {
-            accel_m_s2: noisy(self.adr[0], p.accel_noise_m_s2, [0.0; 3]),
-            gyro_rad_s: noisy(self.adr[1], p.gyro_noise_rad_s, [0.0; 3]),
-        };
+        let imu = self.imu(world);
+        let (p, rng) = (&self.p, &mut self.rng);
         let ft = [0, 1].map(|k| ForceTorque {
-            force_n: noisy(self.adr[2 + 2 * k], p.force_noise_n, p.force_bias_n),
-            torque_nm: noisy(self.adr[3 + 2 * k], p.torque_noise_nm, p.torque_bias_nm),
+            force_n: noisy(world, rng, self.adr[2 + 2 * k], p.force_noise_n, p.force_bias_n),
+            torque_nm: noisy(world, rng, self.adr[3 + 2 * k], p.torque_noise_nm, p.torque_bias_nm),
         });
         let enc =
             Normal::new(0.0, p.encoder_noise_rad.max(0.0)).unwrap_or(Normal::new(0.0, 0.0).expect("sigma 0"));
         let joints_rad = (0..self.joints).map(|a| world.joint_q(a) + enc.sample(&mut self.rng)).collect();
         Measurement { ft, imu, joints_rad }
     }
+}
+
+/// The three values at `adr` of `world`'s sensor data with `bias` and Gaussian noise of
+/// standard deviation `sigma` drawn from `rng`.
+fn noisy(world: &World, rng: &mut ChaCha8Rng, adr: usize, sigma: f64, bias: [f64; 3]) -> Vector3<f64> {
+    let data = world.data().sensordata();
+    let n = Normal::new(0.0, sigma.max(0.0)).unwrap_or(Normal::new(0.0, 0.0).expect("sigma 0"));
+    Vector3::new(
+        data[adr] + bias[0] + n.sample(rng),
+        data[adr + 1] + bias[1] + n.sample(rng),
+        data[adr + 2] + bias[2] + n.sample(rng),
+    )
 }
