@@ -13,6 +13,9 @@ use nalgebra::{Isometry3, Matrix3x6, Matrix3xX, Matrix6xX, Point3, Quaternion, U
 /// Why a configuration was refused.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum ConfigError {
+    /// No such frame.
+    #[error("the robot has no frame {0}")]
+    Frame(usize),
     /// Wrong length.
     #[error("configuration has {got} entries, the robot needs {want}")]
     Length {
@@ -199,7 +202,7 @@ pub fn frame_in_base(
     frame: usize,
     joints: &[f64],
 ) -> Result<Isometry3<f64>, ConfigError> {
-    let f = &model.frames()[frame];
+    let f = model.frames().get(frame).ok_or(ConfigError::Frame(frame))?;
     let mut pose = f.placement;
     let mut link = Some(f.link);
     while let Some(i) = link {

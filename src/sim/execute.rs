@@ -83,13 +83,15 @@ pub fn execute(
     observer: &mut dyn Observer,
     cancel: &Cancel,
 ) -> Result<Execution, SimError> {
-    execute_from(world, model, scene, plan, &Isometry3::identity(), params, None, observer, cancel)
+    execute_from(world, model, scene, plan, &Isometry3::identity(), params, None, None, observer, cancel)
 }
 
 /// [`execute`] of a plan made in a frame that lies at `plan_to_world` in the true world (the
 /// robot's own estimate when the plan began): the touchdowns are judged against their
 /// targets carried into the world ([`Monitor::plan_to_world`]). With `tilt`, the
-/// stabilizer's IMU tilt filter carries on from it and is left there for the next plan.
+/// stabilizer's IMU tilt filter carries on from it and is left there for the next plan; with
+/// `gyro`, the gyro the robot's estimate reads ([`RobotState::gyro_rad_s`]) draws its noise on
+/// from it (a fresh reader repeats the same noise at every plan).
 #[allow(clippy::too_many_arguments)]
 pub fn execute_from(
     world: &mut World,
@@ -99,6 +101,7 @@ pub fn execute_from(
     plan_to_world: &Isometry3<f64>,
     params: &SimParams,
     tilt: Option<&mut TiltFilter>,
+    gyro: Option<&mut SimSensors>,
     observer: &mut dyn Observer,
     cancel: &Cancel,
 ) -> Result<Execution, SimError> {
@@ -159,9 +162,12 @@ pub fn execute_from(
     let steps = (traj.duration_s() / dt).round() as usize;
     let last_step = steps + (params.stabilizer.max_hold_s / dt).ceil() as usize + 1;
     let mut q_now = Vec::new();
-    // The gyro as the robot's estimate reads it at every physics step (its noise drawn apart
-    // from the stabilizer's readings of the same IMU).
-    let mut gyro = SimSensors::new(world, [hrp4::R_SOLE, hrp4::L_SOLE], &params.sensors)?.with_stream(1);
+    // The gyro as the robot's estimate reads it at every physics step.
+    let mut fresh = None;
+    let gyro = match gyro {
+        Some(g) => g,
+        None => fresh.insert(gyro_reader(world, params)?),
+    };
     for k in 1..=last_step {
         // The step from k - 1 to k, and where it ends on the plan's clock.
         let t = match control.as_mut() {
@@ -354,6 +360,12 @@ fn settle_until_still_watched(
     t_s
 }
 
+/// The gyro as the robot's estimate reads it: the IMU's, its noise drawn apart from the
+/// stabilizer's readings of the same IMU (stream 1 of the sensors' seed).
+fn gyro_reader(world: &World, params: &SimParams) -> Result<SimSensors, SimError> {
+    Ok(SimSensors::new(world, [hrp4::R_SOLE, hrp4::L_SOLE], &params.sensors)?.with_stream(1))
+}
+
 /// The simulated HRP-4 in a MuJoCo world, as the loop's [`Executor`]: it shares the world
 /// with the simulated lidar (one borrows it for a sweep, the other for an execution, never
 /// both at once).
@@ -368,6 +380,8 @@ pub struct SimRobot<'a> {
     /// settles between them (as the real robot's runs all along), by `imu`.
     tilt: TiltFilter,
     imu: SimSensors,
+    /// The gyro as the estimate reads it during executions, carried from plan to plan.
+    gyro: SimSensors,
 }
 
 impl<'a> SimRobot<'a> {
@@ -387,7 +401,9 @@ impl<'a> SimRobot<'a> {
                 let mut odo = Odometry::new(model, &w.configuration(), &params.estimate)?;
                 // The gyro's start-up calibration: the robot standing still, its readings
                 // differ only by their noise (drawn at the physics' rate, the physics not
-                // stepped), from their own stream.
+                // stepped), from their own stream. The world is as built, at rest (its sensor
+                // data computed at the keyframe, every velocity zero): a world already moving
+                // would lend its motion to every reading, as a bias.
                 let mut gyro = SimSensors::new(&w, soles, &params.sensors)?.with_stream(2);
                 let n = (params.estimate.gyro_calibration_s / w.model().opt().timestep).round() as usize;
                 for _ in 0..n {
@@ -400,7 +416,8 @@ impl<'a> SimRobot<'a> {
         let imu = SimSensors::new(&world.borrow(), soles, &params.sensors)?;
         let tilt =
             TiltFilter::new(params.stabilizer.tilt_filter_time_s, params.stabilizer.tilt_accel_tolerance);
-        Ok(Self { world, model, scene, params: params.clone(), odometry, tilt, imu })
+        let gyro = gyro_reader(&world.borrow(), params)?;
+        Ok(Self { world, model, scene, params: params.clone(), odometry, tilt, imu, gyro })
     }
 }
 
@@ -477,7 +494,7 @@ impl Executor for SimRobot<'_> {
         cancel: &Cancel,
     ) -> Result<Execution, SimError> {
         let mut world = self.world.borrow_mut();
-        let tilt = Some(&mut self.tilt);
+        let (tilt, gyro) = (Some(&mut self.tilt), Some(&mut self.gyro));
         let Some(odo) = self.odometry.as_mut() else {
             let identity = Isometry3::identity();
             return execute_from(
@@ -488,6 +505,7 @@ impl Executor for SimRobot<'_> {
                 &identity,
                 &self.params,
                 tilt,
+                gyro,
                 observer,
                 cancel,
             );
@@ -521,6 +539,7 @@ impl Executor for SimRobot<'_> {
             &plan_to_world,
             &self.params,
             tilt,
+            gyro,
             &mut odometry,
             cancel,
         )?;

@@ -29,9 +29,10 @@ pub struct SensorParams {
     pub accel_noise_m_s2: f64,
     /// Standard deviation of each gyro axis, rad/s.
     pub gyro_noise_rad_s: f64,
-    /// Bias of each gyro axis, rad/s: none by default, like the force sensors'; a MEMS
-    /// gyro's turn-on bias is of the order of 0.1-1 deg/s (0.002-0.02 rad/s) before it is
-    /// estimated standing still ([`crate::estimate::Odometry::stand`]).
+    /// Bias of each gyro axis, rad/s: none by default, like the force sensors'. A MEMS
+    /// gyro's turn-on bias before calibration is of this order: Bosch's BMI088 data sheet
+    /// gives a zero-rate offset of +-1 deg/s (0.017 rad/s); the robot measures it standing
+    /// still ([`crate::estimate::Odometry::stand`]).
     pub gyro_bias_rad_s: [f64; 3],
     /// Standard deviation of each joint encoder, rad.
     pub encoder_noise_rad: f64,
@@ -55,6 +56,32 @@ impl Default for SensorParams {
     }
 }
 
+impl SensorParams {
+    /// Refuses settings that cannot be drawn, naming the field: a standard deviation must be
+    /// finite and at least zero, a bias finite.
+    pub fn validate(&self) -> Result<(), String> {
+        let sigmas = [
+            ("force_noise_n", self.force_noise_n),
+            ("torque_noise_nm", self.torque_noise_nm),
+            ("accel_noise_m_s2", self.accel_noise_m_s2),
+            ("gyro_noise_rad_s", self.gyro_noise_rad_s),
+            ("encoder_noise_rad", self.encoder_noise_rad),
+        ];
+        if let Some((name, v)) = sigmas.iter().find(|(_, v)| !(v.is_finite() && *v >= 0.0)) {
+            return Err(format!("sensors.{name} must be a finite deviation >= 0, got {v}"));
+        }
+        let biases = [
+            ("force_bias_n", self.force_bias_n),
+            ("torque_bias_nm", self.torque_bias_nm),
+            ("gyro_bias_rad_s", self.gyro_bias_rad_s),
+        ];
+        if let Some((name, v)) = biases.iter().find(|(_, v)| !v.iter().all(|c| c.is_finite())) {
+            return Err(format!("sensors.{name} must be finite, got {v:?}"));
+        }
+        Ok(())
+    }
+}
+
 /// Where each sensor's values are in MuJoCo's sensor data.
 pub struct SimSensors {
     /// Addresses: accelerometer, gyro, then force and torque of each sole, `[right, left]`.
@@ -67,6 +94,7 @@ pub struct SimSensors {
 impl SimSensors {
     /// The sensors of `world`'s robot, whose soles are the frames `soles` (`[right, left]`).
     pub fn new(world: &World, soles: [&str; 2], p: &SensorParams) -> Result<Self, SimError> {
+        p.validate().map_err(SimError::Params)?;
         let [r, l] = soles.map(ft_site);
         let names = [
             format!("{IMU_SITE}_accel"),
@@ -129,4 +157,20 @@ fn noisy(world: &World, rng: &mut ChaCha8Rng, adr: usize, sigma: f64, bias: [f64
         data[adr + 1] + bias[1] + n.sample(rng),
         data[adr + 2] + bias[2] + n.sample(rng),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A bias that is not a number, or a negative deviation, is refused by name (a NaN bias
+    /// would make every reading skipped, silently).
+    #[test]
+    fn sensor_settings_that_cannot_be_drawn_are_refused_by_name() {
+        assert!(SensorParams::default().validate().is_ok());
+        let bad = SensorParams { gyro_bias_rad_s: [0.0, f64::NAN, 0.0], ..SensorParams::default() };
+        assert!(bad.validate().is_err_and(|e| e.contains("gyro_bias_rad_s")));
+        let bad = SensorParams { accel_noise_m_s2: -0.1, ..SensorParams::default() };
+        assert!(bad.validate().is_err_and(|e| e.contains("accel_noise_m_s2")));
+    }
 }

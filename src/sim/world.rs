@@ -30,6 +30,9 @@ pub enum SimError {
     /// A sensor the bench needs is missing from the model.
     #[error("the world has no sensor named `{0}`")]
     MissingSensor(String),
+    /// A parameter the simulation cannot use (named in the message).
+    #[error("unusable simulation parameter: {0}")]
+    Params(String),
     /// The stabilizer could not be set up for a plan.
     #[error("the stabilizer could not start: {0}")]
     StabilizerSetup(#[from] crate::planning::PlanError),
