@@ -43,9 +43,8 @@ pub struct EstimateParams {
     /// The anchor's sole turns about the vertical by what the gyro (the base IMU's, less its
     /// bias as measured standing) sees the base turn beyond the legs' kinematics
     /// ([`Odometry::turn`]); `false` trusts the legs alone, the sole never turning while it
-    /// stands. Default on: a loaded sole twists under the swing's reaction (0.10-0.15 deg a
-    /// step on the simulated body), which the encoders cannot see and which summed to 1.6
-    /// deg, 46 mm, over a twelve-step flight.
+    /// stands. Default on: a loaded sole twists under the swing's reaction, which the
+    /// encoders cannot see (regression `a-sole-twisting-under-load-turned-the-estimate`).
     pub gyro_yaw: bool,
     /// Seconds the robot stands still before the climb while its gyro's bias is measured
     /// (a start-up calibration, fed to [`Odometry::stand`]): 20 s leaves the default gyro's

@@ -144,7 +144,7 @@ pub fn execute_from(
                     None => s,
                 }
             },
-            sensors: SimSensors::new(world, [hrp4::R_SOLE, hrp4::L_SOLE], &params.sensors)?,
+            sensors: sensors(world, params, STABILIZER_STREAM)?,
             from: plan.trajectory.sample_at(0.0).q.clone(),
             to: plan.trajectory.sample_at(0.0).q.clone(),
             plan_from_s: 0.0,
@@ -360,10 +360,20 @@ fn settle_until_still_watched(
     t_s
 }
 
-/// The gyro as the robot's estimate reads it: the IMU's, its noise drawn apart from the
-/// stabilizer's readings of the same IMU (stream 1 of the sensors' seed).
+/// Noise streams of the sensors' seed: the stabilizer's readings, the estimate's gyro during
+/// executions, the gyro's start-up calibration (each reader's noise apart from the others').
+const STABILIZER_STREAM: u64 = 0;
+const GYRO_STREAM: u64 = 1;
+const CALIBRATION_STREAM: u64 = 2;
+
+/// A reader of the robot's sensors drawing its noise from `stream` of the sensors' seed.
+fn sensors(world: &World, params: &SimParams, stream: u64) -> Result<SimSensors, SimError> {
+    Ok(SimSensors::new(world, [hrp4::R_SOLE, hrp4::L_SOLE], &params.sensors)?.with_stream(stream))
+}
+
+/// The gyro as the robot's estimate reads it during executions.
 fn gyro_reader(world: &World, params: &SimParams) -> Result<SimSensors, SimError> {
-    Ok(SimSensors::new(world, [hrp4::R_SOLE, hrp4::L_SOLE], &params.sensors)?.with_stream(1))
+    sensors(world, params, GYRO_STREAM)
 }
 
 /// The simulated HRP-4 in a MuJoCo world, as the loop's [`Executor`]: it shares the world
@@ -394,7 +404,6 @@ impl<'a> SimRobot<'a> {
         scene: &'a Scene,
         params: &SimParams,
     ) -> Result<Self, SimError> {
-        let soles = [hrp4::R_SOLE, hrp4::L_SOLE];
         let odometry = match params.estimate.enabled {
             true => {
                 let w = world.borrow();
@@ -404,7 +413,7 @@ impl<'a> SimRobot<'a> {
                 // stepped), from their own stream. The world is as built, at rest (its sensor
                 // data computed at the keyframe, every velocity zero): a world already moving
                 // would lend its motion to every reading, as a bias.
-                let mut gyro = SimSensors::new(&w, soles, &params.sensors)?.with_stream(2);
+                let mut gyro = sensors(&w, params, CALIBRATION_STREAM)?;
                 let n = (params.estimate.gyro_calibration_s / w.model().opt().timestep).round() as usize;
                 for _ in 0..n {
                     odo.stand(&gyro.imu(&w).gyro_rad_s);
@@ -413,7 +422,7 @@ impl<'a> SimRobot<'a> {
             }
             false => None,
         };
-        let imu = SimSensors::new(&world.borrow(), soles, &params.sensors)?;
+        let imu = sensors(&world.borrow(), params, STABILIZER_STREAM)?;
         let tilt =
             TiltFilter::new(params.stabilizer.tilt_filter_time_s, params.stabilizer.tilt_accel_tolerance);
         let gyro = gyro_reader(&world.borrow(), params)?;
