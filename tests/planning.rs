@@ -228,6 +228,60 @@ fn exp1_ground_truth_is_planned_to_the_top() {
     }
 }
 
+/// A plan takes the CoM to half-sitting's height above the soles whatever the start's: from a
+/// body that sagged (knees 0.25 rad more bent) or rose (0.3 rad straighter), the plan's end
+/// stands at half-sitting's height, within the IK's CoM tolerance. The closed loop plans from
+/// where the last execution left the body; a plan that kept its start's height carried every
+/// execution's offset into the next plan (tests/climb.rs
+/// `a_flight_climbed_faster_keeps_its_standing_height`).
+#[test]
+fn a_plan_ends_at_standing_height_from_a_sagged_or_raised_start() {
+    let model = hrp4::model().unwrap();
+    let scene = common::scene_of(&Scenario::default());
+    let rects = rectangles::from_step_tops(scene.steps());
+    let soles = hrp4::sole_frames(&model).unwrap();
+    let mut kin = Kinematics::new(&model);
+    let mut height = |q: &[f64]| {
+        kin.update(q).unwrap();
+        kin.com().z - (kin.frame_pose(soles[0]).translation.z + kin.frame_pose(soles[1]).translation.z) / 2.0
+    };
+    let p = PlanParams::default();
+    let standing = height(&start_q(&model, &scene.robot_start()));
+    for bend_rad in [0.25, -0.3] {
+        let mut joints = hrp4::half_sitting_joints(&model).unwrap();
+        for side in ["R", "L"] {
+            let mut turn = |joint: &str, by_rad: f64| {
+                joints[model.joint_id(&format!("{side}_{joint}")).unwrap()] += by_rad
+            };
+            turn("KNEE_P", bend_rad);
+            turn("HIP_P", -bend_rad / 2.0);
+            turn("ANKLE_P", -bend_rad / 2.0);
+        }
+        let q0 = hrp4::standing_config(&model, &joints, &scene.robot_start()).unwrap();
+        let started = height(&q0);
+        assert!((started - standing).abs() > 0.02, "the start is {:.1} mm off", (started - standing) * 1e3);
+        let plan = PlanRequest::new(&model, &q0, &rects, &p).max_stances(Some(2)).climb().unwrap();
+        // The gait's last waypoint is at standing height exactly; the IK reaches it within its
+        // CoM tolerance.
+        let last = plan.stances.last().unwrap();
+        let planned = plan.segments.last().unwrap().com_end.z
+            - (last.right.translation.z + last.left.translation.z) / 2.0;
+        assert!((planned - standing).abs() < 1e-9, "planned {:+.1} mm off", (planned - standing) * 1e3);
+        let ended = height(&plan.trajectory.samples.last().unwrap().q);
+        println!(
+            "knees {bend_rad:+} rad: start {:+.1} mm, end {:+.1} mm off standing height",
+            (started - standing) * 1e3,
+            (ended - standing) * 1e3
+        );
+        assert!(
+            (ended - standing).abs() < p.ik.com_tolerance_m,
+            "from {:+.1} mm, the plan ends {:+.1} mm off standing height",
+            (started - standing) * 1e3,
+            (ended - standing) * 1e3
+        );
+    }
+}
+
 #[test]
 fn the_papers_rectangles_are_planned() {
     let path =

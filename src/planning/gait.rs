@@ -199,12 +199,13 @@ impl Legs {
     }
 }
 
-/// The figures of the body the gait needs, measured on the model in the start posture.
+/// The figures of the body the gait needs, measured on the model standing (the planner
+/// measures them in half-sitting, [`standing_body`](super::plan::standing_body)).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Body {
-    /// CoM height above the soles in the start posture.
+    /// CoM height above the soles standing: the height the gait holds the CoM at.
     pub com_height_m: f64,
-    /// CoM height above the hip pitch axes in the start posture.
+    /// CoM height above the hip pitch axes standing.
     pub com_above_hip_m: f64,
     /// Hip pitch to knee.
     pub thigh_m: f64,

@@ -12,6 +12,7 @@ use crate::robot::hrp4;
 use crate::robot::model::RobotModel;
 use crate::robot::Kinematics;
 use crate::scene::SceneBox;
+use nalgebra::Isometry3;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -96,6 +97,18 @@ pub fn legs_at(model: &RobotModel, q: &[f64], p: &StepParams) -> Result<Legs, Pl
     let mut kin = Kinematics::new(model);
     kin.update(q)?;
     Ok(Legs::of(&Body::measure(&kin, hrp4::sole_frames(model)?)?, p))
+}
+
+/// The body's figures in half-sitting, the posture the gait's heights are taken from,
+/// whatever the start's: every plan takes the CoM to half-sitting's height above the soles.
+/// The closed loop plans from where the last execution left the body; a plan that took its
+/// height from its start carried each execution's offset (the stabilizer's compliance, the
+/// motion's lag) into the next, and the offset grew plan after plan until a knee came
+/// straight (tests/climb.rs `a_flight_climbed_faster_keeps_its_standing_height`).
+pub fn standing_body(model: &RobotModel, soles: [usize; 2]) -> Result<Body, PlanError> {
+    let mut kin = Kinematics::new(model);
+    kin.update(&hrp4::half_sitting_at(model, &Isometry3::identity())?)?;
+    Body::measure(&kin, soles)
 }
 
 /// Where the feet are at configuration `q`.
@@ -219,7 +232,7 @@ impl<'a> PlanRequest<'a> {
         let mut kin = Kinematics::new(model);
         kin.update(q0)?;
         let start = stance_of(&kin, soles);
-        let body = Body::measure(&kin, soles)?;
+        let body = standing_body(model, soles)?;
         let mut stances = stances_from(&start, seen.points(), &Legs::of(&body, &p.step))?;
         if let Some(n) = max_stances {
             stances.truncate(n);
