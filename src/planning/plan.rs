@@ -43,13 +43,14 @@ pub struct PlanParams {
 
 impl PlanParams {
     /// The same plan `factor` times faster: the gait's speeds up and shortest durations
-    /// down ([`StepParams::faster`]), and the IK's joint speed bound up with them (§6.1's
-    /// qd_max keeps the motion quasi-static; left alone, it would refuse the faster timing
-    /// instead of letting the simulation show what it does).
+    /// down ([`StepParams::faster`]), and every rate of the IK up with them
+    /// ([`IkParams::faster`]: §6.1's qd_max keeps the motion quasi-static, and left alone it
+    /// would refuse the faster timing instead of letting the simulation show what it does;
+    /// the tasks' gains left alone would trace another path).
     pub fn faster(&self, factor: f64) -> Self {
         let mut p = self.clone();
         p.step = self.step.faster(factor);
-        p.ik.max_joint_speed_rad_s *= factor;
+        p.ik = self.ik.faster(factor);
         p
     }
 }
