@@ -282,6 +282,24 @@ fn a_plan_ends_at_standing_height_from_a_sagged_or_raised_start() {
     }
 }
 
+/// The default timing is the quasi-static one `DEFAULT_SPEEDUP` times faster, to the bit (so
+/// `--speedup 1.5` of the quasi-static timing ran exactly the default), and Exp. 1's plan at
+/// the default takes that many times less time along the same stances.
+#[test]
+fn the_default_timing_is_the_quasi_static_one_made_faster() {
+    use stairbench::planning::gait::DEFAULT_SPEEDUP;
+    assert_eq!(PlanParams::default(), PlanParams::quasi_static().faster(DEFAULT_SPEEDUP));
+    let model = hrp4::model().unwrap();
+    let scene = common::scene_of(&Scenario::default());
+    let rects = rectangles::from_step_tops(scene.steps());
+    let q0 = start_q(&model, &scene.robot_start());
+    let plan = |p: &PlanParams| PlanRequest::new(&model, &q0, &rects, p).climb().unwrap();
+    let (slow, fast) = (plan(&PlanParams::quasi_static()), plan(&PlanParams::default()));
+    assert_eq!(slow.stances, fast.stances);
+    let ratio = slow.duration_s() / fast.duration_s();
+    assert!((ratio - DEFAULT_SPEEDUP).abs() < 0.01, "x {ratio}");
+}
+
 #[test]
 fn the_papers_rectangles_are_planned() {
     let path =

@@ -122,7 +122,9 @@ fn a_recorded_run_replays_equal_and_reads_in_the_independent_reader() {
     assert_eq!(topics["/lidar/scan"]["iterated"], 240);
     assert_eq!(topics["/plan"]["iterated"], 1);
     assert_eq!(topics["/plan/trajectory"]["iterated"], 1);
-    assert!(topics["/robot/joints"]["iterated"].as_u64().unwrap() > 1000, "100 Hz over the cycle");
+    // The joints at 100 Hz over the cycle: at least one message per sample of its motion.
+    let joints = topics["/robot/joints"]["iterated"].as_u64().unwrap();
+    assert!(joints >= q_then.len() as u64, "{joints} joint messages over {} samples of motion", q_then.len());
     assert_eq!(summary["attachments"], serde_json::json!(["params.toml"]));
 }
 
@@ -184,14 +186,17 @@ fn ctrl_c_ends_a_recorded_run_with_a_complete_file() {
     assert!(mcap::Summary::read(&bytes).unwrap().is_some(), "indexed");
 }
 
-/// Exp. 2 through noise draw 3: after its fifth sweep the loop sees the top of what the lidar
-/// reaches as an 11 cm strip of a 26.5 cm tread and leaves it for a closer look (the step
-/// map's `next_input`). `replay` used to rebuild the plan input without that rule, so it
-/// planned on the strip, was refused, and reported a difference the loop never had.
+/// Exp. 2 through noise draw 3 at the quasi-static timing: after its fifth sweep the loop
+/// sees the top of what the lidar reaches as an 11 cm strip of a 26.5 cm tread and leaves it
+/// for a closer look (the step map's `next_input`). `replay` used to rebuild the plan input
+/// without that rule, so it planned on the strip, was refused, and reported a difference the
+/// loop never had. (At the default timing the robot stands elsewhere at that sweep and sees
+/// the tread whole; the test asserts the recording holds the case.)
 #[test]
 fn replay_of_a_run_that_left_a_partly_seen_top_step_for_later_is_equal() {
     let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("exp2_seed3_five_cycles.mcap");
     let mut p = ClimbParams::default();
+    p.plan = stairbench::planning::PlanParams::quasi_static();
     p.run.max_cycles = 5;
     let s = Scenario { seed: 3, ..Scenario::load(Path::new("scenarios/exp2.toml")).unwrap() };
     let model = hrp4::model().unwrap();

@@ -47,11 +47,12 @@ pub struct RunArgs {
     plant: Option<super::PlantArg>,
     /// Speed the planned motion up by this factor (CoM and foot speeds, shortest
     /// segment and swing piece, the IK's joint speed bound), to see how far from
-    /// quasi-static the plan runs.
+    /// quasi-static the plan runs. The default timing is already 1.5 times the
+    /// quasi-static one; below 1 slows it.
     #[arg(long, default_value_t = 1.0)]
     speedup: f64,
     /// Instead of one climb, find the speed margin: the largest speed-up of the planned
-    /// timing at which the climb still passes every check (factors doubled up to
+    /// timing (the default's, or --params') at which the climb still passes every check (factors doubled up to
     /// --max-speedup, then bisected to 10 %; each try is a whole climb).
     #[arg(long)]
     speed_margin: bool,

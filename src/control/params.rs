@@ -110,8 +110,9 @@ pub struct StabilizerParams {
     /// `cop_max_rate_rad_s` and `cop_max_rad`, leaking back at `leak_time_s` (on top of the
     /// leak every offset has in single support); 0 turns it off. Without it a body on
     /// compliant ankles rolls out over its support sole until the CoM leaves it: the `robust`
-    /// suite's softest ankle bush (500 N m/rad) at x 1.33 leaned 50 mm out at lift-off and
-    /// fell in single support. Default -0.3, by trial on that case at x 1.33: -0.15 to -0.5
+    /// suite's softest ankle bush (500 N m/rad) at x 1.33 the quasi-static timing leaned 50 mm
+    /// out at lift-off and fell in single support. Default -0.3, by trial on that case at
+    /// x 1.33: -0.15 to -0.5
     /// climb it; +0.3, +1, +3, -1 and -3 fall at once (test
     /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`, which holds the sign
     /// and that the body falls without it).

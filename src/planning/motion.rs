@@ -3,7 +3,7 @@
 //! what it reached (CoM, feet) and how closely it tracked.
 
 use super::clearance::{self, Limb, Nearest, ProbeCache, SeenPoints};
-use super::gait::{Segment, Swing};
+use super::gait::{Segment, Swing, DEFAULT_SPEEDUP};
 use super::ik::{self, Task};
 use super::stance::Foot;
 use super::PlanError;
@@ -15,7 +15,10 @@ use nalgebra::{Isometry3, Point3, Translation3, Vector6};
 use std::sync::Arc;
 use std::time::Instant;
 
-/// The IK's weights and gains (§6.1).
+/// The IK's weights and gains (§6.1). The rates (the gains per second, the speed bounds)
+/// written beside each field are those of the quasi-static timing
+/// ([`IkParams::quasi_static`]); the default is them [`DEFAULT_SPEEDUP`] times, with the
+/// gait's ([`IkParams::faster`]).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct IkParams {
@@ -50,7 +53,7 @@ pub struct IkParams {
     /// Largest angular speed of the same correction, rad/s.
     pub max_contact_correction_rad_s: f64,
     /// §6.1 constraint (2): the fixed maximum joint speed qd_max, rad/s (small, so the
-    /// motion stays quasi-static).
+    /// motion stays near quasi-static).
     pub max_joint_speed_rad_s: f64,
     /// §6.1 constraint (2): K, the DOF-limit velocity gain, 1/s.
     pub limit_gain_per_s: f64,
@@ -117,7 +120,17 @@ pub struct IkParams {
 }
 
 impl Default for IkParams {
+    /// The IK of the quasi-static timing made as much faster as the gait's default
+    /// ([`DEFAULT_SPEEDUP`]): every rate that many times.
     fn default() -> Self {
+        Self::quasi_static().faster(DEFAULT_SPEEDUP)
+    }
+}
+
+impl IkParams {
+    /// The IK with the quasi-static timing ([`super::gait::StepParams::quasi_static`]): the
+    /// gains, correction speeds and joint speed bound as written beside each field.
+    pub fn quasi_static() -> Self {
         Self {
             rate_hz: 100.0,
             weight_com: 1.0,
@@ -145,9 +158,7 @@ impl Default for IkParams {
             min_knee_rad: 0.2,
         }
     }
-}
 
-impl IkParams {
     /// The same tracking `factor` times faster: every rate (the gains per second, the speed
     /// bounds) `factor` times, so that the IK follows a plan made `factor` times faster along
     /// the same path. Its tasks converge at their gains per second: left alone, a faster plan

@@ -42,6 +42,13 @@ pub struct PlanParams {
 }
 
 impl PlanParams {
+    /// The planner with the quasi-static timing ([`StepParams::quasi_static`],
+    /// [`IkParams::quasi_static`]); the default is this
+    /// [`DEFAULT_SPEEDUP`](super::gait::DEFAULT_SPEEDUP) times faster.
+    pub fn quasi_static() -> Self {
+        Self { step: StepParams::quasi_static(), ik: IkParams::quasi_static(), gait: GaitParams::default() }
+    }
+
     /// The same plan `factor` times faster: the gait's speeds up and shortest durations
     /// down ([`StepParams::faster`]), and every rate of the IK up with them
     /// ([`IkParams::faster`]: §6.1's qd_max keeps the motion quasi-static, and left alone it
