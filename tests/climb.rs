@@ -344,15 +344,15 @@ fn standing_heights(s: &Scenario, p: &ClimbParams) -> (Vec<f64>, ClimbReport) {
         fn event(&mut self, event: &stairbench::climb::Event) {
             if let stairbench::climb::Event::Plan { plan, .. } = event {
                 let Heights(kin, soles, heights) = self;
-                kin.update(&plan.trajectory.samples[0].q).unwrap();
+                kin.update(&plan.trajectory.samples[0].q).expect("a plan's start is a configuration");
                 let soles_z =
                     (kin.frame_pose(soles[0]).translation.z + kin.frame_pose(soles[1]).translation.z) / 2.0;
                 heights.push(kin.com().z - soles_z);
             }
         }
     }
-    let model = stairbench::robot::hrp4::model().unwrap();
-    let soles = stairbench::robot::hrp4::sole_frames(&model).unwrap();
+    let model = stairbench::robot::hrp4::model().expect("the model loads");
+    let soles = stairbench::robot::hrp4::sole_frames(&model).expect("HRP-4 has soles");
     let mut seen = Heights(stairbench::robot::Kinematics::new(&model), soles, Vec::new());
     let r =
         climb_scenario(s, p.loop_params(), &p.sim(), &mut seen, &Cancel::never()).expect("the world runs");
@@ -369,8 +369,8 @@ fn standing_heights(s: &Scenario, p: &ClimbParams) -> (Vec<f64>, ClimbReport) {
 #[test]
 fn a_flight_climbed_faster_keeps_its_standing_height() {
     let s = Scenario::load(std::path::Path::new("tests/fixtures/turned-shallow-flight.toml")).unwrap();
-    let model = stairbench::robot::hrp4::model().unwrap();
-    let soles = stairbench::robot::hrp4::sole_frames(&model).unwrap();
+    let model = stairbench::robot::hrp4::model().expect("the model loads");
+    let soles = stairbench::robot::hrp4::sole_frames(&model).expect("HRP-4 has soles");
     let standing = stairbench::planning::plan::standing_body(&model, soles).unwrap().com_height_m;
     let p = ClimbParams::default();
     let (heights, r) = standing_heights(&s, &p);

@@ -195,8 +195,8 @@ fn ctrl_c_ends_a_recorded_run_with_a_complete_file() {
 #[test]
 fn replay_of_a_run_that_left_a_partly_seen_top_step_for_later_is_equal() {
     let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("exp2_seed3_five_cycles.mcap");
-    let mut p = ClimbParams::default();
-    p.plan = stairbench::planning::PlanParams::quasi_static();
+    let mut p =
+        ClimbParams { plan: stairbench::planning::PlanParams::quasi_static(), ..ClimbParams::default() };
     p.run.max_cycles = 5;
     let s = Scenario { seed: 3, ..Scenario::load(Path::new("scenarios/exp2.toml")).unwrap() };
     let model = hrp4::model().unwrap();

@@ -500,9 +500,14 @@ fn a_contact_moved_by_centimetres_is_reached_without_an_infeasible_ik() {
 fn the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole() {
     let s = Scenario::load(std::path::Path::new("tests/fixtures/soft-ankle-bush.toml")).unwrap();
     let climb = |gain_per_s: f64| {
-        let mut p = ClimbParams::default();
-        p.plan = stairbench::planning::PlanParams::quasi_static().faster(1.33);
-        p.stabilizer.lean_follow_rate_per_s = gain_per_s;
+        let p = ClimbParams {
+            plan: stairbench::planning::PlanParams::quasi_static().faster(1.33),
+            stabilizer: StabilizerParams {
+                lean_follow_rate_per_s: gain_per_s,
+                ..StabilizerParams::default()
+            },
+            ..ClimbParams::default()
+        };
         climb_scenario(&s, p.loop_params(), &p.sim(), &mut Nobody, &Cancel::never()).unwrap()
     };
     let gain = StabilizerParams::default().lean_follow_rate_per_s;
