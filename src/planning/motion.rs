@@ -162,9 +162,8 @@ impl IkParams {
     /// The same tracking `factor` times faster: every rate (the gains per second, the speed
     /// bounds) `factor` times, so that the IK follows a plan made `factor` times faster along
     /// the same path. Its tasks converge at their gains per second: left alone, a faster plan
-    /// leaves them less time, and the pelvis of a robot started turned from the flight was
-    /// still 1.3 deg from facing it on the top step at x 1.5, 0.36 deg at x 1 (test
-    /// `a_plan_made_faster_is_the_same_path_in_less_time`).
+    /// leaves them less time, and the pelvis of a robot started turned from the flight turns
+    /// less of the way (test `a_plan_made_faster_is_the_same_path_in_less_time`).
     pub fn faster(&self, factor: f64) -> Self {
         Self {
             task_gain_per_s: self.task_gain_per_s * factor,
