@@ -133,9 +133,8 @@ pub struct StepParams {
 /// How many times faster than the quasi-static timing ([`StepParams::quasi_static`]) the
 /// planner moves by default, every rate of the IK with it
 /// ([`IkParams::faster`](super::motion::IkParams::faster)): issue 42 asks x 1.5 at the
-/// least. Exp. 1's speed margin over the quasi-static timing was x 2.18
-/// (`run --speed-margin`); at x 1.5 `ci` (208 of 208) and `regressions` (52 of 52) pass
-/// (CHANGELOG, twenty-fourth session), at x 2 `regressions` did not (40 of 50).
+/// least; the stabilizer's speed margin (`run --speed-margin`) allows more, and the suites'
+/// figures at this timing and at x 2 are in BENCHMARKS.md.
 pub const DEFAULT_SPEEDUP: f64 = 1.5;
 
 impl Default for StepParams {
@@ -148,8 +147,7 @@ impl Default for StepParams {
 impl StepParams {
     /// The quasi-static timing: the CoM at 6 cm/s, the foot at 15 cm/s, a segment 0.8 s and
     /// a swing's piece 0.6 s at the shortest (§6.2's static criterion holds when the
-    /// accelerations are negligible; these are the bench's first timing, x 1 of `--speedup`
-    /// before the twenty-fourth session). The other fields are the defaults'.
+    /// accelerations are negligible). The other fields are the defaults'.
     pub fn quasi_static() -> Self {
         Self {
             com_speed_m_s: 0.06,
