@@ -11,8 +11,8 @@ mod common;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use stairbench::geom2d::P2;
 use stairbench::perception::PlaneSegment;
-use stairbench::planning::gait::Phase;
-use stairbench::planning::plan::legs_at;
+use stairbench::planning::gait::{Phase, StepParams};
+use stairbench::planning::plan::{legs_at, standing_body};
 use stairbench::planning::polygon::{by_bretl, margin};
 use stairbench::planning::reach;
 use stairbench::planning::{clearance, rectangles, Contact, Foot, Plan, PlanError, PlanParams, PlanRequest};
@@ -283,11 +283,13 @@ fn a_plan_ends_at_standing_height_from_a_sagged_or_raised_start() {
 }
 
 /// The default timing is the quasi-static one `DEFAULT_SPEEDUP` times faster, to the bit (so
-/// `--speedup 1.5` of the quasi-static timing ran exactly the default), and Exp. 1's plan at
-/// the default takes that many times less time along the same stances.
+/// `--speedup 1.5` of the quasi-static timing runs exactly the default). Exp. 1's plan at the
+/// default goes along the same stances, each segment `DEFAULT_SPEEDUP` times faster but
+/// where the CoM's acceleration bound keeps it longer (`StepParams::max_zmp_shift_m`, which
+/// no speed-up scales).
 #[test]
 fn the_default_timing_is_the_quasi_static_one_made_faster() {
-    use stairbench::planning::gait::DEFAULT_SPEEDUP;
+    use stairbench::planning::gait::{shortest_for_zmp_s, DEFAULT_SPEEDUP};
     assert_eq!(PlanParams::default(), PlanParams::quasi_static().faster(DEFAULT_SPEEDUP));
     let model = hrp4::model().unwrap();
     let scene = common::scene_of(&Scenario::default());
@@ -296,8 +298,55 @@ fn the_default_timing_is_the_quasi_static_one_made_faster() {
     let plan = |p: &PlanParams| PlanRequest::new(&model, &q0, &rects, p).climb().unwrap();
     let (slow, fast) = (plan(&PlanParams::quasi_static()), plan(&PlanParams::default()));
     assert_eq!(slow.stances, fast.stances);
+    let body = standing_body(&model, hrp4::sole_frames(&model).unwrap()).unwrap();
+    let shift_m = PlanParams::default().step.max_zmp_shift_m;
+    let mut bound = 0;
+    for (k, (a, b)) in slow.segments.iter().zip(&fast.segments).enumerate() {
+        let path_m = (b.com_end - b.com_start).norm();
+        let shortest_s = shortest_for_zmp_s(path_m, body.com_height_m, shift_m);
+        let expected_s = (a.duration_s / DEFAULT_SPEEDUP).max(shortest_s);
+        println!("{k}: {:.3} s -> {:.3} s (ZMP bound {shortest_s:.3} s)", a.duration_s, b.duration_s);
+        assert!((b.duration_s - expected_s).abs() < 0.02 * expected_s, "segment {k}: {} s", b.duration_s);
+        bound += usize::from(shortest_s > a.duration_s / DEFAULT_SPEEDUP);
+    }
     let ratio = slow.duration_s() / fast.duration_s();
-    assert!((ratio - DEFAULT_SPEEDUP).abs() < 0.01, "x {ratio}");
+    println!("x {ratio:.3} faster, {bound} of {} segments held by the ZMP bound", fast.segments.len());
+    assert!(ratio > 1.2 && ratio < DEFAULT_SPEEDUP, "x {ratio}");
+}
+
+/// Every segment's CoM acceleration, taken on its time law by finite differences (not by the
+/// law's derivative), shifts the ZMP (linear inverted pendulum: the CoM's height above its
+/// lowest support sole over g, times the horizontal acceleration) no more than
+/// `StepParams::max_zmp_shift_m`, at the default timing and twice faster. With the CoM's speed
+/// bound alone, the default timing asked 41.7 mm (its 10 cm sideways shifts), and twice
+/// faster four times that.
+#[test]
+fn the_coms_acceleration_keeps_the_zmp_within_its_allowed_shift() {
+    use stairbench::planning::motion::com_target;
+    let model = hrp4::model().unwrap();
+    let scene = common::scene_of(&Scenario::default());
+    let rects = rectangles::from_step_tops(scene.steps());
+    let q0 = start_q(&model, &scene.robot_start());
+    for factor in [1.0, 2.0] {
+        let p = PlanParams::default().faster(factor);
+        let plan = PlanRequest::new(&model, &q0, &rects, &p).climb().unwrap();
+        let mut most_m: f64 = 0.0;
+        for seg in &plan.segments {
+            let n = 1000;
+            let dt = seg.duration_s / n as f64;
+            let at = |i: usize| com_target(seg, i as f64 / n as f64).0;
+            let lowest_sole_z =
+                seg.support.iter().map(|(_, s)| s.translation.z).fold(f64::INFINITY, f64::min);
+            for i in 1..n {
+                let (a, b, c) = (at(i - 1), at(i), at(i + 1));
+                let accel = (a.coords - 2.0 * b.coords + c.coords) / (dt * dt);
+                let height_m = b.z - lowest_sole_z;
+                most_m = most_m.max(height_m / 9.81 * accel.xy().norm());
+            }
+        }
+        println!("x {factor}: the ZMP shifted at most {:.1} mm", most_m * 1e3);
+        assert!(most_m <= p.step.max_zmp_shift_m * 1.02, "x {factor}: {:.1} mm", most_m * 1e3);
+    }
 }
 
 #[test]
@@ -506,7 +555,10 @@ fn a_plan_made_faster_is_the_same_path_in_less_time() {
     let scene = common::scene_of(&s);
     let rects = rectangles::from_step_tops(scene.steps());
     let q0 = start_q(&model, &scene.robot_start());
-    let p = PlanParams::default();
+    // The CoM's acceleration bound (not scaled by a speed-up) left out: every segment is
+    // then 1.5 times shorter.
+    let step = StepParams { max_zmp_shift_m: f64::INFINITY, ..StepParams::default() };
+    let p = PlanParams { step, ..PlanParams::default() };
     let slow = PlanRequest::new(&model, &q0, &rects, &p).climb().unwrap();
     let fast = PlanRequest::new(&model, &q0, &rects, &p.faster(1.5)).climb().unwrap();
     assert_eq!(slow.stances, fast.stances);
@@ -1108,4 +1160,26 @@ fn a_step_missing_from_one_view_is_looked_at_again_from_nearer_on_the_floor() {
     let floor_near = Arc::new(SeenPoints::new(floor_seen([0.0, 0.25], 0.0)));
     let at_riser = plan_next(&model, &q_near, &near, floor_near, 1, 0.0, &p);
     assert_eq!(at_riser.err().map(|r| r.kind), Some(RefusalKind::MissingStep));
+}
+
+/// Step parameters that cannot time a gait (a zero speed, a zero ZMP shift: every segment would
+/// last forever, and `plan` used to run on without end) are refused at the command line,
+/// naming the field, before anything is planned; `run` reads them alike.
+#[test]
+fn step_parameters_that_cannot_time_a_gait_are_refused_by_name() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("bad-step-params");
+    std::fs::create_dir_all(&dir).unwrap();
+    for (field, value) in [("com_speed_m_s", "0.0"), ("max_zmp_shift_m", "0.0"), ("min_piece_s", "-1.0")] {
+        let file = dir.join(format!("{field}.toml"));
+        std::fs::write(&file, format!("[step]\n{field} = {value}\n")).unwrap();
+        let path = file.to_str().unwrap();
+        let plan = ["plan", "--params", path];
+        let run = ["run", "--params", path];
+        for args in [&plan[..], &run[..]] {
+            let out =
+                std::process::Command::new(env!("CARGO_BIN_EXE_stairbench")).args(args).output().unwrap();
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert!(!out.status.success() && err.contains(field), "{args:?}: {err}");
+        }
+    }
 }

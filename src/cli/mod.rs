@@ -49,7 +49,10 @@ const SCENARIO_DIR: &str = "scenarios";
 pub fn climb_params(path: Option<&Path>) -> Result<stairbench::params::ClimbParams> {
     let Some(p) = path else { return Ok(Default::default()) };
     let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
-    toml::from_str(&text).with_context(|| format!("{}: not climb parameters", p.display()))
+    let params: stairbench::params::ClimbParams =
+        toml::from_str(&text).with_context(|| format!("{}: not climb parameters", p.display()))?;
+    params.plan.step.validate().map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
+    Ok(params)
 }
 
 /// `params` with the planned motion `speedup` times faster (`--speedup`: the CoM's and the

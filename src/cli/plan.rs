@@ -72,6 +72,7 @@ pub fn run(a: PlanArgs) -> Result<ExitCode> {
         .with_context(|| format!("{}: not planner parameters", p.display()))?,
         None => PlanParams::default(),
     };
+    params.step.validate().map_err(|e| anyhow::anyhow!("--params: {e}"))?;
     let model = hrp4::model()?;
     let (rects, q0, seen, perceived) = inputs(&a, &model)?;
     // As the closed loop plans a view (`climb::plan_next`): a step seen in part above lower

@@ -46,9 +46,9 @@ pub struct RunArgs {
     #[arg(long, value_name = "PRESET")]
     plant: Option<super::PlantArg>,
     /// Speed the planned motion up by this factor (CoM and foot speeds, shortest
-    /// segment and swing piece, the IK's joint speed bound), to see how far from
-    /// quasi-static the plan runs. The default timing is already 1.5 times the
-    /// quasi-static one; below 1 slows it.
+    /// segment and swing piece, the IK's rates), to see how far from quasi-static the
+    /// plan runs; the CoM's acceleration stays bound ([step] max_zmp_shift_m). The default
+    /// timing is already 1.5 times the quasi-static one; below 1 slows it.
     #[arg(long, default_value_t = 1.0)]
     speedup: f64,
     /// Instead of one climb, find the speed margin: the largest speed-up of the planned

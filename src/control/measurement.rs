@@ -5,8 +5,7 @@
 use crate::robot::model::{RobotError, RobotModel};
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
-/// Standard gravity, m/s^2.
-pub const GRAVITY_M_S2: f64 = 9.81;
+pub use crate::robot::GRAVITY_M_S2;
 
 /// A 6-axis force/torque reading in the sensor's frame: the force and torque (about the
 /// sensor's origin) that the leg above applies to the foot below.

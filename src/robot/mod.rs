@@ -8,3 +8,6 @@ pub mod model;
 
 pub use kinematics::{ConfigError, Kinematics};
 pub use model::{RobotError, RobotModel};
+
+/// Standard gravity the bench's world and its models use, m/s^2 (the MJCF world's too).
+pub const GRAVITY_M_S2: f64 = 9.81;
