@@ -188,7 +188,7 @@ impl StepParams {
             ("foot_speed_m_s", self.foot_speed_m_s),
             ("max_zmp_shift_m", self.max_zmp_shift_m),
         ];
-        if let Some((name, v)) = positive.iter().find(|(_, v)| !(*v > 0.0)) {
+        if let Some((name, v)) = positive.iter().find(|(_, v)| v.is_nan() || *v <= 0.0) {
             return Err(format!("[step] {name} must be positive, got {v}"));
         }
         let finite = [
