@@ -251,7 +251,7 @@ fn the_speed_margin_is_measured_and_its_edge_names_a_check() {
 /// The plan's timing three times the quasi-static one (1.5 times the default) climbs Exp. 1
 /// clean: the CoM's acceleration is bound by the ZMP shift it may ask
 /// (`StepParams::max_zmp_shift_m`), not by its speed alone. With the speed bound alone, the
-/// first sideways shift (10 cm in 0.4 s) pushed the unloading right foot out of its friction
+/// first sideways shift (10 cm in 0.56 s) pushed the unloading right foot out of its friction
 /// cone at t = 1.4 s.
 #[test]
 fn a_climb_three_times_the_quasi_static_timing_keeps_every_check() {

@@ -323,7 +323,9 @@ fn a_rehearsal_on_the_perceived_world_writes_the_trajectory_only_when_it_passes(
         let q = std::fs::read_to_string(dir.join("exp1.csv")).unwrap();
         let last_t_s: f64 = q.lines().last().and_then(|l| l.split(',').next()?.parse().ok()).unwrap();
         let samples = q.lines().count() - 1;
-        assert!(q.starts_with("t_s,x,y,z,qw") && last_t_s > 20.0, "a whole climb: {last_t_s} s");
+        // Exp. 1's whole climb, five stances of five segments: tens of seconds at any timing
+        // the planner allows (not a single stance's few).
+        assert!(q.starts_with("t_s,x,y,z,qw") && last_t_s > 30.0, "a whole climb: {last_t_s} s");
         assert!(samples as f64 >= 100.0 * last_t_s, "100 Hz over the climb: {samples} in {last_t_s} s");
         // The recording replays: the same steps and the same plan from the recorded rows.
         let replay = std::process::Command::new(env!("CARGO_BIN_EXE_stairbench"))

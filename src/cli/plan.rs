@@ -72,7 +72,9 @@ pub fn run(a: PlanArgs) -> Result<ExitCode> {
         .with_context(|| format!("{}: not planner parameters", p.display()))?,
         None => PlanParams::default(),
     };
-    params.step.validate().map_err(|e| anyhow::anyhow!("--params: {e}"))?;
+    if let Some(p) = &a.params {
+        params.step.validate().map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
+    }
     let model = hrp4::model()?;
     let (rects, q0, seen, perceived) = inputs(&a, &model)?;
     // As the closed loop plans a view (`climb::plan_next`): a step seen in part above lower

@@ -52,8 +52,9 @@ pub struct RunArgs {
     #[arg(long, default_value_t = 1.0)]
     speedup: f64,
     /// Instead of one climb, find the speed margin: the largest speed-up of the planned
-    /// timing (the default's, or --params') at which the climb still passes every check (factors doubled up to
-    /// --max-speedup, then bisected to 10 %; each try is a whole climb).
+    /// timing (the default's, or --params') at which the climb still passes every check
+    /// (factors as --speedup's, doubled up to --max-speedup, then bisected to 10 %; each
+    /// try is a whole climb, its simulated time printed).
     #[arg(long)]
     speed_margin: bool,
     /// Largest factor --speed-margin tries.

@@ -1,8 +1,10 @@
 //! The speed margin: how much faster than planned the closed-loop climb can run and still
 //! pass every check. The paper's motion is quasi-static (§6.2 neglects the CoM's
 //! acceleration); this measures how far from that edge the plan runs. Each try is a whole
-//! climb with the plan's timing sped up ([`PlanParams::faster`]); the factor is doubled until
-//! a climb fails, then bisected (geometrically) between the last pass and the first failure.
+//! climb with the plan's timing sped up ([`PlanParams::faster`]: its speeds, shortest
+//! durations and the IK's rates; the CoM's acceleration bound stays, so where it holds a
+//! segment the plan shortens by less than the factor); the factor is doubled until a climb
+//! fails, then bisected (geometrically) between the last pass and the first failure.
 //!
 //! [`PlanParams::faster`]: crate::planning::PlanParams::faster
 

@@ -109,15 +109,13 @@ pub struct StepParams {
     /// a segment may ask, metres: by the linear inverted pendulum (Kajita et al. 2001) the
     /// shift is `h / g` times the acceleration, `h` the CoM's height above the soles, and the
     /// segments' time law (3 t^2 - 2 t^3) peaks at `6 d / T^2` over a path of `d` in `T`, so a
-    /// segment lasts at least `sqrt(6 d h / (g shift))`. The speed bound alone makes short
-    /// moves the hardest (their peak acceleration is `6 v^2 / d`): a sideways shift of 10 cm
-    /// at 18 cm/s (3 times the quasi-static speed) asks 1.9 m/s^2, 15 cm of ZMP, and Exp. 1's
-    /// first cycle at that timing slipped its unloading foot and fell. 4 cm is about what the
-    /// default timing's shortest shifts asked before this bound (up to 42 mm on Exp. 1),
-    /// with which every suite passed; it is under a third of the model's 13 cm sole width,
-    /// inside the 5-7 cm margins the double-support shifts' waypoints keep in their polygons.
-    /// Not scaled by [`StepParams::faster`]: it is the bound the quasi-static criterion of
-    /// §6.2 needs, whatever the speed.
+    /// segment lasts at least `sqrt(6 d h / (g shift))`. `d` is the CoM's whole path, its
+    /// vertical part counted as if it were horizontal (on the safe side: a rise shifts no ZMP
+    /// but loads and unloads the feet). The speed bound alone makes short moves the hardest
+    /// (their peak acceleration is `6 v^2 / d`); this bound holds them whatever the speed.
+    /// 4 cm is under a third of the model's 13 cm sole width, and about what the default
+    /// timing's shortest shifts ask (CHANGELOG, 2026-12-01). Not scaled by
+    /// [`StepParams::faster`]; infinite (TOML `inf`) leaves the CoM's speed alone to bound it.
     pub max_zmp_shift_m: f64,
     /// Free-foot speed along its path, m/s.
     pub foot_speed_m_s: f64,
@@ -179,9 +177,9 @@ impl StepParams {
         }
     }
 
-    /// Why these parameters cannot time a gait, if they cannot: a speed or a ZMP shift that
-    /// is not positive, a shortest duration that is negative or not finite (a zero speed
-    /// would make every segment last forever).
+    /// Why these parameters cannot time a gait, if they cannot: a speed that is not positive
+    /// and finite, a ZMP shift that is not positive, a shortest duration that is negative or
+    /// not finite (a zero speed would make every segment last forever).
     pub fn validate(&self) -> Result<(), String> {
         let positive = [
             ("com_speed_m_s", self.com_speed_m_s),
@@ -320,6 +318,7 @@ pub fn segments(
     body: &Body,
     p: &StepParams,
 ) -> Result<Vec<Segment>, PlanError> {
+    p.validate().map_err(PlanError::Config)?;
     let mut out: Vec<Segment> = Vec::new();
     let mut from = start.clone();
     let mut c = com;
