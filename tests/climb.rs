@@ -249,13 +249,16 @@ fn the_speed_margin_is_measured_and_its_edge_names_a_check() {
 }
 
 /// The plan's timing three times the quasi-static one (1.5 times the default) climbs Exp. 1
-/// clean: the CoM's acceleration is bound by the ZMP shift it may ask
-/// (`StepParams::max_zmp_shift_m`), not by its speed alone. With the speed bound alone, the
-/// first sideways shift (10 cm in 0.56 s) pushed the unloading right foot out of its friction
-/// cone at t = 1.4 s.
+/// clean with the CoM's acceleration bound by the ZMP shift it may ask
+/// (`StepParams::max_zmp_shift_m` at `ZMP_SHIFT_M`). With the speed bound alone (the
+/// default), the first sideways shift (10 cm in 0.56 s) pushes the unloading right foot out of
+/// its friction cone at t = 1.4 s, and the robot falls.
 #[test]
 fn a_climb_three_times_the_quasi_static_timing_keeps_every_check() {
-    let p = ClimbParams { plan: PlanParams::quasi_static().faster(3.0), ..ClimbParams::default() };
+    use stairbench::planning::gait::{StepParams, ZMP_SHIFT_M};
+    let step = StepParams { max_zmp_shift_m: ZMP_SHIFT_M, ..StepParams::quasi_static() };
+    let plan = PlanParams { step, ..PlanParams::quasi_static() }.faster(3.0);
+    let p = ClimbParams { plan, ..ClimbParams::default() };
     let r = climb(&Scenario::default(), &p);
     assert_climbed(&r, &Scenario::default(), &p.checks);
 }

@@ -283,13 +283,14 @@ fn a_plan_ends_at_standing_height_from_a_sagged_or_raised_start() {
 }
 
 /// The default timing is the quasi-static one `DEFAULT_SPEEDUP` times faster, to the bit (so
-/// `--speedup 1.5` of the quasi-static timing runs exactly the default). Exp. 1's plan at the
-/// default goes along the same stances, each segment `DEFAULT_SPEEDUP` times faster but
-/// where the CoM's acceleration bound keeps it longer (`StepParams::max_zmp_shift_m`, which
-/// no speed-up scales).
+/// `--speedup 1.5` of the quasi-static timing runs exactly the default), and Exp. 1's plan at
+/// the default takes that many times less time along the same stances. With the CoM's
+/// acceleration bound on (`StepParams::max_zmp_shift_m` at `ZMP_SHIFT_M`, which no speed-up
+/// scales), each segment is the quasi-static one `DEFAULT_SPEEDUP` times faster but where the
+/// bound keeps it longer.
 #[test]
 fn the_default_timing_is_the_quasi_static_one_made_faster() {
-    use stairbench::planning::gait::{shortest_for_zmp_s, DEFAULT_SPEEDUP};
+    use stairbench::planning::gait::{shortest_for_zmp_s, DEFAULT_SPEEDUP, ZMP_SHIFT_M};
     assert_eq!(PlanParams::default(), PlanParams::quasi_static().faster(DEFAULT_SPEEDUP));
     let model = hrp4::model().unwrap();
     let scene = common::scene_of(&Scenario::default());
@@ -298,28 +299,33 @@ fn the_default_timing_is_the_quasi_static_one_made_faster() {
     let plan = |p: &PlanParams| PlanRequest::new(&model, &q0, &rects, p).climb().unwrap();
     let (slow, fast) = (plan(&PlanParams::quasi_static()), plan(&PlanParams::default()));
     assert_eq!(slow.stances, fast.stances);
+    let ratio = slow.duration_s() / fast.duration_s();
+    assert!((ratio - DEFAULT_SPEEDUP).abs() < 0.01, "x {ratio}");
+    let bound =
+        |p: PlanParams| PlanParams { step: StepParams { max_zmp_shift_m: ZMP_SHIFT_M, ..p.step }, ..p };
+    let (slow, fast) = (plan(&bound(PlanParams::quasi_static())), plan(&bound(PlanParams::default())));
+    assert_eq!(slow.stances, fast.stances);
     let body = standing_body(&model, hrp4::sole_frames(&model).unwrap()).unwrap();
-    let shift_m = PlanParams::default().step.max_zmp_shift_m;
-    let mut bound = 0;
+    let mut held = 0;
     for (k, (a, b)) in slow.segments.iter().zip(&fast.segments).enumerate() {
         let path_m = (b.com_end - b.com_start).norm();
-        let shortest_s = shortest_for_zmp_s(path_m, body.com_height_m, shift_m);
+        let shortest_s = shortest_for_zmp_s(path_m, body.com_height_m, ZMP_SHIFT_M);
         let expected_s = (a.duration_s / DEFAULT_SPEEDUP).max(shortest_s);
         println!("{k}: {:.3} s -> {:.3} s (ZMP bound {shortest_s:.3} s)", a.duration_s, b.duration_s);
         assert!((b.duration_s - expected_s).abs() < 0.02 * expected_s, "segment {k}: {} s", b.duration_s);
-        bound += usize::from(shortest_s > a.duration_s / DEFAULT_SPEEDUP);
+        held += usize::from(shortest_s > a.duration_s / DEFAULT_SPEEDUP);
     }
     let ratio = slow.duration_s() / fast.duration_s();
-    println!("x {ratio:.3} faster, {bound} of {} segments held by the ZMP bound", fast.segments.len());
+    println!("with the bound: x {ratio:.3} faster, {held} of {} segments held by it", fast.segments.len());
     assert!(ratio > 1.2 && ratio < DEFAULT_SPEEDUP, "x {ratio}");
 }
 
 /// Every segment's CoM acceleration, taken on its time law by finite differences (not by the
 /// law's derivative), shifts the ZMP (linear inverted pendulum: the CoM's height above its
 /// lowest support sole over g, times the horizontal acceleration) no more than
-/// `StepParams::max_zmp_shift_m`, at the default timing and twice faster. With the CoM's speed
-/// bound alone, the default timing asked 41.7 mm (its 10 cm sideways shifts), and twice
-/// faster four times that.
+/// `StepParams::max_zmp_shift_m` (at `ZMP_SHIFT_M`), at the default timing and twice faster.
+/// With the CoM's speed bound alone (the default), the default timing asks 41.7 mm (its 10 cm
+/// sideways shifts), and twice faster four times that.
 #[test]
 fn the_coms_acceleration_keeps_the_zmp_within_its_allowed_shift() {
     use stairbench::planning::motion::com_target;
@@ -327,8 +333,10 @@ fn the_coms_acceleration_keeps_the_zmp_within_its_allowed_shift() {
     let scene = common::scene_of(&Scenario::default());
     let rects = rectangles::from_step_tops(scene.steps());
     let q0 = start_q(&model, &scene.robot_start());
+    let step =
+        StepParams { max_zmp_shift_m: stairbench::planning::gait::ZMP_SHIFT_M, ..StepParams::default() };
     for factor in [1.0, 2.0] {
-        let p = PlanParams::default().faster(factor);
+        let p = PlanParams { step: step.clone(), ..PlanParams::default() }.faster(factor);
         let plan = PlanRequest::new(&model, &q0, &rects, &p).climb().unwrap();
         let mut most_m: f64 = 0.0;
         for seg in &plan.segments {
@@ -557,10 +565,10 @@ fn a_plan_made_faster_is_the_same_path_in_less_time() {
     let scene = common::scene_of(&s);
     let rects = rectangles::from_step_tops(scene.steps());
     let q0 = start_q(&model, &scene.robot_start());
-    // The CoM's acceleration bound (not scaled by a speed-up) left out: every segment is
-    // then 1.5 times shorter.
-    let step = StepParams { max_zmp_shift_m: f64::INFINITY, ..StepParams::default() };
-    let p = PlanParams { step, ..PlanParams::default() };
+    // Without the CoM's acceleration bound (not scaled by a speed-up), every segment is 1.5
+    // times shorter.
+    let p = PlanParams::default();
+    assert!(p.step.max_zmp_shift_m.is_infinite(), "the bound off (its default)");
     let slow = PlanRequest::new(&model, &q0, &rects, &p).climb().unwrap();
     let fast = PlanRequest::new(&model, &q0, &rects, &p.faster(1.5)).climb().unwrap();
     assert_eq!(slow.stances, fast.stances);
