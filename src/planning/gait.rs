@@ -115,11 +115,10 @@ pub struct StepParams {
     /// (their peak acceleration is `6 v^2 / d`); this bound holds them whatever the speed.
     /// Not scaled by [`StepParams::faster`].
     ///
-    /// Infinite by default (TOML `inf`): the CoM's speed alone bounds it, as before the bound
-    /// existed. [`ZMP_SHIFT_M`] is the value measured with it (CHANGELOG, 2026-12-01): every
-    /// suite passed with it at the default timing, but one of the paper's pipeline's
-    /// incidents (`noise-tilted-the-treads` by `--method paper`) is refused from the view a
-    /// few millimetres away that its timing leaves, so it waits on that case.
+    /// Infinite by default (TOML `inf`): the CoM's speed alone bounds it. [`ZMP_SHIFT_M`] is
+    /// the value measured with it (CHANGELOG, 2026-12-01); as the default it waits on one of
+    /// the paper's pipeline's incidents (`noise-tilted-the-treads` by `--method paper`),
+    /// refused from the view a few millimetres away that the bounded timing leaves.
     pub max_zmp_shift_m: f64,
     /// Free-foot speed along its path, m/s.
     pub foot_speed_m_s: f64,
