@@ -153,8 +153,9 @@ pub const ZMP_SHIFT_M: f64 = 0.04;
 
 /// How many times faster than the quasi-static timing ([`StepParams::quasi_static`]) the
 /// planner moves by default, every rate of the IK with it
-/// ([`IkParams::faster`](super::motion::IkParams::faster)); the CoM's acceleration stays
-/// bound by [`StepParams::max_zmp_shift_m`] at any speed. Issue 42 asks x 1.5 at the least;
+/// ([`IkParams::faster`](super::motion::IkParams::faster)); a bound on the CoM's
+/// acceleration, where set ([`StepParams::max_zmp_shift_m`]), is not sped up. Issue 42 asks
+/// x 1.5 at the least;
 /// the stabilizer's speed margin over this default (`run --speed-margin`) and the suites'
 /// figures are in BENCHMARKS.md.
 pub const DEFAULT_SPEEDUP: f64 = 1.5;
