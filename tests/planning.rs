@@ -25,6 +25,15 @@ fn start_q(model: &RobotModel, at: &Isometry3<f64>) -> Vec<f64> {
     hrp4::half_sitting_at(model, at).unwrap()
 }
 
+/// The robot model, Exp. 1's true step tops and the robot's start, half-sitting: what a plan
+/// of Exp. 1 from its ground truth asks.
+fn exp1_on_its_tops() -> (RobotModel, Vec<PlaneSegment>, Vec<f64>) {
+    let model = hrp4::model().unwrap();
+    let scene = common::scene_of(&Scenario::default());
+    let q0 = start_q(&model, &scene.robot_start());
+    (model, rectangles::from_step_tops(scene.steps()), q0)
+}
+
 fn scenario_plan(s: &Scenario) -> (Scene, Result<Plan, PlanError>) {
     let model = hrp4::model().unwrap();
     let scene = common::scene_of(s);
@@ -292,10 +301,7 @@ fn a_plan_ends_at_standing_height_from_a_sagged_or_raised_start() {
 fn the_default_timing_is_the_quasi_static_one_made_faster() {
     use stairbench::planning::gait::{shortest_for_zmp_s, DEFAULT_SPEEDUP, ZMP_SHIFT_M};
     assert_eq!(PlanParams::default(), PlanParams::quasi_static().faster(DEFAULT_SPEEDUP));
-    let model = hrp4::model().unwrap();
-    let scene = common::scene_of(&Scenario::default());
-    let rects = rectangles::from_step_tops(scene.steps());
-    let q0 = start_q(&model, &scene.robot_start());
+    let (model, rects, q0) = exp1_on_its_tops();
     let plan = |p: &PlanParams| PlanRequest::new(&model, &q0, &rects, p).climb().unwrap();
     let (slow, fast) = (plan(&PlanParams::quasi_static()), plan(&PlanParams::default()));
     assert_eq!(slow.stances, fast.stances);
@@ -329,10 +335,7 @@ fn the_default_timing_is_the_quasi_static_one_made_faster() {
 #[test]
 fn the_coms_acceleration_keeps_the_zmp_within_its_allowed_shift() {
     use stairbench::planning::motion::com_target;
-    let model = hrp4::model().unwrap();
-    let scene = common::scene_of(&Scenario::default());
-    let rects = rectangles::from_step_tops(scene.steps());
-    let q0 = start_q(&model, &scene.robot_start());
+    let (model, rects, q0) = exp1_on_its_tops();
     let step =
         StepParams { max_zmp_shift_m: stairbench::planning::gait::ZMP_SHIFT_M, ..StepParams::default() };
     for factor in [1.0, 2.0] {
@@ -1201,10 +1204,7 @@ fn step_parameters_that_cannot_time_a_gait_are_refused_by_name() {
 /// with its `--set`), as a refusal, not an endless plan.
 #[test]
 fn a_plan_request_with_a_zero_speed_is_refused() {
-    let model = hrp4::model().unwrap();
-    let scene = common::scene_of(&Scenario::default());
-    let rects = rectangles::from_step_tops(scene.steps());
-    let q0 = start_q(&model, &scene.robot_start());
+    let (model, rects, q0) = exp1_on_its_tops();
     let step = StepParams { com_speed_m_s: 0.0, ..StepParams::default() };
     let p = PlanParams { step, ..PlanParams::default() };
     match PlanRequest::new(&model, &q0, &rects, &p).climb() {

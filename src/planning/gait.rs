@@ -191,21 +191,16 @@ impl StepParams {
     /// and finite, a ZMP shift that is not positive, a shortest duration that is negative or
     /// not finite (a zero speed would make every segment last forever).
     pub fn validate(&self) -> Result<(), String> {
-        let positive = [
-            ("com_speed_m_s", self.com_speed_m_s),
-            ("foot_speed_m_s", self.foot_speed_m_s),
-            ("max_zmp_shift_m", self.max_zmp_shift_m),
-        ];
-        if let Some((name, v)) = positive.iter().find(|(_, v)| v.is_nan() || *v <= 0.0) {
-            return Err(format!("[step] {name} must be positive, got {v}"));
+        let speeds = [("com_speed_m_s", self.com_speed_m_s), ("foot_speed_m_s", self.foot_speed_m_s)];
+        if let Some((name, v)) = speeds.iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
+            return Err(format!("[step] {name} must be positive and finite, got {v}"));
         }
-        let finite = [
-            ("com_speed_m_s", self.com_speed_m_s),
-            ("foot_speed_m_s", self.foot_speed_m_s),
-            ("min_segment_s", self.min_segment_s),
-            ("min_piece_s", self.min_piece_s),
-        ];
-        if let Some((name, v)) = finite.iter().find(|(_, v)| !(v.is_finite() && *v >= 0.0)) {
+        if self.max_zmp_shift_m.is_nan() || self.max_zmp_shift_m <= 0.0 {
+            let v = self.max_zmp_shift_m;
+            return Err(format!("[step] max_zmp_shift_m must be positive (inf: no bound), got {v}"));
+        }
+        let durations = [("min_segment_s", self.min_segment_s), ("min_piece_s", self.min_piece_s)];
+        if let Some((name, v)) = durations.iter().find(|(_, v)| !(v.is_finite() && *v >= 0.0)) {
             return Err(format!("[step] {name} must be finite and not negative, got {v}"));
         }
         Ok(())
