@@ -197,6 +197,78 @@ fn the_leading_leg_lands_with_its_knee_bent_on_a_low_deep_step() {
     }
 }
 
+/// The regression of that name in the `regressions` suite (12 steps of 13.7 cm on 37 cm
+/// treads, a start turned 6.8 deg).
+fn deep_treads() -> Scenario {
+    let name = "a-sole-twisting-under-load-turned-the-estimate";
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join(format!("scenarios/suites/regressions/{name}.toml"));
+    Scenario::load(&path).unwrap()
+}
+
+/// A trailing foot lifted from a tread well behind the hip keeps its ankle short of the
+/// joint's limit, and the rest of the body moves no faster for it: measured on the tracked
+/// trajectory, not on the gait's leg model. Lifted level, the trailing ankle on 37 cm treads
+/// came within 0.004 rad of its limit, and the IK, its ankle held there, kept the sole level
+/// by rolling the pelvis 17 deg and bowing the chest in 0.35 s, the stance hip's roll and the
+/// lifting hip's pitch at the joint speed bound: at twice the quasi-static timing that turn
+/// slid the stance sole 5 mm at every step up. Exp. 1's came within 0.08 rad.
+#[test]
+fn a_trailing_foot_lifted_behind_the_hip_keeps_its_ankle_and_the_body_unhurried() {
+    let model = hrp4::model().unwrap();
+    let p = PlanParams::default();
+    let joint = |name: &str| model.joint_id(name).unwrap();
+    let deep = deep_treads();
+    for (name, s) in [("Exp. 1", Scenario::default()), ("deep treads", deep)] {
+        let (scene, r) = scenario_plan(&s);
+        let plan = r.unwrap_or_else(|e| panic!("{name}: {e}"));
+        check(&plan, Some(&scene));
+        for ankle in ["R_ANKLE_P", "L_ANKLE_P"] {
+            let j = joint(ankle);
+            let lower = model.joints()[j].lower_rad;
+            let least = plan
+                .trajectory
+                .samples
+                .iter()
+                .map(|smp| smp.q[Q_JOINTS + j] - lower)
+                .fold(f64::INFINITY, f64::min);
+            println!("{name}: {ankle} at least {least:.3} rad from its limit");
+            assert!(least > 0.05, "{name}: {ankle} came within {least:.3} rad of its limit");
+        }
+    }
+    // While the trailing (left) foot lifts, no joint but its knee, which raises it, turns at
+    // the IK's joint speed bound.
+    let (_, r) = scenario_plan(&deep_treads());
+    let plan = r.unwrap();
+    let bound = p.ik.max_joint_speed_rad_s;
+    let lifting_knee = joint("L_KNEE_P");
+    let samples = &plan.trajectory.samples;
+    let mut fastest = (0.0f64, String::new(), 0.0);
+    for w in samples.windows(2) {
+        if plan.segments[w[1].segment].phase != Phase::LiftSwingLeft {
+            continue;
+        }
+        let dt = w[1].t_s - w[0].t_s;
+        for (j, jt) in model.joints().iter().enumerate().filter(|(j, _)| *j != lifting_knee) {
+            let speed = (w[1].q[Q_JOINTS + j] - w[0].q[Q_JOINTS + j]).abs() / dt;
+            if speed > fastest.0 {
+                fastest = (speed, jt.name.clone(), w[1].t_s);
+            }
+        }
+    }
+    println!(
+        "deep treads: fastest joint while the trailing foot lifts: {} at {:.2} rad/s (t = {:.2} s)",
+        fastest.1, fastest.0, fastest.2
+    );
+    assert!(
+        fastest.0 < 0.9 * bound,
+        "{} turns at {:.2} rad/s at t = {:.2} s while the trailing foot lifts (the IK's bound {bound:.2})",
+        fastest.1,
+        fastest.0,
+        fastest.2
+    );
+}
+
 /// The touchdown's measurement (`reach::touchdown_drops_m`) on Exp. 1's plan: a reach
 /// beyond every landing asks for no drop; a reach 1 cm short of the first landing's hip to
 /// ankle asks for the drop that brings that distance, in three dimensions, to the reach; a

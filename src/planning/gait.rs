@@ -11,7 +11,7 @@ use super::stance::{Foot, Stance};
 use super::PlanError;
 use crate::geom2d::{self, P2};
 use crate::robot::{Kinematics, GRAVITY_M_S2};
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
 /// The five segments of a step (§6.1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -44,9 +44,18 @@ pub struct Swing {
 
 impl Swing {
     /// From `a` to `b`: lift to `p.swing_clearance_m` above the higher sole, cross, descend,
-    /// each piece at the foot's speed and no shorter than `p.min_piece_s`.
-    fn new(foot: Foot, a: &Isometry3<f64>, b: &Isometry3<f64>, p: &StepParams) -> Self {
-        let path = swing_path(a, b, p.swing_clearance_m);
+    /// each piece at the foot's speed and no shorter than `p.min_piece_s`. At the top of the
+    /// lift the sole is pitched toe down as far as its ankle cannot bend with the CoM at
+    /// `com_at(fraction of the swing)` ([`toe_down`]).
+    fn new(
+        foot: Foot,
+        a: &Isometry3<f64>,
+        b: &Isometry3<f64>,
+        com_at: impl Fn(f64) -> Point3<f64>,
+        body: &Body,
+        p: &StepParams,
+    ) -> Self {
+        let mut path = swing_path(a, b, p.swing_clearance_m);
         let pieces: Vec<f64> = path
             .windows(2)
             .map(|w| {
@@ -55,8 +64,67 @@ impl Swing {
             })
             .collect();
         let natural_s: f64 = pieces.iter().sum();
-        Self { foot, path, shares: pieces.iter().map(|x| x / natural_s).collect(), natural_s }
+        let shares: Vec<f64> = pieces.iter().map(|x| x / natural_s).collect();
+        let hip = com_at(shares[0]) - Vector3::z() * body.com_above_hip_m;
+        path[1] = toe_down(foot, &path[1], &hip, body, p);
+        Self { foot, path, shares, natural_s }
     }
+}
+
+/// The swinging sole at the top of its lift (`lift`, level), pitched toe down by as much as
+/// its ankle would have to bend beyond `p.ankle_flex_margin_rad` short of its limit for the
+/// sole to stay level, with the hip pitch axis at `hip`, and raised so that its toe stays at
+/// `lift`'s height. A trailing foot lifted straight up from a tread behind the hip (a deep
+/// tread, the hip lowered for the leading leg's reach) otherwise asks its ankle more than
+/// the joint allows, and the IK, its ankle held at the limit, keeps the sole level by
+/// rolling the pelvis and bowing the chest in a few tenths of a second at its joint speed
+/// bound, which turns the stance sole on its tread (regression
+/// `a-sole-twisting-under-load-turned-the-estimate` at twice the quasi-static timing).
+/// A person lifts that heel first. The leg is taken in the sagittal plane of the sole, the
+/// hip straight above the sole's axis (the leg's sideways reach left out, which bends its
+/// knee less: on the safe side).
+fn toe_down(
+    foot: Foot,
+    lift: &Isometry3<f64>,
+    hip: &Point3<f64>,
+    body: &Body,
+    p: &StepParams,
+) -> Isometry3<f64> {
+    let half_length_m = body.sole_half_m[foot.index()][0];
+    let forward = lift.rotation * Vector3::x();
+    let forward = Vector3::new(forward.x, forward.y, 0.0).try_normalize(1e-9).unwrap_or_else(Vector3::x);
+    let allowed_rad = body.ankle_flex_max_rad - p.ankle_flex_margin_rad;
+    let pitched = |pitch_rad: f64| {
+        let mut pose = *lift;
+        pose.rotation = lift.rotation * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), pitch_rad);
+        pose.translation.z += half_length_m * pitch_rad.sin();
+        pose
+    };
+    // The ankle's bend needed depends on where the pitch puts the ankle; a few fixed-point
+    // steps settle it (each moves the ankle by millimetres).
+    let mut pitch_rad = 0.0;
+    for _ in 0..4 {
+        let ankle = body.ankle(foot, &pitched(pitch_rad));
+        let lean_rad = shank_lean_rad(body, &ankle, hip, &forward);
+        pitch_rad = (lean_rad - allowed_rad).max(0.0);
+    }
+    if pitch_rad > 0.0 {
+        pitched(pitch_rad)
+    } else {
+        *lift
+    }
+}
+
+/// How far forward of vertical the shank leans, radians, with the ankle at `ankle`, the hip
+/// pitch axis at `hip`, `forward` the sagittal direction (horizontal): the leg in that plane,
+/// its knee bent forward. A hip out of the leg's reach gives the leg straight along it.
+fn shank_lean_rad(body: &Body, ankle: &Point3<f64>, hip: &Point3<f64>, forward: &Vector3<f64>) -> f64 {
+    let (thigh, shank) = (body.thigh_m, body.shank_m);
+    let to_hip = hip - ankle;
+    let (d, h) = (to_hip.dot(forward), to_hip.z);
+    let r = d.hypot(h).max(1e-9);
+    let cos_knee_side = ((shank * shank + r * r - thigh * thigh) / (2.0 * shank * r)).clamp(-1.0, 1.0);
+    d.atan2(h) + cos_knee_side.acos()
 }
 
 /// One segment of the motion.
@@ -140,6 +208,15 @@ pub struct StepParams {
     /// Largest knee bend the leading leg may need, radians (the name carries the unit in
     /// parameter files too).
     pub knee_max_rad: f64,
+    /// How far short of its limit a swinging foot's ankle is planned to bend at the top of
+    /// its lift, radians: beyond, the sole is pitched toe down there (see `toe_down`). The
+    /// IK's joint-limit damper (§6.1, `limit_gain_per_s`, 5/s at the quasi-static timing)
+    /// lets a joint close on its limit at most that gain times the distance left, and the
+    /// trailing ankle turns toward it at up to 0.5 rad/s in the quasi-static lift (Exp. 1's
+    /// plan and 37 cm treads'), so within 0.1 rad of the limit the damper would hold it back
+    /// (the ratio is the same at any speed-up, both scaling alike); 0.15 rad (8.6 deg) leaves
+    /// the gait's planar leg the 0.06 rad by which it misjudged the tracked one there.
+    pub ankle_flex_margin_rad: f64,
     /// Tolerances of the double description that computes the stability polygons (§6.2);
     /// the execution's checks build theirs with the same.
     pub dd: DdParams,
@@ -183,13 +260,14 @@ impl StepParams {
             friction: super::contact::DEFAULT_FRICTION,
             reach_fraction: 0.95,
             knee_max_rad: 125f64.to_radians(),
+            ankle_flex_margin_rad: 0.15,
             dd: DdParams::default(),
         }
     }
 
     /// Why these parameters cannot time a gait, if they cannot: a speed that is not positive
-    /// and finite, a ZMP shift that is not positive, a shortest duration that is negative or
-    /// not finite (a zero speed would make every segment last forever).
+    /// and finite, a ZMP shift that is not positive, a shortest duration or the ankle's
+    /// margin negative or not finite (a zero speed would make every segment last forever).
     pub fn validate(&self) -> Result<(), String> {
         let speeds = [("com_speed_m_s", self.com_speed_m_s), ("foot_speed_m_s", self.foot_speed_m_s)];
         if let Some((name, v)) = speeds.iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
@@ -199,8 +277,12 @@ impl StepParams {
             let v = self.max_zmp_shift_m;
             return Err(format!("[step] max_zmp_shift_m must be positive (inf: no bound), got {v}"));
         }
-        let durations = [("min_segment_s", self.min_segment_s), ("min_piece_s", self.min_piece_s)];
-        if let Some((name, v)) = durations.iter().find(|(_, v)| !(v.is_finite() && *v >= 0.0)) {
+        let non_negative = [
+            ("min_segment_s", self.min_segment_s),
+            ("min_piece_s", self.min_piece_s),
+            ("ankle_flex_margin_rad", self.ankle_flex_margin_rad),
+        ];
+        if let Some((name, v)) = non_negative.iter().find(|(_, v)| !(v.is_finite() && *v >= 0.0)) {
             return Err(format!("[step] {name} must be finite and not negative, got {v}"));
         }
         Ok(())
@@ -274,6 +356,9 @@ pub struct Body {
     pub ankle_in_sole: [Vector3<f64>; 2],
     /// Each sole's half length and half width (right, left), from the model's foot boxes.
     pub sole_half_m: [[f64; 2]; 2],
+    /// The most the ankles bend the shank forward over a level sole (dorsiflexion), radians:
+    /// the model's ankle pitch limit (HRP-4: 75 deg), the lesser of the two.
+    pub ankle_flex_max_rad: f64,
 }
 
 impl Body {
@@ -297,6 +382,12 @@ impl Body {
                 ls.inverse_transform_point(&Point3::from(at(left_ankle))).coords,
             ],
             sole_half_m: [model.sole_half_m(soles[0])?, model.sole_half_m(soles[1])?],
+            ankle_flex_max_rad: ["R_ANKLE_P", "L_ANKLE_P"]
+                .iter()
+                .map(|n| model.joint_id(n).map(|j| -model.joints()[j].lower_rad))
+                .collect::<Result<Vec<f64>, _>>()?
+                .into_iter()
+                .fold(f64::INFINITY, f64::min),
         })
     }
 
@@ -375,7 +466,8 @@ fn one_step(
     let w5 = Point3::new(mid.x, mid.y, mid.z + body.com_height_m);
 
     let both = |a: &Isometry3<f64>, b: &Isometry3<f64>| vec![(Foot::Right, *a), (Foot::Left, *b)];
-    let swing = |foot: Foot, a: &Isometry3<f64>, b: &Isometry3<f64>| Swing::new(foot, a, b, p);
+    let still = |c: Point3<f64>| move |_: f64| c;
+    let moving = |a: Point3<f64>, b: Point3<f64>| move |tau: f64| a + (b - a) * ease(tau).0;
     let plan = [
         (Phase::ShiftToLeft, com, w1, both(&from.right, &from.left), None),
         (
@@ -383,7 +475,7 @@ fn one_step(
             w1,
             w1,
             vec![(Foot::Left, from.left)],
-            Some(swing(Foot::Right, &from.right, &to.right)),
+            Some(Swing::new(Foot::Right, &from.right, &to.right, still(w1), body, p)),
         ),
         (Phase::ShiftToRight, w1, w3, both(&to.right, &from.left), None),
         (
@@ -391,7 +483,7 @@ fn one_step(
             w3,
             w4,
             vec![(Foot::Right, to.right)],
-            Some(swing(Foot::Left, &from.left, &to.left)),
+            Some(Swing::new(Foot::Left, &from.left, &to.left, moving(w3, w4), body, p)),
         ),
         (Phase::Centre, w4, w5, both(&to.right, &to.left), None),
     ];
@@ -436,6 +528,14 @@ fn hip_height_max(
         return Err(PlanError::LegReach { stance, apart_m: d, reach_m: reach });
     }
     Ok(ankle.z + (reach * reach - d * d).sqrt())
+}
+
+/// The segments' time law on [0, 1] (3 t^2 - 2 t^3, at rest at both ends) and its
+/// derivative: the CoM's and each swing piece's fraction of their path at fraction `t` of
+/// their time.
+pub fn ease(t: f64) -> (f64, f64) {
+    let t = t.clamp(0.0, 1.0);
+    (t * t * (3.0 - 2.0 * t), 6.0 * t * (1.0 - t))
 }
 
 /// Refuses a stance whose leading knee would fold beyond `knee_max_rad` with the hip
@@ -604,5 +704,57 @@ mod tests {
             seg(Point3::new(0.9, 0.5, 0.8), Point3::new(2.5, 0.5, 0.8), square(2.0, 0.0, 1.0)),
         ];
         assert!(matches!(settle_waypoints(&mut apart, 0.02), Err(PlanError::Unstable { segment: 0, .. })));
+    }
+
+    /// HRP-4's leg figures (thigh, shank, ankle over the sole, sole, ankle limit).
+    fn hrp4_like() -> Body {
+        Body {
+            com_height_m: 0.78,
+            com_above_hip_m: 0.1,
+            thigh_m: 0.3,
+            shank_m: 0.353,
+            ankle_in_sole: [Vector3::new(0.0, 0.0, 0.09); 2],
+            sole_half_m: [[0.11, 0.065]; 2],
+            ankle_flex_max_rad: 75f64.to_radians(),
+        }
+    }
+
+    /// The shank's lean from vertical, by the knee found as the crossing of two circles in
+    /// the x-z plane (the one ahead of the ankle-hip line): a reference written apart from
+    /// `shank_lean_rad`'s law of cosines.
+    fn lean_by_circles(body: &Body, ankle: &Point3<f64>, hip: &Point3<f64>) -> f64 {
+        let (a, h) = (nalgebra::Vector2::new(ankle.x, ankle.z), nalgebra::Vector2::new(hip.x, hip.z));
+        let d = (h - a).norm();
+        let along = (body.shank_m.powi(2) - body.thigh_m.powi(2) + d * d) / (2.0 * d);
+        let off = (body.shank_m.powi(2) - along * along).max(0.0).sqrt();
+        let u = (h - a) / d;
+        let normal = nalgebra::Vector2::new(u.y, -u.x); // to the right of the line up: forward
+        let knee = a + u * along + normal * off;
+        (knee.x - a.x).atan2(knee.y - a.y)
+    }
+
+    #[test]
+    fn a_sole_lifted_behind_the_hip_is_pitched_toe_down_as_far_as_its_ankle_cannot_bend() {
+        let body = hrp4_like();
+        let p = StepParams::default();
+        let lift = Isometry3::translation(0.0, 0.0, 0.2);
+        // The hip above the ankle: the sole stays level.
+        let above = Point3::new(0.05, 0.0, 0.2 + 0.09 + 0.55);
+        assert_eq!(toe_down(Foot::Left, &lift, &above, &body, &p), lift);
+        // The hip 0.36 m ahead and 0.38 m up: level, the shank would lean beyond the limit.
+        let hip = Point3::new(0.36, 0.0, 0.2 + 0.09 + 0.38);
+        let level_lean = lean_by_circles(&body, &body.ankle(Foot::Left, &lift), &hip);
+        assert!(level_lean > body.ankle_flex_max_rad, "{level_lean}");
+        let pitched = toe_down(Foot::Left, &lift, &hip, &body, &p);
+        let sole_x = pitched.rotation * Vector3::x();
+        let pitch = (-sole_x.z).asin();
+        assert!(pitch > 0.05, "toe down by {pitch}");
+        assert!(sole_x.y.abs() < 1e-12, "pitched about the sole's own y axis");
+        // The toe stays at the lift's height; the ankle bends its margin short of the limit.
+        let toe = pitched.transform_point(&Point3::new(body.sole_half_m[1][0], 0.0, 0.0));
+        assert!((toe.z - 0.2).abs() < 1e-9, "toe at {}", toe.z);
+        let bend = lean_by_circles(&body, &body.ankle(Foot::Left, &pitched), &hip) - pitch;
+        let want = body.ankle_flex_max_rad - p.ankle_flex_margin_rad;
+        assert!((bend - want).abs() < 1e-3, "the ankle bends {bend:.4} rad, {want:.4} wanted");
     }
 }

@@ -3,7 +3,7 @@
 //! what it reached (CoM, feet) and how closely it tracked.
 
 use super::clearance::{self, Limb, Nearest, ProbeCache, SeenPoints};
-use super::gait::{Segment, Swing, DEFAULT_SPEEDUP};
+use super::gait::{ease, Segment, Swing, DEFAULT_SPEEDUP};
 use super::ik::{self, Task};
 use super::stance::Foot;
 use super::PlanError;
@@ -281,12 +281,6 @@ pub struct NearestSurface {
     pub point_m: [f64; 3],
     /// The trajectory's time, seconds.
     pub t_s: f64,
-}
-
-/// Smooth time law on [0, 1]: 3 t^2 - 2 t^3 and its derivative.
-fn ease(t: f64) -> (f64, f64) {
-    let t = t.clamp(0.0, 1.0);
-    (t * t * (3.0 - 2.0 * t), 6.0 * t * (1.0 - t))
 }
 
 /// The free foot's pose and twist at fraction `tau` of its swing; `duration_s` scales the twist.
