@@ -197,15 +197,6 @@ fn the_leading_leg_lands_with_its_knee_bent_on_a_low_deep_step() {
     }
 }
 
-/// The regression of that name in the `regressions` suite (12 steps of 13.7 cm on 37 cm
-/// treads, a start turned 6.8 deg).
-fn deep_treads() -> Scenario {
-    let name = "a-sole-twisting-under-load-turned-the-estimate";
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join(format!("scenarios/suites/regressions/{name}.toml"));
-    Scenario::load(&path).unwrap()
-}
-
 /// A trailing foot lifted from a tread well behind the hip keeps its ankle short of the
 /// joint's limit, and the rest of the body moves no faster for it: measured on the tracked
 /// trajectory, not on the gait's leg model. A sole lifted level there asks the ankle more
@@ -217,7 +208,9 @@ fn a_trailing_foot_lifted_behind_the_hip_keeps_its_ankle_and_the_body_unhurried(
     let model = hrp4::model().unwrap();
     let p = PlanParams::default();
     let joint = |name: &str| model.joint_id(name).unwrap();
-    let mut plans: Vec<(&str, Plan)> = [("Exp. 1", Scenario::default()), ("deep treads", deep_treads())]
+    // 12 steps of 13.7 cm on 37 cm treads, a start turned 6.8 deg.
+    let deep_treads = common::regression("a-sole-twisting-under-load-turned-the-estimate");
+    let mut plans: Vec<(&str, Plan)> = [("Exp. 1", Scenario::default()), ("deep treads", deep_treads)]
         .into_iter()
         .map(|(name, s)| {
             let (scene, r) = scenario_plan(&s);

@@ -16,7 +16,6 @@ use stairbench::scenario::{ExpectedOutcome, ObjectSpec, Risers, Scenario};
 use stairbench::scene::Scene;
 use stairbench::sim::checks::overhang_m;
 use stairbench::sim::climb_scenario;
-use std::path::Path;
 
 /// Half sizes of HRP-4's sole (0.24 x 0.13 m).
 const SOLE_HALF_M: [f64; 2] = [0.12, 0.065];
@@ -216,9 +215,7 @@ fn the_papers_incidents_are_climbed_by_its_pipeline() {
         "the regressions suite climbs the cell method's incidents only while it is the default: climb them here"
     );
     for name in ["step-1-never-perceived", "tread-split-in-two-under-20mm", "noise-tilted-the-treads"] {
-        let path =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("scenarios/suites/regressions/{name}.toml"));
-        let s = Scenario::load(&path).unwrap();
+        let s = common::regression(name);
         let mut p = ClimbParams::default();
         p.perception.method = Method::Paper;
         println!("{name}, by the paper's pipeline:");

@@ -177,7 +177,7 @@ pub struct StepParams {
     /// Largest shift of the ZMP from the CoM's ground point that the CoM's acceleration along
     /// a segment may ask, metres: by the linear inverted pendulum (Kajita et al. 2001) the
     /// shift is `h / g` times the acceleration, `h` the CoM's height above the soles, and the
-    /// segments' time law (3 t^2 - 2 t^3) peaks at `6 d / T^2` over a path of `d` in `T`, so a
+    /// segments' time law (`ease`, 3 t^2 - 2 t^3) peaks at `6 d / T^2` over a path of `d` in `T`, so a
     /// segment lasts at least `sqrt(6 d h / (g shift))`. `d` is the CoM's whole path, its
     /// vertical part counted as if it were horizontal (on the safe side: a rise shifts no ZMP
     /// but loads and unloads the feet). The speed bound alone makes short moves the hardest
@@ -640,7 +640,7 @@ fn duration(s: &Segment, com_height_m: f64, p: &StepParams) -> f64 {
     com.max(foot).max(p.min_segment_s)
 }
 
-/// Peak acceleration of the segments' time law (3 t^2 - 2 t^3) over a path of 1 m in 1 s,
+/// Peak acceleration of the segments' time law (`ease`, 3 t^2 - 2 t^3) over a path of 1 m in 1 s,
 /// m/s^2: at both ends.
 const EASE_PEAK_ACCEL: f64 = 6.0;
 

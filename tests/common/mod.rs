@@ -46,6 +46,13 @@ pub fn cast<'a>(
         .min_by(|a, b| a.0.total_cmp(&b.0))
 }
 
+/// The case of the `regressions` suite named `name` (its file in the repository).
+pub fn regression(name: &str) -> stairbench::scenario::Scenario {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join(format!("scenarios/suites/regressions/{name}.toml"));
+    stairbench::scenario::Scenario::load(&path).unwrap()
+}
+
 /// The scene of a scenario (unwrapping: test inputs are valid).
 pub fn scene_of(s: &stairbench::scenario::Scenario) -> Scene {
     Scene::from_scenario(s).expect("valid scenario")
