@@ -28,6 +28,9 @@ pub struct RobotState<'a> {
     pub max_torque_ratio: f64,
     /// The base IMU's gyro as the robot reads it (its noise and bias), base axes, rad/s.
     pub gyro_rad_s: Vector3<f64>,
+    /// Up in the base's axes as the robot's IMU attitude filter has it (unit; `None` before
+    /// its first reading, or without one).
+    pub up_base: Option<Vector3<f64>>,
 }
 
 /// One thing that happened during a climb. `stamp_s` is the robot's clock (the simulation's

@@ -8,14 +8,18 @@ use super::outcome::Check;
 use crate::cancel::Cancel;
 use crate::planning::Plan;
 
-/// How the robot came out of a settle: still up, or down (a body that kept no balance while
-/// it stood, after an execution or at the set-down, is a fall as much as one mid-step).
+/// How the robot came out of a settle: still up, down (a body that kept no balance while it
+/// stood, after an execution or at the set-down, is a fall as much as one mid-step), or up
+/// on a foot that slid (a body still moving when its plan ended, rocking back onto its feet).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Standing {
     /// Up: neither dropped nor tilted past a fall's limits.
     Upright,
     /// Fallen while it stood, with what the fall check measured.
     Fell(Check),
+    /// Up, but a sole slid on its tread while it stood farther than a contact may
+    /// ([`Check::Slip`]: from where it stood when the settle began).
+    Slid(Check),
 }
 
 /// Runs plans on a robot, checking every instant, and tells the loop where the robot is.

@@ -148,8 +148,8 @@ pub fn run<E: Executor>(
     let mut start_floor = None;
     for cycle in 1..=p.run.max_cycles {
         last_cycle = cycle;
-        if let Standing::Fell(fall) = robot.settle(p.run.settle_s).map_err(failed)? {
-            report.stop = Some(StopReason::FellStanding { cycle, fall });
+        if let Some(stop) = standing_stop(robot.settle(p.run.settle_s).map_err(failed)?, cycle) {
+            report.stop = Some(stop);
             break;
         }
         let mut q = robot.configuration();
@@ -244,9 +244,7 @@ pub fn run<E: Executor>(
     // The cycles ran out with nothing stopping the loop: it stands once more, so a fall after
     // the last execution is not a success.
     if report.stop.is_none() && last_cycle == p.run.max_cycles {
-        if let Standing::Fell(fall) = robot.settle(p.run.settle_s).map_err(failed)? {
-            report.stop = Some(StopReason::FellStanding { cycle: last_cycle + 1, fall });
-        }
+        report.stop = standing_stop(robot.settle(p.run.settle_s).map_err(failed)?, last_cycle + 1);
     }
     let q = robot.true_configuration().unwrap_or_else(|| robot.configuration());
     report.steps_climbed = climbed(truth, model, &q);
@@ -322,6 +320,15 @@ fn look(
 
 /// Why the loop stops after a cycle's execution: a fall, a simulation gone unstable, or a
 /// cancellation.
+/// Why the loop stops after the robot stood before `cycle`'s sweep, if it does.
+fn standing_stop(standing: Standing, cycle: usize) -> Option<StopReason> {
+    match standing {
+        Standing::Upright => None,
+        Standing::Fell(fall) => Some(StopReason::FellStanding { cycle, fall }),
+        Standing::Slid(slip) => Some(StopReason::SlidStanding { cycle, slip }),
+    }
+}
+
 fn stop_after(ex: &Execution, cycle: usize, cancel: &Cancel) -> Option<StopReason> {
     if ex.fell {
         Some(StopReason::Fell { cycle })

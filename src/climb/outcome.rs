@@ -470,6 +470,14 @@ pub enum StopReason {
         /// What the fall check measured.
         fall: Check,
     },
+    /// A sole slid on its tread while the robot stood before a cycle's sweep: a check
+    /// violated outside an execution.
+    SlidStanding {
+        /// The cycle whose sweep it stood for (never run).
+        cycle: usize,
+        /// What the slip check measured.
+        slip: Check,
+    },
     /// The physics went wrong (a MuJoCo warning) during a cycle's execution.
     SimulationUnstable {
         /// The cycle.
@@ -499,6 +507,7 @@ impl StopReason {
             StopReason::SensorFailed { .. } => "sensor_failed",
             StopReason::Fell { .. } => "fell",
             StopReason::FellStanding { .. } => "fell_standing",
+            StopReason::SlidStanding { .. } => "slid_standing",
             StopReason::SimulationUnstable { .. } => "simulation_unstable",
             StopReason::StoppedByUser { .. } => "stopped_by_user",
             StopReason::CyclesExhausted { .. } => "cycles_exhausted",
@@ -516,6 +525,9 @@ impl fmt::Display for StopReason {
             StopReason::Fell { .. } => write!(f, "the robot fell"),
             StopReason::FellStanding { cycle, fall } => {
                 write!(f, "the robot fell while it stood before cycle {cycle}'s sweep: {fall}")
+            }
+            StopReason::SlidStanding { cycle, slip } => {
+                write!(f, "while the robot stood before cycle {cycle}'s sweep: {slip}")
             }
             StopReason::SimulationUnstable { warning, .. } => {
                 write!(f, "the simulation became unstable (MuJoCo warned {warning:?})")

@@ -5,7 +5,7 @@
 //! servos' set points.
 
 use super::admittance::{self, FootOffset};
-use super::attitude::{leaning, TiltFilter};
+use super::attitude::{leaning, BaseAcceleration, TiltFilter};
 use super::distribution::{DistributionError, Distributor, Support};
 use super::measurement::{FootSensor, Measurement, SoleWrench, GRAVITY_M_S2};
 use super::params::StabilizerParams;
@@ -82,6 +82,8 @@ pub struct Stabilizer<'m> {
     pressed_ticks: [usize; 2],
     q_est: Vec<f64>,
     tilt: TiltFilter,
+    /// The commanded base's acceleration, taken off the IMU's specific force for its tilt.
+    base_accel: BaseAcceleration,
     distributor: Distributor,
     record: TickRecord,
 }
@@ -131,6 +133,7 @@ impl<'m> Stabilizer<'m> {
             pressed_ticks: [0; 2],
             q_est: q0,
             tilt: TiltFilter::new(p.tilt_filter_time_s, p.tilt_accel_tolerance),
+            base_accel: BaseAcceleration::default(),
             distributor: Distributor::default(),
             record: TickRecord::default(),
         })
@@ -226,7 +229,9 @@ impl<'m> Stabilizer<'m> {
             held.translation.vector - self.estimate.frame_pose(self.soles[k]).translation.vector
         });
         let encoders = self.estimate.com() + shift;
-        self.tilt.update(&m.imu, dt_s);
+        let base = base_pose(&self.q_est);
+        let accel = self.base_accel.push(&Point3::from(base.translation.vector), dt_s);
+        self.tilt.update_moving(&m.imu, &accel, &base.rotation, dt_s);
         // The commanded base's orientation is in the plan's frame and the IMU's up is the
         // world's: with the robot's own estimate on, a tilt between the two frames (none
         // on level ground) would count as lean. Without a support (every foot seeking the

@@ -141,7 +141,7 @@ pub fn classify(
     }
     // A check violated fails the case whatever came after it: a refusal later on does not
     // undo a foot that pushed past the surface's friction on the way up.
-    if report.first_violation().is_some() {
+    if report.first_violation().is_some() || matches!(report.stop, Some(StopReason::SlidStanding { .. })) {
         return Verdict::CheckViolated;
     }
     let stopped_short =

@@ -4,17 +4,17 @@
 //! control rate (interpolated in between), from the robot's own sensors. [`SimRobot`] is the
 //! simulated HRP-4 as the closed loop's [`Executor`].
 
-use super::checks::{fall_check, Ids, Monitor};
+use super::checks::{fall_check, slip_check, Ids, Monitor};
 use super::params::{ServoParams, SimParams};
 use super::sensors::SimSensors;
 use super::world::{SimError, World};
 use crate::cancel::Cancel;
-use crate::climb::{ControlCost, Event, Execution, Executor, Observer, RobotState, Standing, Watch};
+use crate::climb::{Check, ControlCost, Event, Execution, Executor, Observer, RobotState, Standing, Watch};
 use crate::control::attitude::TiltFilter;
 use crate::control::Stabilizer;
 use crate::estimate::Odometry;
 use crate::planning::gait::Swing;
-use crate::planning::Plan;
+use crate::planning::{Foot, Plan};
 use crate::robot::hrp4;
 use crate::robot::model::{base_pose, set_base_pose, RobotModel, Q_JOINTS};
 use crate::scene::Scene;
@@ -222,8 +222,16 @@ pub fn execute_from(
         let max_torque_ratio = mon.joints(joints, |a| servos.demand_nm(world, a), |a| world.joint_qd(a), now);
         world.configuration_into(&mut q_now);
         let gyro_rad_s = gyro.imu(world).gyro_rad_s;
-        let state =
-            RobotState { q: &q_now, foot_forces_n: loads.force, margin_m, max_torque_ratio, gyro_rad_s };
+        // The attitude is the stabilizer's filter's (none runs without the stabilizer).
+        let up_base = control.as_ref().and_then(|c| c.stabilizer.tilt().up_base());
+        let state = RobotState {
+            q: &q_now,
+            foot_forces_n: loads.force,
+            margin_m,
+            max_torque_ratio,
+            gyro_rad_s,
+            up_base,
+        };
         observer.event(&Event::State { stamp_s: world.data().time(), state: &state });
         // The planned base carried into the world, where the fall is judged.
         let base = mon.plan_to_world * base_pose(&planned.q);
@@ -472,28 +480,59 @@ impl Executor for SimRobot<'_> {
         // The tilt filter fed at the stabilizer's rate.
         let period_s = 1.0 / self.params.stabilizer.rate_hz;
         let (mut since_s, dt) = (0.0, world.model().opt().timestep);
-        let (imu, tilt) = (&mut self.imu, &mut self.tilt);
+        let (imu, tilt, gyro, odometry) = (&mut self.imu, &mut self.tilt, &mut self.gyro, &mut self.odometry);
+        // The odometry follows the standing robot as it follows an execution: the gyro's turn
+        // and the IMU's tilt (the feet stay where they are: no anchor switches).
+        let (mut since_gyro_s, mut lost) = (None, None);
+        // Each sole's farthest slide from where it stood when the settle began.
+        let soles = [world.site_id(hrp4::R_SOLE)?, world.site_id(hrp4::L_SOLE)?];
+        let stood = soles.map(|s| world.site_pose(s).translation.vector);
+        let mut slid: Option<Check> = None;
+        let checks = &self.params.checks;
         let mut feed = |w: &World| {
+            for (k, foot) in [Foot::Right, Foot::Left].into_iter().enumerate() {
+                let at = w.site_pose(soles[k]).translation.vector;
+                if let Some(slip @ Check::Slip { slip_m, .. }) = slip_check(foot, &at, &stood[k], checks) {
+                    if !matches!(slid, Some(Check::Slip { slip_m: most, .. }) if most >= slip_m) {
+                        slid = Some(slip);
+                    }
+                }
+            }
             since_s += dt;
             if since_s >= period_s - dt / 2.0 {
                 tilt.update(&imu.read(w).imu, since_s);
                 since_s = 0.0;
+            }
+            if let Some(odo) = odometry.as_mut() {
+                let joints = &w.configuration()[Q_JOINTS..];
+                let up = tilt.up_base().map_or(Ok(()), |up| odo.level(joints, &up));
+                if let Err(error) = up.and_then(|()| odo.turn(joints, &gyro.imu(w).gyro_rad_s, since_gyro_s))
+                {
+                    lost.get_or_insert(error);
+                }
+                since_gyro_s = Some(dt);
             }
         };
         settle_watched(world, seconds, &mut feed);
         let run = &self.params.run;
         let max_s = (run.max_settle_s - seconds).max(0.0);
         settle_until_still_watched(world, run.still_speed_m_s, run.still_s, max_s, &mut feed);
+        if let Some(error) = lost {
+            return Err(error.into());
+        }
         // Judged as an execution's fall against the pose it stood in when the settle began,
         // and against upright (an execution ending part way down, within its plan's limits,
         // leaves a start pose that says nothing).
-        let checks = &self.params.checks;
         let qpos = world.data().qpos();
         let mut upright = start.clone();
         upright[3..7].copy_from_slice(&[1.0, 0.0, 0.0, 0.0]);
         let fall = fall_check(qpos, &start, start[2] - checks.fall_drop_m, checks)
             .or_else(|| fall_check(qpos, &upright, f64::NEG_INFINITY, checks));
-        Ok(fall.map_or(Standing::Upright, Standing::Fell))
+        Ok(match (fall, slid) {
+            (Some(fall), _) => Standing::Fell(fall),
+            (None, Some(slip)) => Standing::Slid(slip),
+            (None, None) => Standing::Upright,
+        })
     }
 
     fn execute(
@@ -532,8 +571,10 @@ impl Executor for SimRobot<'_> {
                 let joints = &state.q[Q_JOINTS..];
                 let since_last_s = last_s.map(|t| stamp_s - t);
                 last_s = Some(*stamp_s);
-                if let Err(error) =
-                    odo.turn(joints, &state.gyro_rad_s, since_last_s).and_then(|()| odo.update(joints, loads))
+                let up = state.up_base.map_or(Ok(()), |up| odo.level(joints, &up));
+                if let Err(error) = up
+                    .and_then(|()| odo.turn(joints, &state.gyro_rad_s, since_last_s))
+                    .and_then(|()| odo.update(joints, loads))
                 {
                     lost.get_or_insert(error);
                 }
@@ -585,6 +626,28 @@ mod tests {
             let integrated =
                 p.integral_gain_per_s * (q_ref0[Q_JOINTS + a] - world.data().qpos()[Q_JOINTS + a]) * dt;
             assert!((c - h - integrated).abs() < 1e-12, "actuator {a}: {c} after {h}");
+        }
+    }
+
+    /// On a slippery floor (friction 0.1), a robot that stands still stands upright; one set
+    /// moving forward at 0.3 m/s (the whole body, its feet with it) slides about 5 cm before
+    /// friction stops it: reported as a sole that slid while it stood, not as standing.
+    #[test]
+    fn a_sole_sliding_while_the_robot_stands_is_reported() {
+        let mut scenario = crate::scenario::Scenario::default();
+        scenario.room.floor_friction = 0.1;
+        let scene = Scene::from_scenario(&scenario).unwrap();
+        let model = hrp4::model().unwrap();
+        let world = RefCell::new(World::for_scene(&scene).unwrap());
+        let params = SimParams::default();
+        let mut robot = SimRobot::new(&world, &model, &scene, &params).unwrap();
+        assert_eq!(robot.settle(0.5).unwrap(), Standing::Upright);
+        world.borrow_mut().data_mut().qvel_mut()[0] = 0.3;
+        match robot.settle(0.5).unwrap() {
+            Standing::Slid(Check::Slip { slip_m, limit_m, .. }) => {
+                assert!(slip_m > 2.0 * limit_m, "{slip_m}")
+            }
+            other => panic!("{other:?}"),
         }
     }
 
