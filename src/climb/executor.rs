@@ -52,7 +52,8 @@ pub trait Executor {
     }
 
     /// Holds the current posture for at least `seconds` (the servos settle before a scan;
-    /// the simulated robot stands on until it is still); whether the robot stayed up.
+    /// the simulated robot stands on until it is still); whether the robot stayed up, and on
+    /// feet that did not slide.
     fn settle(&mut self, seconds: f64) -> Result<Standing, Self::Error>;
 
     /// Executes `plan` from the current state with every check; `observer` sees the state

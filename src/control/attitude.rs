@@ -6,9 +6,9 @@
 //! accelerations last. The base's own acceleration, where the motion knows it (the commanded
 //! base's, [`BaseAcceleration`]), is taken off the specific force first
 //! ([`TiltFilter::update_moving`]): a sideways shift of the CoM at 0.15 m/s^2 otherwise reads
-//! as 0.9 deg of tilt for as long as it lasts. An estimate that keeps the base at its commanded orientation misses
-//! what the body bends between its joints' set points and the ground (a compliant ankle,
-//! servos yielding under load); the IMU does not.
+//! as 0.9 deg of tilt for as long as it lasts. An estimate that keeps the base at its
+//! commanded orientation misses what the body bends between its joints' set points and the
+//! ground (a compliant ankle, servos yielding under load); the IMU does not.
 
 use super::measurement::{Imu, GRAVITY_M_S2};
 use nalgebra::{Point3, UnitQuaternion, Vector3};
