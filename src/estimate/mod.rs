@@ -15,8 +15,8 @@
 //! not level) is what the IMU's up differs by from the base's up through the legs:
 //! [`Odometry::level`] tilts the anchor by it, about the sole's origin, as a
 //! kinematic-inertial observer does (the legs give the base's position and heading, the IMU
-//! its tilt); without it a rock of half a degree moves the base 6 mm through the legs'
-//! 0.7 m, unseen. What else the anchor's foot does unseen (a slip, a compliant ankle)
+//! its tilt), where [`EstimateParams::imu_tilt`] has it (off by default, its doc says why);
+//! without it a rock of half a degree moves the base 6 mm through the legs' 0.7 m, unseen. What else the anchor's foot does unseen (a slip, a compliant ankle)
 //! becomes drift; the gravity the IMU measures levels each view's cloud
 //! ([`crate::sensor::assemble`]), and the step map's registration ([`Odometry::correct`])
 //! takes out what the views show.
