@@ -16,10 +16,11 @@
 //! [`Odometry::level`] tilts the anchor by it, about the sole's origin, as a
 //! kinematic-inertial observer does (the legs give the base's position and heading, the IMU
 //! its tilt), where [`EstimateParams::imu_tilt`] has it (off by default, its doc says why);
-//! without it a rock of half a degree moves the base 6 mm through the legs' 0.7 m, unseen. What else the anchor's foot does unseen (a slip, a compliant ankle)
-//! becomes drift; the gravity the IMU measures levels each view's cloud
-//! ([`crate::sensor::assemble`]), and the step map's registration ([`Odometry::correct`])
-//! takes out what the views show.
+//! without it a rock of half a degree moves the base 6 mm through the legs' 0.7 m, unseen.
+//! [`Odometry::follow`] takes both readings, as they come, while the robot moves or stands.
+//! What else the anchor's foot does unseen (a slip, a compliant ankle) becomes drift; the
+//! gravity the IMU measures levels each view's cloud ([`crate::sensor::assemble`]), and the
+//! step map's registration ([`Odometry::correct`]) takes out what the views show.
 //!
 //! MuJoCo-free: the simulated robot feeds it the encoders, the feet's loads and the gyro, a
 //! real robot would feed it the same.
@@ -62,11 +63,10 @@ pub struct EstimateParams {
     /// The anchor's sole tilts so the base's up through the legs is the IMU's
     /// ([`Odometry::level`]); `false` keeps it level while it stands (levelled at each
     /// switch), the legs alone giving the base's tilt. A loaded sole rocks on its edge under a
-    /// fast motion, which the encoders cannot see (at twice the quasi-static timing, half a
-    /// degree at the plans' ends). Default off: the planner takes the soles it starts from as
-    /// flat on their treads, and a plan made from a base tilted as the IMU has it (a sole's
-    /// compliance, the servos' sag) leaves the CoM 4-7 mm nearer its polygon's edge over
-    /// the `regressions` suite, more than the estimate gains at the default timing.
+    /// fast motion, which the encoders cannot see. Default off: the planner takes the soles it
+    /// starts from as flat on their treads, and a plan made from a base tilted as the IMU has
+    /// it (a sole's compliance, the servos' sag) brings the CoM nearer its polygon's edge by
+    /// more than the estimate gains at the default timing (measured: CHANGELOG, 2026-12-01).
     pub imu_tilt: bool,
 }
 
@@ -225,6 +225,22 @@ impl<'m> Odometry<'m> {
             self.anchor = Isometry3::from_parts(self.anchor.translation, tilt * self.anchor.rotation);
         }
         Ok(())
+    }
+
+    /// The IMU's readings at one instant, the encoders reading `joints`: its attitude's up,
+    /// where its filter has one ([`Odometry::level`]), then its gyro ([`Odometry::turn`],
+    /// `since_last_s` after the series' last reading).
+    pub fn follow(
+        &mut self,
+        joints: &[f64],
+        up_base: Option<&Vector3<f64>>,
+        gyro_rad_s: &Vector3<f64>,
+        since_last_s: Option<f64>,
+    ) -> Result<(), RobotError> {
+        if let Some(up) = up_base {
+            self.level(joints, up)?;
+        }
+        self.turn(joints, gyro_rad_s, since_last_s)
     }
 
     /// A reading of the gyro while the robot stands still: what it reads then is its bias

@@ -505,9 +505,8 @@ impl Executor for SimRobot<'_> {
             }
             if let Some(odo) = odometry.as_mut() {
                 let joints = &w.configuration()[Q_JOINTS..];
-                let up = tilt.up_base().map_or(Ok(()), |up| odo.level(joints, &up));
-                if let Err(error) = up.and_then(|()| odo.turn(joints, &gyro.imu(w).gyro_rad_s, since_gyro_s))
-                {
+                let up = tilt.up_base();
+                if let Err(error) = odo.follow(joints, up.as_ref(), &gyro.imu(w).gyro_rad_s, since_gyro_s) {
                     lost.get_or_insert(error);
                 }
                 since_gyro_s = Some(dt);
@@ -571,9 +570,8 @@ impl Executor for SimRobot<'_> {
                 let joints = &state.q[Q_JOINTS..];
                 let since_last_s = last_s.map(|t| stamp_s - t);
                 last_s = Some(*stamp_s);
-                let up = state.up_base.map_or(Ok(()), |up| odo.level(joints, &up));
-                if let Err(error) = up
-                    .and_then(|()| odo.turn(joints, &state.gyro_rad_s, since_last_s))
+                if let Err(error) = odo
+                    .follow(joints, state.up_base.as_ref(), &state.gyro_rad_s, since_last_s)
                     .and_then(|()| odo.update(joints, loads))
                 {
                     lost.get_or_insert(error);
