@@ -534,3 +534,45 @@ fn the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole() {
         turned.stop
     );
 }
+
+/// A plan ends at rest; the body does not: it lags the plan's last weight shift. The
+/// stabilizer holds the plan's last instant until the base is still, so the servos take
+/// over a still body and the stand before the next sweep starts still (regression
+/// `a-plan-ending-mid-sway-slid-a-sole`); with the hold off, the same plan leaves the body
+/// moving when it hands over.
+#[test]
+fn the_stabilizer_hands_the_servos_a_still_body_at_the_plans_end() {
+    let still = ClimbParams::default().run;
+    let execute_with = |max_end_hold_s: f64| {
+        let (scene, model, mut world, q0) = settled_exp1();
+        let rects = step_tops_moved(&scene, Vector3::zeros());
+        let plan = PlanParams::quasi_static().faster(2.0);
+        let planned = PlanRequest::new(&model, &q0, &rects, &plan).max_stances(Some(3)).climb().unwrap();
+        let mut p = ClimbParams { plan, ..ClimbParams::default() };
+        p.stabilizer.max_end_hold_s = max_end_hold_s;
+        let ex =
+            execute(&mut world, &model, &scene, &planned, &p.sim(), &mut Nobody, &Cancel::never()).unwrap();
+        let speed_m_s = world.data().qvel()[..3].iter().map(|v| v * v).sum::<f64>().sqrt();
+        println!(
+            "end hold {max_end_hold_s} s: executed {:.3} s of a {:.3} s plan, base at {speed_m_s:.4} m/s, violations {:?}",
+            ex.sim_s,
+            planned.duration_s(),
+            ex.violations
+        );
+        assert!(ex.pass(), "{:?}", ex.violations);
+        (ex.sim_s, speed_m_s)
+    };
+    let (cut_s, cut_speed_m_s) = execute_with(0.0);
+    assert!(
+        cut_speed_m_s > still.still_speed_m_s,
+        "cut at the plan's end the body is still moving: {cut_speed_m_s}"
+    );
+    let max_end_hold_s = StabilizerParams::default().max_end_hold_s;
+    let (executed_s, speed_m_s) = execute_with(max_end_hold_s);
+    assert!(speed_m_s <= still.still_speed_m_s, "held, the body is handed over still: {speed_m_s} m/s");
+    let held_s = executed_s - cut_s;
+    assert!(
+        held_s >= still.still_s && held_s < max_end_hold_s,
+        "held {held_s} s: still for still_s, short of the limit"
+    );
+}

@@ -87,6 +87,14 @@ pub struct StabilizerParams {
     /// Longest the plan may wait, over a whole plan, for feet that should be down and have
     /// not met the ground yet, seconds (the CoM is held meanwhile).
     pub max_hold_s: f64,
+    /// Longest the stabilizer holds the plan's last instant after the plan's clock has ended,
+    /// for the body to come still (its base no faster than `RunParams::still_speed_m_s` for
+    /// `RunParams::still_s`), seconds. The plan ends at rest, the body does not: it lags the
+    /// last weight shift (0.22 m/s sideways at the end of a step-up's plan on a long flight,
+    /// `ci-0071`), and cut there, its sway went on under the servos alone, sliding a sole
+    /// (regression `a-plan-ending-mid-sway-slid-a-sole`). A real robot's stabilizer runs
+    /// on; so does this one, until the body is still.
+    pub max_end_hold_s: f64,
     /// How far below its planned height a late foot may seek the ground, metres.
     pub max_seek_m: f64,
     /// Time constant of the IMU's tilt filter, seconds ([`super::attitude::TiltFilter`]):
@@ -147,6 +155,7 @@ impl Default for StabilizerParams {
             approach_height_m: 0.01,
             approach_speed_m_s: 0.025,
             max_hold_s: 2.0,
+            max_end_hold_s: 2.0,
             max_seek_m: 0.03,
             tilt_filter_time_s: 2.0,
             tilt_accel_tolerance: 0.1,

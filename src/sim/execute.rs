@@ -9,7 +9,9 @@ use super::params::{ServoParams, SimParams};
 use super::sensors::SimSensors;
 use super::world::{SimError, World};
 use crate::cancel::Cancel;
-use crate::climb::{Check, ControlCost, Event, Execution, Executor, Observer, RobotState, Standing, Watch};
+use crate::climb::{
+    Check, ControlCost, Event, Execution, Executor, Observer, RobotState, RunParams, Standing, Watch,
+};
 use crate::control::attitude::TiltFilter;
 use crate::control::Stabilizer;
 use crate::estimate::Odometry;
@@ -158,9 +160,16 @@ pub fn execute_from(
         false => None,
     };
     // Physics steps until the plan's clock reaches its end: with the stabilizer, that clock
-    // may wait for a late foot (at most its `max_hold_s`), so the steps are counted on it.
+    // may wait for a late foot (at most its `max_hold_s`), so the steps are counted on it;
+    // then the stabilizer holds the plan's last instant until the body is still (at most
+    // its `max_end_hold_s`).
     let steps = (traj.duration_s() / dt).round() as usize;
-    let last_step = steps + (params.stabilizer.max_hold_s / dt).ceil() as usize + 1;
+    let end_s = steps as f64 * dt;
+    let stabilized = control.is_some();
+    let held_steps =
+        if stabilized { params.stabilizer.max_hold_s + params.stabilizer.max_end_hold_s } else { 0.0 };
+    let last_step = steps + (held_steps / dt).ceil() as usize + 1;
+    let mut end_hold = EndHold::default();
     let mut q_now = Vec::new();
     // The gyro as the robot's estimate reads it at every physics step.
     let mut fresh = None;
@@ -180,7 +189,9 @@ pub fn execute_from(
                 k as f64 * dt
             }
         };
-        if t > steps as f64 * dt + dt / 2.0 {
+        if t > end_s + dt / 2.0
+            && (!stabilized || end_hold.done(world, dt, &params.run, params.stabilizer.max_end_hold_s))
+        {
             break;
         }
         servos.command(world, &q, dt);
@@ -259,6 +270,29 @@ pub fn execute_from(
         mon.ex.control = Some(ControlCost { ticks: c.ticks, wall_s: c.wall_s });
     }
     Ok(mon.ex)
+}
+
+/// The stabilizer's hold of the plan's last instant, after the plan's clock has ended.
+#[derive(Debug, Default)]
+struct EndHold {
+    /// Seconds held so far, and of them, the last ones the base was still.
+    held_s: f64,
+    still_s: f64,
+}
+
+impl EndHold {
+    /// Whether the hold is over before the next physics step of `dt_s`: the base still for
+    /// `run.still_s` (no faster than `run.still_speed_m_s`), or `max_s` held.
+    fn done(&mut self, world: &World, dt_s: f64, run: &RunParams, max_s: f64) -> bool {
+        if self.held_s > 0.0 {
+            self.still_s =
+                if base_speed_m_s(world) > run.still_speed_m_s { 0.0 } else { self.still_s + dt_s };
+        }
+        let done = self.still_s + dt_s / 2.0 >= run.still_s || self.held_s + dt_s / 2.0 >= max_s;
+
+        self.held_s += dt_s;
+        done
+    }
 }
 
 /// The stabilizer in the physics loop: its ticks at its own rate, the set points
