@@ -57,6 +57,8 @@ pub struct RunParams {
     pub still_speed_m_s: f64,
     /// How long the base must stay under `still_speed_m_s`, seconds (a sway's turning point
     /// is slow for an instant: a plan started there, the robot tipping, failed at once).
+    /// The two also end the stabilizer's hold of a plan's last instant
+    /// (`StabilizerParams::max_end_hold_s`).
     pub still_s: f64,
     /// Longest stand before a scan, seconds.
     pub max_settle_s: f64,

@@ -379,7 +379,8 @@ impl fmt::Display for Check {
 /// A violated check at an instant.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Violation {
-    /// Time from the start of the execution (the plan's clock), seconds.
+    /// Time from the start of the execution (the simulation's clock: past the plan's
+    /// duration while a late foot is waited for or the plan's end is held), seconds.
     pub t_s: f64,
     /// The loop's cycle (1-based; 0 for an execution outside the loop).
     pub cycle: usize,

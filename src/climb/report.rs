@@ -135,8 +135,9 @@ impl ClimbReport {
     }
 
     /// Simulated seconds of motion per stair: the mean execution time of the cycles that
-    /// went up onto a step (each plans one stance a scan by default), without the standing
-    /// still before each scan and the sweep; `None` when no cycle went up.
+    /// went up onto a step (each plans one stance a scan by default), the stabilizer's hold
+    /// of the plan's end until the body is still counted, without the standing still before
+    /// each scan and the sweep; `None` when no cycle went up.
     pub fn seconds_per_stair(&self) -> Option<f64> {
         let mut below = Footing::Floor;
         let ups: Vec<f64> = self

@@ -93,7 +93,9 @@ pub struct StabilizerParams {
     /// last weight shift (0.22 m/s sideways at the end of a step-up's plan on a long flight,
     /// `ci-0071`), and cut there, its sway went on under the servos alone, sliding a sole
     /// (regression `a-plan-ending-mid-sway-slid-a-sole`). A real robot's stabilizer runs
-    /// on; so does this one, until the body is still.
+    /// on; so does this one, until the body is still. Still is judged as the stand judges
+    /// it, by the bench on the simulator's base speed (its linear speed only), not by the
+    /// robot's sensors.
     pub max_end_hold_s: f64,
     /// How far below its planned height a late foot may seek the ground, metres.
     pub max_seek_m: f64,

@@ -275,8 +275,9 @@ pub fn execute_from(
 /// The stabilizer's hold of the plan's last instant, after the plan's clock has ended.
 #[derive(Debug, Default)]
 struct EndHold {
-    /// Seconds held so far, and of them, the last ones the base was still.
+    /// Seconds held so far.
     held_s: f64,
+    /// Of them, the last ones the base was still.
     still_s: f64,
 }
 
