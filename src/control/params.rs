@@ -90,9 +90,8 @@ pub struct StabilizerParams {
     /// Longest the stabilizer holds the plan's last instant after the plan's clock has ended,
     /// for the body to come still (its base no faster than `RunParams::still_speed_m_s` for
     /// `RunParams::still_s`), seconds. The plan ends at rest, the body does not: it lags the
-    /// last weight shift (0.22 m/s sideways at the end of a step-up's plan on a long flight,
-    /// `ci-0071`), and cut there, its sway went on under the servos alone, sliding a sole
-    /// (regression `a-plan-ending-mid-sway-slid-a-sole`). A real robot's stabilizer runs
+    /// last weight shift, and cut there, its sway goes on under the servos alone and can
+    /// slide a sole (regression `a-plan-ending-mid-sway-slid-a-sole`). A real robot's stabilizer runs
     /// on; so does this one, until the body is still. Still is judged as the stand judges
     /// it, by the bench on the simulator's base speed (its linear speed only), not by the
     /// robot's sensors.
