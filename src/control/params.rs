@@ -91,10 +91,10 @@ pub struct StabilizerParams {
     /// for the body to come still (its base no faster than `RunParams::still_speed_m_s` for
     /// `RunParams::still_s`), seconds. The plan ends at rest, the body does not: it lags the
     /// last weight shift, and cut there, its sway goes on under the servos alone and can
-    /// slide a sole (regression `a-plan-ending-mid-sway-slid-a-sole`). A real robot's stabilizer runs
-    /// on; so does this one, until the body is still. Still is judged as the stand judges
-    /// it, by the bench on the simulator's base speed (its linear speed only), not by the
-    /// robot's sensors.
+    /// slide a sole (regression `a-plan-ending-mid-sway-slid-a-sole`). A real robot's
+    /// stabilizer runs on; so does this one, until the body is still. Still is judged as the
+    /// stand judges it, by the bench on the simulator's base speed (its linear speed only),
+    /// not by the robot's sensors.
     pub max_end_hold_s: f64,
     /// How far below its planned height a late foot may seek the ground, metres.
     pub max_seek_m: f64,
