@@ -290,7 +290,6 @@ impl EndHold {
                 if base_speed_m_s(world) > run.still_speed_m_s { 0.0 } else { self.still_s + dt_s };
         }
         let done = self.still_s + dt_s / 2.0 >= run.still_s || self.held_s + dt_s / 2.0 >= max_s;
-
         self.held_s += dt_s;
         done
     }
