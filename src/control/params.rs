@@ -73,14 +73,7 @@ pub struct StabilizerParams {
     pub touchdown_window: f64,
     /// Height above its planned landing from which a swinging foot descends no faster than
     /// `approach_speed_m_s`, metres (a ground a little higher than perceived is met slowly,
-    /// not at the swing's speed). It must cover how far below the plan's the sole really
-    /// hangs, and the servos' lag at the descent's speed: in a body unlike its model
-    /// (`real-0071` in an `hrp4-like` body at x 2) the swinging sole hung 4.5 mm below the
-    /// plan's and rolled 0.044 rad, the plan's level (its edge 2.9 mm lower still), and the
-    /// foot, coming down at 0.22 m/s, covers about 3 mm in the lag: a 1 cm approach began
-    /// too late and the edge struck the floor at the swing's speed (tangential 0.82 of the
-    /// normal force; regression `a-sole-hanging-low-struck-at-the-swings-speed`). 1.5 cm
-    /// leaves about 4 mm over those 10.5 mm, for 0.2 s more a swing.
+    /// not at the swing's speed).
     pub approach_height_m: f64,
     /// Largest descent speed in the approach, m/s; a foot whose swing ends before it meets
     /// the ground goes on down at this speed. The servos lag their set points, so when the
@@ -160,7 +153,7 @@ impl Default for StabilizerParams {
             landing_admittance_m_per_n_s: 1e-3,
             touchdown_ticks: 1,
             touchdown_window: 0.0,
-            approach_height_m: 0.015,
+            approach_height_m: 0.01,
             approach_speed_m_s: 0.025,
             max_hold_s: 2.0,
             max_end_hold_s: 2.0,
