@@ -250,14 +250,14 @@ fn the_speed_margin_is_measured_and_its_edge_names_a_check() {
 
 /// The plan's timing three times the quasi-static one (1.5 times the default) climbs Exp. 1
 /// clean with the CoM's acceleration bound by the ZMP shift it may ask
-/// (`StepParams::max_zmp_shift_m` at `ZMP_SHIFT_M`). With the speed bound alone (the
-/// default), the first sideways shift (10 cm in 0.56 s) pushes the unloading right foot out of
-/// its friction cone at t = 1.4 s, and the robot falls.
+/// (`StepParams::max_zmp_shift_m`, its default `ZMP_SHIFT_M`). With the speed bound alone,
+/// the first sideways shift (10 cm in 0.56 s) pushes the unloading right foot out of its
+/// friction cone at t = 1.4 s, and the robot falls.
 #[test]
 fn a_climb_three_times_the_quasi_static_timing_keeps_every_check() {
-    use stairbench::planning::gait::{StepParams, ZMP_SHIFT_M};
-    let step = StepParams { max_zmp_shift_m: ZMP_SHIFT_M, ..StepParams::quasi_static() };
-    let plan = PlanParams { step, ..PlanParams::quasi_static() }.faster(3.0);
+    use stairbench::planning::gait::ZMP_SHIFT_M;
+    let plan = PlanParams::quasi_static().faster(3.0);
+    assert_eq!(plan.step.max_zmp_shift_m, ZMP_SHIFT_M);
     let p = ClimbParams { plan, ..ClimbParams::default() };
     let r = climb(&Scenario::default(), &p);
     assert_climbed(&r, &Scenario::default(), &p.checks);
@@ -375,7 +375,7 @@ fn standing_heights(s: &Scenario, p: &ClimbParams) -> (Vec<f64>, ClimbReport) {
 }
 
 /// Every plan takes the CoM to half-sitting's height above the soles, whatever height it
-/// starts from: a flight climbed at the default timing (x 1.5 the quasi-static), whose
+/// starts from: a flight climbed at the default timing (x 2 the quasi-static), whose
 /// executions ended each step a little higher than planned, starts every plan near standing
 /// height and climbs to the top. Before,
 /// each plan took its height from its start, the offset grew step after step, and on `ci-0030`

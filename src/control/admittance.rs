@@ -248,7 +248,7 @@ mod tests {
         let p = StabilizerParams::default();
         let dt = 0.005;
         let (side, none) = (Vector3::new(20.0, 0.0, 0.0), Vector3::zeros());
-        // In the air: down, slower than the approach, no sideways yield to a reading of noise.
+        // In the air: down, no faster than the approach ends, no sideways yield to noise.
         let mut off = FootOffset::default();
         landing(&mut off, &side, &none, [0.0, p.landing_preload_n], &p, dt);
         let z = off.translation_m.z;

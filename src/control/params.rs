@@ -61,8 +61,13 @@ pub struct StabilizerParams {
     /// before the distribution gives it weight (see [`super::admittance::landing`]).
     pub landing_preload_n: f64,
     /// A landed foot's height rate per newton of normal force error until it carries
-    /// `contact_force_n`, m/(N s), at most `approach_speed_m_s`: 1e-3 closes a 15 N error
-    /// at 15 mm/s and slows as the force comes.
+    /// `contact_force_n`, m/(N s), at most `approach_speed_m_s`. Default
+    /// `approach_speed_m_s / landing_preload_n` (1.67e-3): a foot that reads nothing goes on
+    /// down as fast as the approach would have at its end, slowing as the force comes. A
+    /// touch can be read in the air, from the foot's own inertia as its descent slows (at
+    /// x 2 Exp. 1's right foot read 12.5 N for a tick 6 mm above the floor): at 1e-3 (15
+    /// mm/s) that foot hung light 0.35 s before it met the floor, at 1.67e-3 0.23 s (test
+    /// `a_landed_foot_stays_on_the_ground_until_its_weight_comes`).
     pub landing_admittance_m_per_n_s: f64,
     /// Consecutive ticks the force must stay above `touchdown_force_n`. One tick of force can
     /// be the foot's own inertia as the approach slows its descent (at x 2 speed that reads
@@ -73,17 +78,37 @@ pub struct StabilizerParams {
     pub touchdown_window: f64,
     /// Height above its planned landing from which a swinging foot descends no faster than
     /// `approach_speed_m_s`, metres (a ground a little higher than perceived is met slowly,
-    /// not at the swing's speed).
+    /// not at the swing's speed). It must cover how far below the plan's the sole really
+    /// hangs, and the servos' lag at the descent's speed: in a body unlike its model
+    /// (`real-0071` in an `hrp4-like` body at x 2) the swinging sole hung 4.5 mm below the
+    /// plan's and rolled 0.044 rad, the plan's level (its edge 2.9 mm lower still), and the
+    /// foot, coming down at 0.22 m/s, covers about 3 mm in the lag: a 1 cm approach began
+    /// too late and the edge struck the floor at the swing's speed (tangential 0.82 of the
+    /// normal force; regression `a-sole-hanging-low-struck-at-the-swings-speed`). 1.5 cm
+    /// leaves about 4 mm over those 10.5 mm; the approach's speed falls over it (see
+    /// `approach_entry_speed_m_s`) to keep its time short.
     pub approach_height_m: f64,
-    /// Largest descent speed in the approach, m/s; a foot whose swing ends before it meets
-    /// the ground goes on down at this speed. The servos lag their set points, so when the
+    /// Descent speed at the planned landing height and below it, m/s: where the approach
+    /// ends, and how fast a foot whose swing ends before it meets the ground goes on down
+    /// (and a landed or pressed foot at most). The servos lag their set points, so when the
     /// sole meets the ground its set point is already below it by this speed times the lag,
     /// and the leg's stiffness pushes that overshoot into the ground along the leg, not
     /// straight down: for a tick or two the landed foot carries 20-35 N normal with up to
     /// 16-30 N tangential. At 0.05 m/s those impacts were the climbs' largest friction
     /// ratios (Exp. 1 seeds 0-19 up to 0.37, Exp. 2 seeds 0-9 0.41, the 24 cm step's seed 9
-    /// 0.48); at 0.025 m/s they stay under 0.28 everywhere, for 2-6 % more climbing time.
+    /// 0.48); at 0.025 m/s they stayed under 0.28 everywhere. A constant 0.0375 m/s over
+    /// the whole approach landed Exp. 1's first foot hard enough to bounce (0.42 s light
+    /// after its touch, test `a_landed_foot_stays_on_the_ground_until_its_weight_comes`).
     pub approach_speed_m_s: f64,
+    /// Descent speed where the approach begins, `approach_height_m` above the planned
+    /// landing, m/s; the speed falls linearly with the height to `approach_speed_m_s` at
+    /// the planned landing, so a ground where perceived is met as slowly as before and the
+    /// approach takes `h / (v1 - v0) ln(v1 / v0)`. The approach is time in single support,
+    /// in which a soft ankle lets the body roll out over its sole: on the soft-ankle test's
+    /// body (500 N m/rad, x 1.33 the quasi-static timing) constant-speed approaches of
+    /// 0.4 s (1 cm at 0.025 m/s, 1.5 cm at 0.0375 m/s) climbed, and of 0.5-0.8 s (1.25 cm
+    /// at 0.025, 1.5 cm at 0.03, 2 cm at 0.025) fell. 0.05 m/s: 1.5 cm in 0.42 s.
+    pub approach_entry_speed_m_s: f64,
     /// Longest the plan may wait, over a whole plan, for feet that should be down and have
     /// not met the ground yet, seconds (the CoM is held meanwhile).
     pub max_hold_s: f64,
@@ -150,11 +175,12 @@ impl Default for StabilizerParams {
             contact_force_n: 30.0,
             touchdown_force_n: 10.0,
             landing_preload_n: 15.0,
-            landing_admittance_m_per_n_s: 1e-3,
+            landing_admittance_m_per_n_s: 0.025 / 15.0,
             touchdown_ticks: 1,
             touchdown_window: 0.0,
-            approach_height_m: 0.01,
+            approach_height_m: 0.015,
             approach_speed_m_s: 0.025,
+            approach_entry_speed_m_s: 0.05,
             max_hold_s: 2.0,
             max_end_hold_s: 2.0,
             max_seek_m: 0.03,
@@ -162,5 +188,49 @@ impl Default for StabilizerParams {
             tilt_accel_tolerance: 0.1,
             lean_follow_rate_per_s: -0.3,
         }
+    }
+}
+
+impl StabilizerParams {
+    /// The approach's descent speed at `height_m` above the planned landing, m/s: from
+    /// `approach_entry_speed_m_s` at `approach_height_m` falling linearly to
+    /// `approach_speed_m_s` at the landing (and that below it).
+    pub fn approach_speed_at(&self, height_m: f64) -> f64 {
+        let share = if self.approach_height_m > 0.0 {
+            (height_m / self.approach_height_m).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        self.approach_speed_m_s + share * (self.approach_entry_speed_m_s - self.approach_speed_m_s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The approach slows from its entry speed to its landing speed, lands no faster than
+    /// `approach_speed_m_s`, and its 1.5 cm (from a swing that would end there) take about
+    /// 0.42 s, the single support a soft ankle stands (see `approach_entry_speed_m_s`).
+    #[test]
+    fn the_approach_slows_to_its_landing_speed_in_about_0_42_s() {
+        let p = StabilizerParams::default();
+        assert_eq!(p.approach_speed_at(p.approach_height_m), p.approach_entry_speed_m_s);
+        assert_eq!(p.approach_speed_at(1.0), p.approach_entry_speed_m_s);
+        assert_eq!(p.approach_speed_at(0.0), p.approach_speed_m_s);
+        assert_eq!(p.approach_speed_at(-0.01), p.approach_speed_m_s);
+        let (mut z, mut t, dt) = (p.approach_height_m, 0.0, 1e-4);
+        let mut last = f64::INFINITY;
+        while z > 0.0 {
+            let v = p.approach_speed_at(z);
+            assert!(v <= last && v >= p.approach_speed_m_s);
+            last = v;
+            z -= v * dt;
+            t += dt;
+        }
+        let (v0, v1) = (p.approach_speed_m_s, p.approach_entry_speed_m_s);
+        let closed = p.approach_height_m / (v1 - v0) * (v1 / v0).ln();
+        assert!((t - closed).abs() < 1e-3, "{t} against {closed}");
+        assert!((0.40..=0.43).contains(&t), "{t}");
     }
 }

@@ -307,16 +307,18 @@ impl<'m> Stabilizer<'m> {
                 None => {
                     let (mut target, mut twist) = (self.lifted[k].scaled(1.0 - tau).apply(&pose), twist);
                     // The approach: the last `approach_height_m` above the planned height at
-                    // no more than `approach_speed_m_s`, on below it to meet a lower ground.
+                    // no more than the approach's speed there, on below it to meet a lower
+                    // ground.
                     let final_z = last.translation.z;
                     let z = target.translation.z;
                     if tau >= descent && (z - final_z < self.p.approach_height_m || self.approach_z.is_some())
                     {
-                        let slowest = self.approach_z.map_or(z, |a| a - self.p.approach_speed_m_s * dt);
+                        let speed = self.p.approach_speed_at(self.approach_z.unwrap_or(z) - final_z);
+                        let slowest = self.approach_z.map_or(z, |a| a - speed * dt);
                         let lowest = final_z - self.p.max_seek_m;
                         let next = if tau >= 1.0 { slowest.max(lowest) } else { slowest.max(z) };
                         if next > z || tau >= 1.0 {
-                            twist[2] = -self.p.approach_speed_m_s;
+                            twist[2] = -speed;
                         }
                         target.translation.z = next;
                         self.approach_z = Some(next);

@@ -66,7 +66,8 @@ pub struct EstimateParams {
     /// fast motion, which the encoders cannot see. Default off: the planner takes the soles it
     /// starts from as flat on their treads, and a plan made from a base tilted as the IMU has
     /// it (a sole's compliance, the servos' sag) brings the CoM nearer its polygon's edge by
-    /// more than the estimate gains at the default timing (measured: CHANGELOG, 2026-12-01).
+    /// more than the estimate gains at the default timing (measured at x 1.5 the quasi-static,
+    /// then the default: CHANGELOG, 2026-12-01).
     pub imu_tilt: bool,
 }
 
