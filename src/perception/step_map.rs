@@ -116,7 +116,7 @@ impl StepMap {
             .filter(|s| {
                 let along = ascent.unwrap_or(s.along());
                 width_across_m(s, &along) >= p.min_width_m
-                    && !treads.iter().any(|t| stands_on(s, t, &along, p.max_overlap_m))
+                    && !treads.iter().any(|t| stands_on(s, t, &along, p))
             })
             .collect();
         self.known = merge(&self.known, seen, p);
@@ -306,13 +306,17 @@ impl StepMap {
 }
 
 /// Whether `s` lies over the lower tread `t` by more than `max_overlap_m` along `along`
-/// (and overlaps it across): something standing on that tread. Along the ascent each
-/// rectangle reaches its depth about its middle, whatever its turn: a wide tread read turned
-/// reaches past its true edges at its corners by half its width times the turn's sine (a
-/// 1.39 m top landing read 3.7 deg turned, 4.5 cm at each end), and by its corners the next
-/// tread up stood 8 cm over the one below, was taken for an object on it and left out of
-/// the map (regression `a-turned-view-of-the-top-landing-taken-for-an-object`).
-fn stands_on(s: &PlaneSegment, t: &PlaneSegment, along: &nalgebra::Vector3<f64>, max_overlap_m: f64) -> bool {
+/// (and overlaps it across): something standing on that tread. Along the ascent a
+/// rectangle lying along it (within `max_view_turn_rad`) reaches its depth about its
+/// middle, whatever its small turn: a wide tread read turned reaches past its true edges at
+/// its corners by half its width times the turn's sine (a 1.39 m top landing read 3.7 deg
+/// turned against the tread below, 4.5 cm at each end), and by the corners the next tread
+/// up stood 11.9 cm over the one below, was taken for an object on it and left out of the
+/// map (regression `a-turned-view-of-the-top-landing-taken-for-an-object`). A rectangle
+/// turned farther is no view of a tread of this flight (a piece of one beside a bag, its
+/// axes misread, regression `lanes-at-the-limit-refused-on-the-flight`; [`merge_view`]
+/// takes no edges from it either): its corners are all that is known of its reach.
+fn stands_on(s: &PlaneSegment, t: &PlaneSegment, along: &nalgebra::Vector3<f64>, p: &StepMapParams) -> bool {
     if t.height_m() > s.height_m() - STANDING_ABOVE_M {
         return false;
     }
@@ -321,12 +325,18 @@ fn stands_on(s: &PlaneSegment, t: &PlaneSegment, along: &nalgebra::Vector3<f64>,
         let v: Vec<f64> = r.corners().iter().map(|c| c.coords.dot(d)).collect();
         (v.iter().copied().fold(f64::INFINITY, f64::min), v.iter().copied().fold(f64::NEG_INFINITY, f64::max))
     };
-    let by_depth = |r: &PlaneSegment| {
-        let (middle, half) = (r.center().coords.dot(along), axis_nearest(r, along).depth_m() / 2.0);
-        (middle - half, middle + half)
+    let reach = |r: &PlaneSegment| {
+        let r = axis_nearest(r, along);
+        match r.along().dot(along) >= p.max_view_turn_rad.cos() {
+            true => {
+                let (middle, half) = (r.center().coords.dot(along), r.depth_m() / 2.0);
+                (middle - half, middle + half)
+            }
+            false => by_corners(&r, along),
+        }
     };
     let overlap = |(a0, a1): (f64, f64), (b0, b1): (f64, f64)| a1.min(b1) - a0.max(b0);
-    overlap(by_depth(s), by_depth(t)) > max_overlap_m
+    overlap(reach(s), reach(t)) > p.max_overlap_m
         && overlap(by_corners(s, &across), by_corners(t, &across)) > 0.0
 }
 
@@ -803,6 +813,29 @@ mod tests {
         let mut map = StepMap { known: vec![below] };
         map.update(vec![parcel], &p);
         assert_eq!(map.known.len(), 1, "a parcel on the tread is not a step");
+    }
+
+    /// A rectangle turned farther from the ascent than `max_view_turn_rad` is no view of a
+    /// tread of the flight, and its corners are its reach: two pieces of treads beside a bag
+    /// (`lanes-at-the-limit-refused-on-the-flight`'s second view, their axes misread 24 deg
+    /// off a flight yawed 11.7 deg) stand one on the other and the upper is left out, as
+    /// before; by their depths about their middles both stayed, and the plan refused the
+    /// flight as not straight.
+    #[test]
+    fn a_piece_turned_beyond_a_view_of_the_flight_is_judged_by_its_corners() {
+        let p = StepMapParams::default();
+        let ascent = Vector3::new(0.97931, 0.20236, 0.0);
+        let flight = level(Point3::new(2.1790, 0.5608, 0.675), ascent, 0.353, 0.946, 591);
+        let misread = Vector3::new(-0.59299, 0.80521, 0.0);
+        let lower = level(Point3::new(1.6277, 0.0177, 0.328), misread, 0.350, 0.312, 125);
+        let upper = level(Point3::new(1.9291, 0.0436, 0.503), misread, 0.307, 0.322, 79);
+        let mut map = StepMap { known: vec![flight] };
+        map.update(vec![lower, upper], &p);
+        assert_eq!(map.known.len(), 2, "{:?}", map.known);
+        assert!(
+            !map.known.iter().any(|k| (k.height_m() - 0.503).abs() < 1e-9),
+            "the upper piece is left out"
+        );
     }
 
     #[test]
