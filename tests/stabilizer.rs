@@ -405,9 +405,11 @@ fn time_light_after_touchdown_s(ticks: &[(f64, TickRecord)], light_n: f64, loade
 /// was still on the other foot (ci case 157: 0-7 N for 0.9-1.0 s at every right touchdown),
 /// and the press that then set it down was a second impact (41 N normal with 22 N
 /// tangential). Exp. 1's first three stances on the true steps, every landing: at most
-/// 0.35 s under half the touchdown force before the foot carries the contact force (the
-/// touch can be read a tick early, up to 3 mm above the tread: the landing law meets it in
-/// about 0.25 s; held there, the foot read nothing for 0.85 s).
+/// 0.3 s under half the touchdown force before the foot carries the contact force (the
+/// touch can be read a tick early, from the foot's own inertia as its descent slows, up to
+/// 6 mm above the tread at x 2: the landing law, going down at the approach's landing speed
+/// while it reads nothing, meets the tread in about 0.25 s; at 15 mm/s it took 0.35 s;
+/// held there, the foot read nothing for 0.85 s).
 #[test]
 fn a_landed_foot_stays_on_the_ground_until_its_weight_comes() {
     use stairbench::climb::{Event, Watch};
@@ -431,7 +433,7 @@ fn a_landed_foot_stays_on_the_ground_until_its_weight_comes() {
     );
     println!("seconds light after each touchdown: {light:?}");
     assert!(light.len() >= 2, "the plan's swings landed: {light:?}");
-    assert!(light.iter().all(|&s| s <= 0.35), "{light:?}");
+    assert!(light.iter().all(|&s| s <= 0.3), "{light:?}");
 }
 
 /// A step 1.5 cm lower than perceived: the swing ends in the air; the foot goes on down to

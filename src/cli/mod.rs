@@ -52,6 +52,7 @@ pub fn climb_params(path: Option<&Path>) -> Result<stairbench::params::ClimbPara
     let params: stairbench::params::ClimbParams =
         toml::from_str(&text).with_context(|| format!("{}: not climb parameters", p.display()))?;
     params.plan.step.validate().map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
+    params.stabilizer.validate().map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
     Ok(params)
 }
 

@@ -248,11 +248,11 @@ mod tests {
         let p = StabilizerParams::default();
         let dt = 0.005;
         let (side, none) = (Vector3::new(20.0, 0.0, 0.0), Vector3::zeros());
-        // In the air: down, no faster than the approach ends, no sideways yield to noise.
+        // In the air: down as fast as the approach ends, no sideways yield to noise.
         let mut off = FootOffset::default();
         landing(&mut off, &side, &none, [0.0, p.landing_preload_n], &p, dt);
         let z = off.translation_m.z;
-        assert!(z < 0.0 && -z <= p.approach_speed_m_s * dt + 1e-15, "{z}");
+        assert!((-z - p.approach_speed_m_s * dt).abs() < 1e-15, "at the approach's landing speed: {z}");
         assert_eq!(off.translation_m.x, 0.0);
         // Touching but lighter than its target: on down more slowly, yielding to the push.
         let mut touching = FootOffset::default();

@@ -61,9 +61,10 @@ pub struct StabilizerParams {
     /// before the distribution gives it weight (see [`super::admittance::landing`]).
     pub landing_preload_n: f64,
     /// A landed foot's height rate per newton of normal force error until it carries
-    /// `contact_force_n`, m/(N s), at most `approach_speed_m_s`. Default
-    /// `approach_speed_m_s / landing_preload_n` (1.67e-3): a foot that reads nothing goes on
-    /// down as fast as the approach would have at its end, slowing as the force comes. A
+    /// `contact_force_n`, m/(N s), the rate capped at `approach_speed_m_s`. Default the
+    /// default `approach_speed_m_s` over the default `landing_preload_n` (1.67e-3): a foot
+    /// that reads nothing goes on down as fast as the approach ends, slowing as the force
+    /// comes. A
     /// touch can be read in the air, from the foot's own inertia as its descent slows (at
     /// x 2 Exp. 1's right foot read 12.5 N for a tick 6 mm above the floor): at 1e-3 (15
     /// mm/s) that foot hung light 0.35 s before it met the floor, at 1.67e-3 0.23 s (test
@@ -77,11 +78,12 @@ pub struct StabilizerParams {
     /// Fraction of the swing's last piece (the descent) from which a contact stops the foot.
     pub touchdown_window: f64,
     /// Height above its planned landing from which a swinging foot descends no faster than
-    /// `approach_speed_m_s`, metres (a ground a little higher than perceived is met slowly,
+    /// [`StabilizerParams::approach_speed_at`] (from `approach_entry_speed_m_s` slowing to
+    /// `approach_speed_m_s`), metres (a ground a little higher than perceived is met slowly,
     /// not at the swing's speed). It must cover how far below the plan's the sole really
     /// hangs, and the servos' lag at the descent's speed: in a body unlike its model
     /// (`real-0071` in an `hrp4-like` body at x 2) the swinging sole hung 4.5 mm below the
-    /// plan's and rolled 0.044 rad, the plan's level (its edge 2.9 mm lower still), and the
+    /// plan's and rolled 0.044 rad off the plan's level (its edge 2.9 mm lower still), and the
     /// foot, coming down at 0.22 m/s, covers about 3 mm in the lag: a 1 cm approach began
     /// too late and the edge struck the floor at the swing's speed (tangential 0.82 of the
     /// normal force; regression `a-sole-hanging-low-struck-at-the-swings-speed`). 1.5 cm
@@ -101,9 +103,10 @@ pub struct StabilizerParams {
     /// after its touch, test `a_landed_foot_stays_on_the_ground_until_its_weight_comes`).
     pub approach_speed_m_s: f64,
     /// Descent speed where the approach begins, `approach_height_m` above the planned
-    /// landing, m/s; the speed falls linearly with the height to `approach_speed_m_s` at
-    /// the planned landing, so a ground where perceived is met as slowly as before and the
-    /// approach takes `h / (v1 - v0) ln(v1 / v0)`. The approach is time in single support,
+    /// landing, m/s, at least `approach_speed_m_s`; the speed falls linearly with the height
+    /// to `approach_speed_m_s` at the planned landing, so a ground where perceived is met at
+    /// that speed and the approach takes `h / (v1 - v0) ln(v1 / v0)` (h the approach's
+    /// height, v1 this speed, v0 `approach_speed_m_s`; `h / v0` when they are equal). The approach is time in single support,
     /// in which a soft ankle lets the body roll out over its sole: on the soft-ankle test's
     /// body (500 N m/rad, x 1.33 the quasi-static timing) constant-speed approaches of
     /// 0.4 s (1 cm at 0.025 m/s, 1.5 cm at 0.0375 m/s) climbed, and of 0.5-0.8 s (1.25 cm
@@ -153,6 +156,11 @@ pub struct StabilizerParams {
     pub lean_follow_rate_per_s: f64,
 }
 
+/// Default `StabilizerParams::approach_speed_m_s`, m/s.
+const APPROACH_SPEED_M_S: f64 = 0.025;
+/// Default `StabilizerParams::landing_preload_n`, N.
+const LANDING_PRELOAD_N: f64 = 15.0;
+
 impl Default for StabilizerParams {
     fn default() -> Self {
         Self {
@@ -174,12 +182,12 @@ impl Default for StabilizerParams {
             leak_time_s: 1.5,
             contact_force_n: 30.0,
             touchdown_force_n: 10.0,
-            landing_preload_n: 15.0,
-            landing_admittance_m_per_n_s: 0.025 / 15.0,
+            landing_preload_n: LANDING_PRELOAD_N,
+            landing_admittance_m_per_n_s: APPROACH_SPEED_M_S / LANDING_PRELOAD_N,
             touchdown_ticks: 1,
             touchdown_window: 0.0,
             approach_height_m: 0.015,
-            approach_speed_m_s: 0.025,
+            approach_speed_m_s: APPROACH_SPEED_M_S,
             approach_entry_speed_m_s: 0.05,
             max_hold_s: 2.0,
             max_end_hold_s: 2.0,
@@ -192,6 +200,34 @@ impl Default for StabilizerParams {
 }
 
 impl StabilizerParams {
+    /// Refuses approach settings that cannot land a foot, naming the field: the speeds
+    /// finite, the landing speed above zero (a foot that never comes down waits out
+    /// `max_hold_s` in the air), the entry speed at least the landing speed, the height
+    /// finite and not negative.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.approach_speed_m_s > 0.0 && self.approach_speed_m_s.is_finite()) {
+            return Err(format!(
+                "stabilizer.approach_speed_m_s must be a finite speed > 0, got {}",
+                self.approach_speed_m_s
+            ));
+        }
+        if !(self.approach_entry_speed_m_s >= self.approach_speed_m_s
+            && self.approach_entry_speed_m_s.is_finite())
+        {
+            return Err(format!(
+                "stabilizer.approach_entry_speed_m_s must be finite and at least approach_speed_m_s ({}), got {}",
+                self.approach_speed_m_s, self.approach_entry_speed_m_s
+            ));
+        }
+        if !(self.approach_height_m >= 0.0 && self.approach_height_m.is_finite()) {
+            return Err(format!(
+                "stabilizer.approach_height_m must be a finite height >= 0, got {}",
+                self.approach_height_m
+            ));
+        }
+        Ok(())
+    }
+
     /// The approach's descent speed at `height_m` above the planned landing, m/s: from
     /// `approach_entry_speed_m_s` at `approach_height_m` falling linearly to
     /// `approach_speed_m_s` at the landing (and that below it).
@@ -232,5 +268,22 @@ mod tests {
         let closed = p.approach_height_m / (v1 - v0) * (v1 / v0).ln();
         assert!((t - closed).abs() < 1e-3, "{t} against {closed}");
         assert!((0.40..=0.43).contains(&t), "{t}");
+    }
+
+    #[test]
+    fn approach_settings_that_cannot_land_a_foot_are_refused() {
+        assert!(StabilizerParams::default().validate().is_ok());
+        let with = |f: fn(&mut StabilizerParams)| {
+            let mut p = StabilizerParams::default();
+            f(&mut p);
+            p.validate()
+        };
+        assert!(with(|p| p.approach_speed_m_s = 0.0).is_err_and(|e| e.contains("approach_speed_m_s")));
+        assert!(with(|p| p.approach_speed_m_s = f64::NAN).is_err());
+        assert!(with(|p| p.approach_entry_speed_m_s = 0.01)
+            .is_err_and(|e| e.contains("approach_entry_speed_m_s")));
+        assert!(with(|p| p.approach_entry_speed_m_s = f64::INFINITY).is_err());
+        assert!(with(|p| p.approach_height_m = -0.01).is_err_and(|e| e.contains("approach_height_m")));
+        assert!(with(|p| p.approach_entry_speed_m_s = p.approach_speed_m_s).is_ok());
     }
 }

@@ -97,6 +97,7 @@ impl<'m> Stabilizer<'m> {
         plan_params: &PlanParams,
         p: &StabilizerParams,
     ) -> Result<Self, PlanError> {
+        p.validate().map_err(PlanError::Config)?;
         let q0 = plan.trajectory.sample_at(0.0).q.clone();
         let soles = hrp4::sole_frames(model)?;
         let sensors = [FootSensor::of(model, soles[0])?, FootSensor::of(model, soles[1])?];
@@ -327,8 +328,8 @@ impl<'m> Stabilizer<'m> {
                 }
             }
         }
-        // A foot whose swing ended before it met the ground: on down at the approach's
-        // speed, still free (not pulled to its planned place as a held contact would be).
+        // A foot whose swing ended before it met the ground: on down at
+        // `approach_speed_m_s`, still free (not pulled to its planned place as a held contact would be).
         for (f, pose) in &seg.support {
             let k = f.index();
             let Some(z) = self.seeking[k] else { continue };

@@ -327,12 +327,11 @@ fn stands_on(s: &PlaneSegment, t: &PlaneSegment, along: &nalgebra::Vector3<f64>,
     };
     let reach = |r: &PlaneSegment| {
         let r = axis_nearest(r, along);
-        match r.along().dot(along) >= p.max_view_turn_rad.cos() {
-            true => {
-                let (middle, half) = (r.center().coords.dot(along), r.depth_m() / 2.0);
-                (middle - half, middle + half)
-            }
-            false => by_corners(&r, along),
+        if r.along().dot(along) >= p.max_view_turn_rad.cos() {
+            let (middle, half) = (r.center().coords.dot(along), r.depth_m() / 2.0);
+            (middle - half, middle + half)
+        } else {
+            by_corners(&r, along)
         }
     };
     let overlap = |(a0, a1): (f64, f64), (b0, b1): (f64, f64)| a1.min(b1) - a0.max(b0);
