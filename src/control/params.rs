@@ -64,11 +64,9 @@ pub struct StabilizerParams {
     /// `contact_force_n`, m/(N s), the rate capped at `approach_speed_m_s`. Default the
     /// default `approach_speed_m_s` over the default `landing_preload_n` (1.67e-3): a foot
     /// that reads nothing goes on down as fast as the approach ends, slowing as the force
-    /// comes. A
-    /// touch can be read in the air, from the foot's own inertia as its descent slows (at
-    /// x 2 Exp. 1's right foot read 12.5 N for a tick 6 mm above the floor): at 1e-3 (15
-    /// mm/s) that foot hung light 0.35 s before it met the floor, at 1.67e-3 0.23 s (test
-    /// `a_landed_foot_stays_on_the_ground_until_its_weight_comes`).
+    /// comes. A touch can be read in the air, from the foot's own inertia as its descent
+    /// slows, and the foot is held there: it must not hang light while the weight waits for
+    /// it (test `a_landed_foot_stays_on_the_ground_until_its_weight_comes`).
     pub landing_admittance_m_per_n_s: f64,
     /// Consecutive ticks the force must stay above `touchdown_force_n`. One tick of force can
     /// be the foot's own inertia as the approach slows its descent (at x 2 speed that reads
@@ -81,14 +79,12 @@ pub struct StabilizerParams {
     /// [`StabilizerParams::approach_speed_at`] (from `approach_entry_speed_m_s` slowing to
     /// `approach_speed_m_s`), metres (a ground a little higher than perceived is met slowly,
     /// not at the swing's speed). It must cover how far below the plan's the sole really
-    /// hangs, and the servos' lag at the descent's speed: in a body unlike its model
-    /// (`real-0071` in an `hrp4-like` body at x 2) the swinging sole hung 4.5 mm below the
-    /// plan's and rolled 0.044 rad off the plan's level (its edge 2.9 mm lower still), and the
-    /// foot, coming down at 0.22 m/s, covers about 3 mm in the lag: a 1 cm approach began
-    /// too late and the edge struck the floor at the swing's speed (tangential 0.82 of the
-    /// normal force; regression `a-sole-hanging-low-struck-at-the-swings-speed`). 1.5 cm
-    /// leaves about 4 mm over those 10.5 mm; the approach's speed falls over it (see
-    /// `approach_entry_speed_m_s`) to keep its time short.
+    /// hangs, and the servos' lag at the descent's speed: in a body unlike its model the
+    /// sole, rolled off the plan's level, hung about 7.5 mm low at its edge and the servos
+    /// lagged 3 mm more; begun 1 cm up, the approach came too late and the edge struck the
+    /// floor at the swing's speed (regression `a-sole-hanging-low-struck-at-the-swings-speed`).
+    /// The approach's speed falls over it (see `approach_entry_speed_m_s`) to keep its time
+    /// short.
     pub approach_height_m: f64,
     /// Descent speed at the planned landing height and below it, m/s: where the approach
     /// ends, and how fast a foot whose swing ends before it meets the ground goes on down
@@ -96,21 +92,19 @@ pub struct StabilizerParams {
     /// sole meets the ground its set point is already below it by this speed times the lag,
     /// and the leg's stiffness pushes that overshoot into the ground along the leg, not
     /// straight down: for a tick or two the landed foot carries 20-35 N normal with up to
-    /// 16-30 N tangential. At 0.05 m/s those impacts were the climbs' largest friction
-    /// ratios (Exp. 1 seeds 0-19 up to 0.37, Exp. 2 seeds 0-9 0.41, the 24 cm step's seed 9
-    /// 0.48); at 0.025 m/s they stayed under 0.28 everywhere. A constant 0.0375 m/s over
-    /// the whole approach landed Exp. 1's first foot hard enough to bounce (0.42 s light
-    /// after its touch, test `a_landed_foot_stays_on_the_ground_until_its_weight_comes`).
+    /// 16-30 N tangential: the faster the landing, the larger the climbs' friction ratios
+    /// and the likelier a bounce (figures in CHANGELOG.md).
     pub approach_speed_m_s: f64,
     /// Descent speed where the approach begins, `approach_height_m` above the planned
     /// landing, m/s, at least `approach_speed_m_s`; the speed falls linearly with the height
     /// to `approach_speed_m_s` at the planned landing, so a ground where perceived is met at
     /// that speed and the approach takes `h / (v1 - v0) ln(v1 / v0)` (h the approach's
-    /// height, v1 this speed, v0 `approach_speed_m_s`; `h / v0` when they are equal). The approach is time in single support,
-    /// in which a soft ankle lets the body roll out over its sole: on the soft-ankle test's
-    /// body (500 N m/rad, x 1.33 the quasi-static timing) constant-speed approaches of
-    /// 0.4 s (1 cm at 0.025 m/s, 1.5 cm at 0.0375 m/s) climbed, and of 0.5-0.8 s (1.25 cm
-    /// at 0.025, 1.5 cm at 0.03, 2 cm at 0.025) fell. 0.05 m/s: 1.5 cm in 0.42 s.
+    /// height, v1 this speed, v0 `approach_speed_m_s`; `h / v0` when they are equal). The
+    /// approach is time in single support, in which a soft ankle lets the body roll out
+    /// over its sole: approaches of about 0.4 s kept the soft-ankle test's body up, of
+    /// 0.5 s and more did not (test
+    /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`). 0.05 m/s: 1.5 cm in
+    /// 0.42 s.
     pub approach_entry_speed_m_s: f64,
     /// Longest the plan may wait, over a whole plan, for feet that should be down and have
     /// not met the ground yet, seconds (the CoM is held meanwhile).

@@ -309,34 +309,28 @@ impl StepMap {
 /// (and overlaps it across): something standing on that tread. Along the ascent a
 /// rectangle lying along it (within `max_view_turn_rad`) reaches its depth about its
 /// middle, whatever its small turn: a wide tread read turned reaches past its true edges at
-/// its corners by half its width times the turn's sine (a 1.39 m top landing read 3.7 deg
-/// turned against the tread below, 4.5 cm at each end), and by the corners the next tread
-/// up stood 11.9 cm over the one below, was taken for an object on it and left out of the
-/// map (regression `a-turned-view-of-the-top-landing-taken-for-an-object`). A rectangle
-/// turned farther is no view of a tread of this flight (a piece of one beside a bag, its
-/// axes misread, regression `lanes-at-the-limit-refused-on-the-flight`; [`merge_view`]
-/// takes no edges from it either): its corners are all that is known of its reach.
+/// its corners by half its width times the turn's sine, and by its corners the next tread
+/// up stood over the one below and was left out of the map (regression
+/// `a-turned-view-of-the-top-landing-taken-for-an-object`). A rectangle turned farther is
+/// no view of a tread of this flight ([`merge_view`] takes no edges from it either): its
+/// corners ([`span`]) are all that is known of its reach (regression
+/// `lanes-at-the-limit-refused-on-the-flight`).
 fn stands_on(s: &PlaneSegment, t: &PlaneSegment, along: &nalgebra::Vector3<f64>, p: &StepMapParams) -> bool {
     if t.height_m() > s.height_m() - STANDING_ABOVE_M {
         return false;
     }
     let across = nalgebra::Vector3::new(-along.y, along.x, 0.0);
-    let by_corners = |r: &PlaneSegment, d: &nalgebra::Vector3<f64>| {
-        let v: Vec<f64> = r.corners().iter().map(|c| c.coords.dot(d)).collect();
-        (v.iter().copied().fold(f64::INFINITY, f64::min), v.iter().copied().fold(f64::NEG_INFINITY, f64::max))
-    };
     let reach = |r: &PlaneSegment| {
         let r = axis_nearest(r, along);
         if r.along().dot(along) >= p.max_view_turn_rad.cos() {
             let (middle, half) = (r.center().coords.dot(along), r.depth_m() / 2.0);
-            (middle - half, middle + half)
+            [middle - half, middle + half]
         } else {
-            by_corners(&r, along)
+            span(&r, along)
         }
     };
-    let overlap = |(a0, a1): (f64, f64), (b0, b1): (f64, f64)| a1.min(b1) - a0.max(b0);
-    overlap(reach(s), reach(t)) > p.max_overlap_m
-        && overlap(by_corners(s, &across), by_corners(t, &across)) > 0.0
+    let overlap = |[a0, a1]: [f64; 2], [b0, b1]: [f64; 2]| a1.min(b1) - a0.max(b0);
+    overlap(reach(s), reach(t)) > p.max_overlap_m && overlap(span(s, &across), span(t, &across)) > 0.0
 }
 
 /// Least height above a tread of a rectangle standing on it, metres (two views of one
