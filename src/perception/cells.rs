@@ -392,10 +392,12 @@ fn region_of(q: &Vector3<f64>, near: &[Near], planes: &[Plane], noise_m: f64, p:
     }
     let region = &planes[chosen.region as usize];
     let behind = |s: &Near| {
+        if s.region != NONE {
+            return false;
+        }
         let along = s.normal.dot(q) * inv_range;
         let t = s.offset_m / along;
-        s.region == NONE
-            && along.abs() > 1e-6
+        along.abs() > 1e-6
             && t > 0.0
             && t < range_m
             && s.normal.dot(&region.centre) > s.offset_m
@@ -668,7 +670,7 @@ fn regions(cloud: &PointCloud, sums: &[CellSums], start: Instant, s: &Setting) -
     // 8-neighbours (regions' and steep cells'), see [`region_of`]; 4. binned on the way
     // into its region's columns, each band of cell rows into tables of its own.
     let tables = ColumnTables::new(&cells, &label, &planes, (crs, cbs), voxel_m, &origin);
-    let bands = rayon::current_num_threads().clamp(1, crs.max(1));
+    let bands = BANDS.clamp(1, crs.max(1));
     let binned: Vec<Binned> = (0..bands)
         .into_par_iter()
         .map(|band| {
@@ -690,34 +692,38 @@ fn regions(cloud: &PointCloud, sums: &[CellSums], start: Instant, s: &Setting) -
         })
         .collect();
     let (columns, points_in_regions) = tables.finish(binned, points);
-    let columns: Vec<Vec<Column>> =
-        columns.into_par_iter().map(|cols| body(cols, voxel_m, p.min_part_share)).collect();
-    let mut voxels = VoxelCloud { resolution_m: voxel_m as f32, ..Default::default() };
-    let mut surfaces = Vec::with_capacity(planes.len());
-    let total: usize = columns.iter().map(Vec::len).sum();
-    voxels.keys.reserve(total);
-    voxels.positions.reserve(total);
-    voxels.normals.reserve(total);
-    voxels.counts.reserve(total);
-    voxels.adjacency.resize(total, 0);
     // floor(), as i32, without the library call that x86-64's baseline makes of it.
     let key = |v: f32| {
         let t = f64::from(v) / voxel_m;
         let i = t as i32;
         i - i32::from(f64::from(i) > t)
     };
-    for (cols, plane) in columns.into_iter().zip(&planes) {
+    // Each region's body, and its columns' voxel keys, in parallel.
+    let columns: Vec<(Vec<Column>, Vec<[i32; 3]>)> = columns
+        .into_par_iter()
+        .map(|cols| {
+            let cols = body(cols, voxel_m, p.min_part_share);
+            let keys = cols.iter().map(|(pos, _)| [key(pos.x), key(pos.y), key(pos.z)]).collect();
+            (cols, keys)
+        })
+        .collect();
+    let mut voxels = VoxelCloud { resolution_m: voxel_m as f32, ..Default::default() };
+    let mut surfaces = Vec::with_capacity(planes.len());
+    let total: usize = columns.iter().map(|c| c.0.len()).sum();
+    voxels.keys.reserve(total);
+    voxels.positions.reserve(total);
+    voxels.normals.reserve(total);
+    voxels.counts.reserve(total);
+    voxels.adjacency.resize(total, 0);
+    for ((cols, keys), plane) in columns.into_iter().zip(&planes) {
         if cols.is_empty() {
             continue;
         }
         let first = voxels.positions.len() as u32;
-        let normal = plane.normal.cast::<f32>();
-        for (pos, count) in cols {
-            voxels.keys.push([key(pos.x), key(pos.y), key(pos.z)]);
-            voxels.positions.push(pos);
-            voxels.normals.push(normal);
-            voxels.counts.push(count);
-        }
+        voxels.keys.extend(keys);
+        voxels.positions.extend(cols.iter().map(|c| c.0));
+        voxels.normals.extend(std::iter::repeat_n(plane.normal.cast::<f32>(), cols.len()));
+        voxels.counts.extend(cols.iter().map(|c| c.1));
         surfaces.push(((first..voxels.positions.len() as u32).collect(), plane.normal));
     }
     let regions_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -771,6 +777,13 @@ fn near_planes(
     }
     true
 }
+
+/// Step 3's bands of cell rows, each binned on its own and the bands' sums added in
+/// order: a fixed count, so that the columns' sums (in f32) are added in the same order,
+/// and the steps found are the same, on a machine of any number of cores (with a band per
+/// thread a 16-core machine found other steps than a 2-core one). Two, the cores of the
+/// machine the suites' figures were taken on.
+const BANDS: usize = 2;
 
 /// floor(), without the library call that x86-64's baseline makes of it.
 #[inline(always)]

@@ -51,16 +51,23 @@ fn second_differences(cloud: &PointCloud, row: &[u32], out: &mut [f64]) {
 
 /// Sigma from a sweep's second differences (see the module's doc).
 fn sigma_of(second: &[f64]) -> Option<f64> {
-    let median = median_of_non_negative(second, MIN_SAMPLES)?;
-    Some(1.4826 * median / 6f64.sqrt())
+    median_of_non_negative(second, MIN_SAMPLES).map(sigma_of_median)
+}
+
+/// Sigma from the median magnitude of a sweep's second differences (normal noise).
+fn sigma_of_median(median: f64) -> f64 {
+    1.4826 * median / 6f64.sqrt()
 }
 
 /// [`range_noise_m`] over a sweep whose rows arrive one after another: each row's second
-/// differences are taken as it arrives, and only their median is left for the end. It
-/// gives exactly what [`range_noise_m`] gives on the whole sweep.
+/// differences are taken, and counted into the median's histogram, as it arrives; only the
+/// selection within the median's bin is left for the end. It gives exactly what
+/// [`range_noise_m`] gives on the whole sweep.
 #[derive(Debug, Clone)]
 pub struct Stream {
     second: Vec<f64>,
+    /// The second differences so far, counted by [`count_into`].
+    histogram: Vec<u32>,
     rows_done: usize,
 }
 
@@ -69,7 +76,7 @@ impl Stream {
     pub fn new(cloud: &PointCloud) -> Option<Self> {
         let grid = cloud.grid()?;
         let width = grid.beams().saturating_sub(2);
-        Some(Self { second: vec![f64::NAN; grid.rows() * width], rows_done: 0 })
+        Some(Self { second: vec![f64::NAN; grid.rows() * width], histogram: vec![0; BINS], rows_done: 0 })
     }
 
     /// The sweep's first `rows` rows have arrived (of `cloud`, the one given to `new`).
@@ -80,7 +87,9 @@ impl Stream {
         if width > 0 {
             for r in self.rows_done..rows {
                 let row = &grid.cells()[r * beams..(r + 1) * beams];
-                second_differences(cloud, row, &mut self.second[r * width..(r + 1) * width]);
+                let out = &mut self.second[r * width..(r + 1) * width];
+                second_differences(cloud, row, out);
+                count_into(&mut self.histogram, out);
             }
         }
         self.rows_done = self.rows_done.max(rows);
@@ -89,32 +98,50 @@ impl Stream {
     /// The sweep's range noise once every row has arrived (the rest are taken now).
     pub fn finish(mut self, cloud: &PointCloud) -> Option<f64> {
         self.arrived(cloud, usize::MAX);
-        sigma_of(&self.second)
+        median_in_bins(&self.second, &self.histogram, MIN_SAMPLES).map(sigma_of_median)
+    }
+}
+
+/// The median's histogram has a bin for each value of a float's top 16 bits.
+const SHIFT: u32 = 48;
+const BINS: usize = 1 << (64 - SHIFT);
+
+/// The bin of a non-negative float (for those the bits order as the values do).
+fn bin(x: f64) -> usize {
+    (x.to_bits() >> SHIFT) as usize
+}
+
+/// Counts the `values` that are not NaN (all non-negative) into `histogram`'s bins.
+fn count_into(histogram: &mut [u32], values: &[f64]) {
+    for &x in values.iter().filter(|x| !x.is_nan()) {
+        histogram[bin(x)] += 1;
     }
 }
 
 /// The median (the element at rank `n / 2` of the `n` that are not NaN) of `values`, all
 /// non-negative or NaN, found in two parallel passes (a histogram on the top 16 bits, then
 /// a selection among the values of the bin that holds it) where a selection over all of
-/// them is serial: for non-negative floats the bits order as the values do. `None` with
-/// fewer than `min_count` values.
+/// them is serial. `None` with fewer than `min_count` values.
 fn median_of_non_negative(values: &[f64], min_count: usize) -> Option<f64> {
-    const SHIFT: u32 = 48;
-    let bin = |x: f64| (x.to_bits() >> SHIFT) as usize;
     let chunk = values.len().div_ceil(rayon::current_num_threads().max(1)).max(1);
     let histogram = values
         .par_chunks(chunk)
         .map(|c| {
-            let mut h = vec![0u32; 1 << (64 - SHIFT)];
-            for &x in c.iter().filter(|x| !x.is_nan()) {
-                h[bin(x)] += 1;
-            }
+            let mut h = vec![0u32; BINS];
+            count_into(&mut h, c);
             h
         })
         .reduce_with(|mut a, b| {
             a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
             a
         })?;
+    median_in_bins(values, &histogram, min_count)
+}
+
+/// The median of `values` (non-negative or NaN) from their `histogram` ([`count_into`]):
+/// the bin that holds rank `n / 2`, then a selection among the values in it. `None` with
+/// fewer than `min_count` values.
+fn median_in_bins(values: &[f64], histogram: &[u32], min_count: usize) -> Option<f64> {
     let n: usize = histogram.iter().map(|&c| c as usize).sum();
     if n < min_count {
         return None;
@@ -128,7 +155,17 @@ fn median_of_non_negative(values: &[f64], min_count: usize) -> Option<f64> {
         }
         rank -= c as usize;
     }
-    let mut in_bin: Vec<f64> = values.par_iter().copied().filter(|&x| !x.is_nan() && bin(x) == at).collect();
+    // Each thread's share of the values gathered on its own (a parallel filter's collect
+    // takes as long as the whole selection).
+    let chunk = values.len().div_ceil(rayon::current_num_threads().max(1)).max(1);
+    let mut in_bin: Vec<f64> = values
+        .par_chunks(chunk)
+        .map(|c| c.iter().copied().filter(|&x| !x.is_nan() && bin(x) == at).collect::<Vec<f64>>())
+        .reduce_with(|mut a, b| {
+            a.extend(b);
+            a
+        })
+        .unwrap_or_default();
     let (_, median, _) = in_bin.select_nth_unstable_by(rank, f64::total_cmp);
     Some(*median)
 }

@@ -92,11 +92,17 @@ pub fn from_surfaces(
     p: &PerceptionParams,
 ) -> Result<(Vec<PlaneSegment>, usize, f64), PerceptionError> {
     let up = -gravity.into_inner();
-    // Each surface on its own (in parallel: the floor's is most of the work).
+    // Each surface on its own, in parallel, its flatness judged beside its segment's making
+    // (the floor's is most of the work).
     let parts = surfaces
         .into_par_iter()
-        .filter(|(voxels, _)| surface_height_extent_m(&vc.positions, voxels, &up) <= p.max_height_extent_m)
-        .filter_map(|(voxels, normal)| candidate(vc, voxels, normal, p))
+        .filter_map(|(voxels, normal)| {
+            let (flat, c) = rayon::join(
+                || surface_height_extent_m(&vc.positions, &voxels, &up) <= p.max_height_extent_m,
+                || candidate(vc, voxels.clone(), normal, p),
+            );
+            c.filter(|_| flat)
+        })
         .collect();
     from_parts(vc, parts, planes, viewpoint, gravity, p)
 }
@@ -348,20 +354,35 @@ fn candidate(
     normal: Vector3<f64>,
     p: &PerceptionParams,
 ) -> Option<Candidate> {
-    let up = normal.cast::<f32>();
-    let normal = super::ransac::refit(&vc.positions, &voxels, &up).map_or(normal, |(n, _)| n.cast());
-    let xy: Vec<P2> = voxels.iter().map(|&v| vc.positions[v as usize].xy().coords.cast::<f64>()).collect();
-    let hull = geom2d::convex_hull(&xy);
-    let (axis, _, _) = geom2d::min_area_rect_of_hull(&hull)?;
-    // The shape compared with other segments' is that of the rectangle the segment would
-    // give as a step: without strays beyond an empty row ([`dense_extent`]). A stray column
-    // past a tread's side made it a shape apart from its like steps, and a level of clutter
-    // was taken for the staircase (test `a_stray_column_does_not_split_the_flight`).
-    let ra = dense_extent(&xy, &axis, p.voxel_resolution_m, p.min_edge_row_fill);
-    let rb = dense_extent(&xy, &P2::new(-axis.y, axis.x), p.voxel_resolution_m, p.min_edge_row_fill);
-    let (a, b) = (ra[1] - ra[0], rb[1] - rb[0]);
-    let height = voxels.iter().map(|&v| vc.positions[v as usize].z as f64).sum::<f64>() / voxels.len() as f64;
-    let centroid = xy.iter().sum::<P2>() / xy.len() as f64;
+    // The plane and height beside the footprint (a floor's thousands of voxels take
+    // milliseconds each).
+    let ((normal, height), footprint) = rayon::join(
+        || {
+            let up = normal.cast::<f32>();
+            let normal = super::ransac::refit(&vc.positions, &voxels, &up).map_or(normal, |(n, _)| n.cast());
+            let sum_m = voxels.iter().map(|&v| vc.positions[v as usize].z as f64).sum::<f64>();
+            (normal, sum_m / voxels.len() as f64)
+        },
+        || {
+            let xy: Vec<P2> =
+                voxels.iter().map(|&v| vc.positions[v as usize].xy().coords.cast::<f64>()).collect();
+            let hull = geom2d::convex_hull(&xy);
+            let (axis, _, _) = geom2d::min_area_rect_of_hull(&hull)?;
+            // The shape compared with other segments' is that of the rectangle the segment
+            // would give as a step: without strays beyond an empty row ([`dense_extent`]). A
+            // stray column past a tread's side made it a shape apart from its like steps, and
+            // a level of clutter was taken for the staircase (test
+            // `a_stray_column_does_not_split_the_flight`).
+            let (v, fill) = (p.voxel_resolution_m, p.min_edge_row_fill);
+            let (ra, rb) = rayon::join(
+                || dense_extent(&xy, &axis, v, fill),
+                || dense_extent(&xy, &P2::new(-axis.y, axis.x), v, fill),
+            );
+            let centroid = xy.iter().sum::<P2>() / xy.len() as f64;
+            Some((xy, hull, axis, ra[1] - ra[0], rb[1] - rb[0], centroid))
+        },
+    );
+    let (xy, hull, axis, a, b, centroid) = footprint?;
     Some(Candidate { voxels, xy, height, normal, shape: [a.min(b), a.max(b)], axis, hull, centroid })
 }
 

@@ -160,7 +160,7 @@ pub fn run(repeat: usize, fig5_at: Option<(&Path, &str)>, pcl: Option<&Path>) ->
         "steps that DIFFER from the whole sweep's"
     };
     out += &format!(
-        "\nStreamed (the default method, `PerceptionStream`): the sweep's rows given one by one as the lidar sends them (one every 25 ms), each row's range differences and each completed row of cells' sums taken as they arrive; the rest (the noise's median, the cells judged, regions, points, columns, staircase, risers) after the last. Steps ready **{after_ms:.1} ms** after the last row (median of {repeat}), {same}; the most one row's arrival took: {row_ms:.2} ms.\n"
+        "\nStreamed (the default method, `PerceptionStream`): the sweep's rows given one by one as the lidar sends them (one every 25 ms), each row's range differences (counted into the noise median's histogram) and each completed row of cells' sums taken as they arrive; the rest (the median's selection within its bin, the cells judged, regions, points, columns, staircase, risers) after the last. Steps ready **{after_ms:.1} ms** after the last row (median of {repeat}), {same}; the most one row's arrival took: {row_ms:.2} ms.\n"
     );
 
     // Fig. 5 (b): phases at k = 10 on every cloud.
