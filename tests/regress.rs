@@ -388,3 +388,28 @@ fn the_regressions_suite_passes_every_incident_on_its_own_seed() {
     assert!(failing.is_empty(), "failing incidents: {failing:#?}");
     assert_eq!(o.status.code(), Some(0));
 }
+
+/// A suite given by name is looked up in the project's scenarios/suites/: an unknown name
+/// lists the names there, and a name given outside the project's root says where it looked
+/// and what to do (it listed no names and said nothing of the folder).
+#[test]
+fn a_suite_name_not_found_says_where_it_looked() {
+    let out = stairbench(&["regress", "no-such-suite", "--list", "--out", dir("unknown").to_str().unwrap()]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("no suite file no-such-suite") && err.contains("smoke") && err.contains("ci"),
+        "{err}"
+    );
+
+    let elsewhere = dir("elsewhere");
+    let out = Command::new(env!("CARGO_BIN_EXE_stairbench"))
+        .current_dir(&elsewhere)
+        .args(["regress", "smoke", "--list", "--out", elsewhere.join("out").to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no scenarios/suites/ in") && err.contains("project's root"), "{err}");
+    assert!(!elsewhere.join("out").exists(), "nothing written before the refusal");
+}

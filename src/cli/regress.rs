@@ -398,13 +398,17 @@ fn resolve(arg: &Path) -> Result<PathBuf> {
     if arg.components().count() == 1 && by_name.exists() {
         return Ok(by_name);
     }
-    let mut known: Vec<String> = std::fs::read_dir(SUITE_DIR)
-        .map(|d| {
-            d.filter_map(|e| e.ok())
-                .filter_map(|e| e.path().file_stem().map(|s| s.to_string_lossy().into_owned()))
-                .collect()
-        })
-        .unwrap_or_default();
+    let Ok(dir) = std::fs::read_dir(SUITE_DIR) else {
+        let here = std::env::current_dir().map_or_else(|_| ".".into(), |d| d.display().to_string());
+        bail!(
+            "no suite file {}, and no {SUITE_DIR}/ in {here} to find it by name: run from the project's root, or give the suite file's path",
+            arg.display()
+        )
+    };
+    let mut known: Vec<String> = dir
+        .filter_map(|e| e.ok())
+        .filter_map(|e| e.path().file_stem().map(|s| s.to_string_lossy().into_owned()))
+        .collect();
     known.sort();
     bail!("no suite file {} (suites by name: {})", arg.display(), known.join(", "))
 }
