@@ -102,6 +102,11 @@ impl Stream {
     }
 }
 
+/// The values each thread takes of `values` (a chunk per thread).
+fn share_of(values: &[f64]) -> usize {
+    values.len().div_ceil(rayon::current_num_threads().max(1)).max(1)
+}
+
 /// The median's histogram has a bin for each value of a float's top 16 bits.
 const SHIFT: u32 = 48;
 const BINS: usize = 1 << (64 - SHIFT);
@@ -123,9 +128,8 @@ fn count_into(histogram: &mut [u32], values: &[f64]) {
 /// a selection among the values of the bin that holds it) where a selection over all of
 /// them is serial. `None` with fewer than `min_count` values.
 fn median_of_non_negative(values: &[f64], min_count: usize) -> Option<f64> {
-    let chunk = values.len().div_ceil(rayon::current_num_threads().max(1)).max(1);
     let histogram = values
-        .par_chunks(chunk)
+        .par_chunks(share_of(values))
         .map(|c| {
             let mut h = vec![0u32; BINS];
             count_into(&mut h, c);
@@ -157,9 +161,8 @@ fn median_in_bins(values: &[f64], histogram: &[u32], min_count: usize) -> Option
     }
     // Each thread's share of the values gathered on its own, the shares then joined (a
     // parallel filter's collect is slower; CHANGELOG.md has the figures).
-    let chunk = values.len().div_ceil(rayon::current_num_threads().max(1)).max(1);
     let mut in_bin: Vec<f64> = values
-        .par_chunks(chunk)
+        .par_chunks(share_of(values))
         .map(|c| c.iter().copied().filter(|&x| !x.is_nan() && bin(x) == at).collect::<Vec<f64>>())
         .reduce_with(|mut a, b| {
             a.extend(b);

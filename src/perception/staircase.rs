@@ -92,17 +92,11 @@ pub fn from_surfaces(
     p: &PerceptionParams,
 ) -> Result<(Vec<PlaneSegment>, usize, f64), PerceptionError> {
     let up = -gravity.into_inner();
-    // Each surface on its own, in parallel, its flatness judged beside its segment's making
-    // (the floor's is most of the work).
+    // Each surface on its own (in parallel: the floor's is most of the work).
     let parts = surfaces
         .into_par_iter()
-        .filter_map(|(voxels, normal)| {
-            let (flat, c) = rayon::join(
-                || surface_height_extent_m(&vc.positions, &voxels, &up) <= p.max_height_extent_m,
-                || candidate(vc, voxels.clone(), normal, p),
-            );
-            c.filter(|_| flat)
-        })
+        .filter(|(voxels, _)| surface_height_extent_m(&vc.positions, voxels, &up) <= p.max_height_extent_m)
+        .filter_map(|(voxels, normal)| candidate(vc, voxels, normal, p))
         .collect();
     from_parts(vc, parts, planes, viewpoint, gravity, p)
 }
