@@ -400,3 +400,63 @@ fn a_flight_climbed_faster_keeps_its_standing_height() {
         "a plan started {worst_mm:.1} mm off standing height (> {tolerance_mm} mm)"
     );
 }
+
+/// Issue 42's "no standing still for a scan": with `[run] sweep_while_moving`, every sweep
+/// after the first is the last sweep's time of rows the lidar took as the robot moved and
+/// stood, each row from where the head was at its instant and assembled where the robot's own
+/// estimate had it then. Exp. 1 is climbed clean on them, the head rising along the rows of
+/// each sweep after a step-up, and every step they show within 2 cm of its true height.
+#[test]
+fn exp1_is_climbed_on_sweeps_taken_as_the_robot_moves() {
+    #[derive(Default)]
+    struct Sweeps {
+        /// Per sweep: whether its rows carry their own poses, and how far the head rose
+        /// along them, metres.
+        moving: Vec<(bool, f64)>,
+        /// Every perceived step's height, metres.
+        heights: Vec<f64>,
+    }
+    impl stairbench::climb::Observer for Sweeps {
+        fn event(&mut self, event: &stairbench::climb::Event) {
+            match event {
+                stairbench::climb::Event::Sweep { sweep, .. } => {
+                    let z: Vec<f64> =
+                        sweep.rows.iter().filter_map(|r| r.mount_to_world.map(|m| m.translation.z)).collect();
+                    let rise_m = match (z.first(), z.last()) {
+                        (Some(a), Some(b)) => b - a,
+                        _ => 0.0,
+                    };
+                    self.moving.push((sweep.moving(), rise_m));
+                }
+                stairbench::climb::Event::Perception { result, .. } => {
+                    self.heights.extend(result.segments.iter().map(|s| s.height_m()));
+                }
+                _ => {}
+            }
+        }
+    }
+    let s = Scenario::default();
+    let mut p = ClimbParams::default();
+    p.run.sweep_while_moving = true;
+    let mut seen = Sweeps::default();
+    let r =
+        climb_scenario(&s, p.loop_params(), &p.sim(), &mut seen, &Cancel::never()).expect("the world runs");
+    println!("sweeps (moving, head's rise m): {:?}", seen.moving);
+    assert_climbed(&r, &s, &p.checks);
+    assert!(!seen.moving[0].0, "the first sweep is taken standing: nothing moved before it");
+    assert!(seen.moving.len() >= 5 && seen.moving[1..].iter().all(|m| m.0), "{:?}", seen.moving);
+    // The sweeps after the three step-ups (cycles 3 to 5 end on steps 1 to 3): the head rose
+    // with the body along their rows.
+    let ups = r.cycles.iter().enumerate().filter(|(_, c)| c.to != Footing::Floor).map(|(i, _)| i + 1);
+    for sweep in ups {
+        assert!(seen.moving[sweep].1 > 0.1, "sweep {}: the head rose {} m", sweep + 1, seen.moving[sweep].1);
+    }
+    // The floor (the ground stood on is among the surfaces found) and the steps.
+    let scene = Scene::from_scenario(&s).unwrap();
+    let truth: Vec<f64> = std::iter::once(0.0).chain(scene.steps().iter().map(|t| t.height_m)).collect();
+    println!("heights seen, m: {:.3?}", seen.heights);
+    for h in &seen.heights {
+        let off_m = truth.iter().map(|t| (t - h).abs()).fold(f64::INFINITY, f64::min);
+        assert!(off_m < 0.02, "a step seen at {h:.3} m, {off_m:.3} m from every true step");
+    }
+}

@@ -25,18 +25,46 @@ use std::process::Command;
 
 /// A one-cycle run of Exp. 1 recorded to `name` under the target folder; the messages written.
 fn record_one_cycle(name: &str) -> (PathBuf, u64) {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"));
-    let path = dir.join(name);
     let mut p = ClimbParams::default();
     p.run.max_cycles = 1;
+    record_run(name, &p)
+}
+
+/// A run of Exp. 1 under `p` recorded to `name` under the target folder; the messages written.
+fn record_run(name: &str, p: &ClimbParams) -> (PathBuf, u64) {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let path = dir.join(name);
     let model = hrp4::model().unwrap();
     let mut rec = Recorder::create(&path, &model).unwrap();
     rec.attach("params.toml", "application/toml", toml::to_string(&p).unwrap().as_bytes());
     let r =
         climb_scenario(&Scenario::default(), p.loop_params(), &p.sim(), &mut rec, &Cancel::never()).unwrap();
-    assert_eq!(r.cycles.len(), 1);
+    assert_eq!(r.cycles.len(), p.run.max_cycles);
     let n = rec.finish().unwrap();
     (path, n)
+}
+
+/// A sweep the lidar took as the robot moved (`[run] sweep_while_moving`) reads back with
+/// each row's pose bit for bit, and its rows rebuild the recorded cloud exactly.
+#[test]
+fn a_sweep_taken_as_the_robot_moved_replays_row_by_row() {
+    let mut p = ClimbParams::default();
+    p.run.max_cycles = 2;
+    p.run.sweep_while_moving = true;
+    let (path, _) = record_run("moving_sweep.mcap", &p);
+    let rec = read(&path).unwrap();
+    assert!(rec.damage.is_none(), "{:?}", rec.damage);
+    assert_eq!(rec.sweeps.len(), 2);
+    assert!(!rec.sweeps[0].sweep.moving(), "the first sweep is taken standing");
+    let s = &rec.sweeps[1];
+    assert!(s.sweep.moving() && s.sweep.rows.iter().all(|r| r.mount_to_world.is_some()));
+    let cloud = s.sweep.assemble(&AssembleParams::default()).unwrap();
+    assert_eq!(cloud.points(), s.cloud.as_ref().expect("cloud recorded").as_slice());
+    // Without its rows' poses (a reader that dropped them), the same rows give another cloud.
+    let mut standing = s.sweep.clone();
+    standing.rows.iter_mut().for_each(|r| r.mount_to_world = None);
+    let other = standing.assemble(&AssembleParams::default()).unwrap();
+    assert_ne!(other.points(), cloud.points());
 }
 
 #[test]

@@ -31,6 +31,9 @@ pub struct RobotState<'a> {
     /// Up in the base's axes as the robot's IMU attitude filter has it (unit; `None` before
     /// its first reading, or without one).
     pub up_base: Option<Vector3<f64>>,
+    /// The lidar head's true pose in the world, where the executor knows it (a simulation;
+    /// `None` on a real robot).
+    pub head_to_world: Option<nalgebra::Isometry3<f64>>,
 }
 
 /// One thing that happened during a climb. `stamp_s` is the robot's clock (the simulation's

@@ -62,6 +62,17 @@ pub struct RunParams {
     pub still_s: f64,
     /// Longest stand before a scan, seconds.
     pub max_settle_s: f64,
+    /// The lidar sweeps as the robot moves (issue 42's "no standing still for a scan"): the
+    /// sweep a plan is made from is the last sweep's time of rows up to the moment the loop
+    /// looks, each row cast from where the head was at its instant and assembled where the
+    /// robot's own estimate had the head then (in simulation the robot records the head's
+    /// path, `sim::head_track`; the real sensors sweep standing). Until the robot has moved
+    /// or stood a sweep's time (the first look), the sweep is taken standing. Off (the
+    /// default): every sweep is taken where the robot stands after its settle (in
+    /// simulation cast in no simulated time; a real robot stands the sweep's 6 s). Not yet
+    /// the default: a moving head's sweep draws lines along the walls that a standing one
+    /// does not, and one `smoke` case saw a plane that is not there (CHANGELOG, 2026-12-02).
+    pub sweep_while_moving: bool,
     /// Friction coefficient of the surfaces of a hardware rehearsal's world (`run
     /// --hardware`: the perceived steps rebuilt in simulation, whose true friction nobody
     /// measured; the checks judge the rehearsal against it). Default 0.7, the plan's.
@@ -77,6 +88,7 @@ impl Default for RunParams {
             still_speed_m_s: 0.01,
             still_s: 0.2,
             max_settle_s: 2.0,
+            sweep_while_moving: false,
             rehearsal_friction: crate::planning::contact::DEFAULT_FRICTION,
         }
     }
@@ -472,7 +484,7 @@ pub fn moved_view(
     seen: Vec<PlaneSegment>,
     sweep: &mut crate::sensor::Sweep,
 ) -> (Vec<PlaneSegment>, Option<crate::cloud::PointCloud>) {
-    sweep.mount_to_world = offset * sweep.mount_to_world;
+    sweep.moved(offset);
     let cloud = sweep.assemble(&AssembleParams::default()).ok();
     (seen.into_iter().map(|s| s.transformed(offset)).collect(), cloud)
 }

@@ -366,6 +366,10 @@ pub struct LaserScan {
     pub stairbench_tilt_rad: f64,
     /// The IMU's gravity direction in the mount frame.
     pub stairbench_gravity_mount: [f64; 3],
+    /// The servo base's pose in the world at the row, when the head moved during the sweep
+    /// ([`crate::sensor::ScanRow::mount_to_world`]); absent when it stood.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stairbench_mount_to_world: Option<super::messages::PoseMsg>,
 }
 
 /// Ranges where `null` (what JSON makes of a non-finite number) reads as 0, no return.

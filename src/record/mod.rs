@@ -10,7 +10,7 @@
 //! |---|---|---|
 //! | `/world` | `foxglove.SceneUpdate` | run: the world's boxes (floor, steps, walls, clutter) |
 //! | `/lidar/sweep` | `stairbench.Sweep` | sweep: `stamp_s`, `rows`, `lidar` (the scenario's lidar table), `mount_to_world` (`translation` [x, y, z] m, `rotation` [w, x, y, z]) |
-//! | `/lidar/scan` | `foxglove.LaserScan` | row, with the raw reading as extra fields: `stairbench_stamp_s`, `stairbench_tilt_rad` (servo), `stairbench_gravity_mount` [x, y, z] (IMU) |
+//! | `/lidar/scan` | `foxglove.LaserScan` | row, with the raw reading as extra fields: `stairbench_stamp_s`, `stairbench_tilt_rad` (servo), `stairbench_gravity_mount` [x, y, z] (IMU), and `stairbench_mount_to_world` (as `mount_to_world`) where the head moved during the sweep |
 //! | `/cloud` | `foxglove.PointCloud` | assembled sweep (x, y, z float32, world frame) |
 //! | `/perception/supervoxels` | `foxglove.PointCloud` | perception: voxels after Filter 2 with `supervoxel` and `cluster` (uint32, 4294967295 = none) |
 //! | `/perception/rectangles` | `foxglove.SceneUpdate` | perception: one outline per step rectangle |
@@ -273,6 +273,7 @@ impl Recorder {
             stairbench_stamp_s: row.stamp_s,
             stairbench_tilt_rad: row.tilt_rad,
             stairbench_gravity_mount: [g.x, g.y, g.z],
+            stairbench_mount_to_world: row.mount_to_world.as_ref().map(messages::PoseMsg::of),
         };
         self.log("/lidar/scan", row.stamp_s, &msg);
     }

@@ -224,7 +224,7 @@ fn take(
         }
         "/lidar/scan" => {
             if let Some((s, _)) = open.as_mut() {
-                s.sweep.rows.push(row_of(parse(topic, data)?));
+                s.sweep.rows.push(row_of(parse(topic, data)?)?);
             }
         }
         "/perception/result" => {
@@ -264,14 +264,19 @@ fn sweep_of(m: SweepMsg, stamp_s: f64) -> Result<(RecordedSweep, usize), String>
     Ok((s, m.rows))
 }
 
-fn row_of(m: LaserScan) -> ScanRow {
+fn row_of(m: LaserScan) -> Result<ScanRow, String> {
     let [x, y, z] = m.stairbench_gravity_mount;
-    ScanRow {
+    let mount_to_world = match &m.stairbench_mount_to_world {
+        Some(pose) => Some(pose.isometry().map_err(|e| format!("bad /lidar/scan message: {e}"))?),
+        None => None,
+    };
+    Ok(ScanRow {
         stamp_s: m.stairbench_stamp_s,
         tilt_rad: m.stairbench_tilt_rad,
         ranges_m: m.ranges,
         gravity_mount: Vector3::new(x, y, z),
-    }
+        mount_to_world,
+    })
 }
 
 /// A recording's sweeps as a [`Source`]: each call gives the next recorded sweep, as it was

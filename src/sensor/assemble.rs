@@ -72,10 +72,37 @@ pub fn measured_gravity(rows: &[ScanRow]) -> Option<Unit<Vector3<f64>>> {
 /// gravity to the world's -z (so the heading is kept). Gravity pointing up (a head upside
 /// down) turns about the world's x axis.
 pub fn levelled(mount_to_world: &Isometry3<f64>, gravity_mount: &Unit<Vector3<f64>>) -> Isometry3<f64> {
-    let g_world = mount_to_world.rotation * gravity_mount.into_inner();
-    let turn = UnitQuaternion::rotation_between(&g_world, &-Vector3::z())
-        .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
-    Isometry3::from_parts(mount_to_world.translation, turn * mount_to_world.rotation)
+    turned(mount_to_world, &level_turn(&(mount_to_world.rotation * gravity_mount.into_inner())))
+}
+
+/// The least rotation that takes `g_world` (gravity as the poses put it in the world) to the
+/// world's -z; gravity pointing up turns about the world's x axis.
+fn level_turn(g_world: &Vector3<f64>) -> UnitQuaternion<f64> {
+    UnitQuaternion::rotation_between(g_world, &-Vector3::z())
+        .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI))
+}
+
+/// `pose` turned by `turn` about its own position.
+fn turned(pose: &Isometry3<f64>, turn: &UnitQuaternion<f64>) -> Isometry3<f64> {
+    Isometry3::from_parts(pose.translation, turn * pose.rotation)
+}
+
+/// The servo base's pose at each row of a sweep whose head moved (rows with poses of their
+/// own, [`ScanRow::mount_to_world`]; `mount_to_world` for a row without), levelled together:
+/// each turned about its own position by the one least rotation that takes the rows' mean
+/// measured gravity, each reading carried into the world by its row's pose, to -z. As for a
+/// head that stood ([`mount_in_cloud`]), the turn mends what the poses get wrong about the
+/// head's tilt, the same all along the sweep (a mount not where the model says, a base
+/// estimate's tilt); the motion between rows is the poses'.
+pub fn rows_in_cloud(rows: &[ScanRow], mount_to_world: &Isometry3<f64>) -> Vec<Isometry3<f64>> {
+    let pose = |r: &ScanRow| r.mount_to_world.unwrap_or(*mount_to_world);
+    let g_world: Vector3<f64> = rows
+        .iter()
+        .filter(|r| r.gravity_mount.iter().all(|v| v.is_finite()))
+        .map(|r| pose(r).rotation * r.gravity_mount)
+        .sum();
+    let turn = Unit::try_new(g_world, 1e-9).map_or_else(UnitQuaternion::identity, |g| level_turn(&g));
+    rows.iter().map(|r| turned(&pose(r), &turn)).collect()
 }
 
 /// The pose of the servo base in the cloud's frame: `mount_to_world` levelled by the rows'
@@ -86,7 +113,10 @@ pub fn mount_in_cloud(rows: &[ScanRow], mount_to_world: &Isometry3<f64>) -> Isom
 
 /// The point cloud of a sweep in a gravity-aligned frame: `mount_to_world` (the servo base's
 /// pose; in simulation the true one, on the robot the one from kinematics) levelled by the
-/// rows' measured gravity ([`mount_in_cloud`]); gravity is the cloud's -z.
+/// rows' measured gravity ([`mount_in_cloud`]); gravity is the cloud's -z. A sweep whose rows
+/// carry poses of their own (the head moved) is assembled row by row from those, levelled
+/// together ([`rows_in_cloud`]); the head's motion within a row's few milliseconds is not
+/// undone.
 pub fn assemble(
     rows: &[ScanRow],
     lidar: &LidarModel,
@@ -102,6 +132,8 @@ pub fn assemble(
             return Err(SensorError::NonFinite { row: k });
         }
     }
+    // A head that moved: each row from its own pose, levelled together.
+    let moved = rows.iter().any(|r| r.mount_to_world.is_some()).then(|| rows_in_cloud(rows, mount_to_world));
     let mount_to_world = &mount_in_cloud(rows, mount_to_world);
     let tilts = estimate_tilts(rows, params.tilt_fit_half_window_rows);
     let mut points = Vec::new();
@@ -110,6 +142,7 @@ pub fn assemble(
     let dirs: Vec<Vector3<f64>> = (0..beams).map(|i| lidar.beam_direction(i)).collect();
     for (k, row) in rows.iter().enumerate() {
         let (tilt0, rate) = tilts[k];
+        let mount_to_world = moved.as_ref().map_or(mount_to_world, |poses| &poses[k]);
         let mid = mount_to_world * lidar.scanner_in_mount(tilt0 + rate * lidar.beam_time_offset_s(beams / 2));
         viewpoint_sum += mid.translation.vector;
         for (i, &r) in row.ranges_m.iter().enumerate() {
@@ -190,6 +223,39 @@ mod tests {
         // The heading kept: the believed head faces +x, so the floor seen ahead is at +x.
         let ahead = cloud.points().iter().filter(|p| p.x > 0.0).count();
         assert!(ahead * 10 > cloud.points().len() * 9, "{ahead} of {} points ahead", cloud.points().len());
+    }
+
+    /// A head walking 0.3 m forward and rising 0.2 m over a sweep while it pitches by 4
+    /// deg and back, its belief of itself off by a constant 3 deg tilt: each row assembled
+    /// where the robot believed the head was at its instant, levelled together, gives the
+    /// floor flat at its height; the same rows assembled from the head's last pose (what a
+    /// sweep taken as if standing makes of them) give a floor centimetres off.
+    #[test]
+    fn a_sweep_taken_as_the_head_moves_is_assembled_row_by_row() {
+        let spec = LidarSpec { noise_sigma_m: 0.0, dropout_probability: 0.0, ..LidarSpec::default() };
+        let rows = crate::sensor::TiltSweep::from_spec(&spec).rows();
+        let tilt_error = UnitQuaternion::from_euler_angles(3f64.to_radians(), 0.0, 0.0);
+        let heads: Vec<(Isometry3<f64>, Isometry3<f64>)> = (0..rows)
+            .map(|k| {
+                let s = k as f64 / (rows - 1) as f64;
+                let pitch_deg = 4.0 * (std::f64::consts::PI * s).sin();
+                let truth = head([0.3 * s, 0.0, 1.3 + 0.2 * s], [0.0, pitch_deg, 0.0]);
+                (truth, Isometry3::from_parts(truth.translation, tilt_error * truth.rotation))
+            })
+            .collect();
+        let lidar = SimLidar::moving(&Floor, &spec, &heads, 1).expect("a head per row");
+        let sweep = lidar.sweep_rows(&crate::cancel::Cancel::never(), &mut |_, _| {}).expect("a sweep");
+        assert!(sweep.moving());
+        let cloud = sweep.assemble(&AssembleParams::default()).expect("cloud");
+        let worst_m = cloud.points().iter().map(|p| f64::from(p.z).abs()).fold(0.0, f64::max);
+        assert!(cloud.points().len() > 100_000 && worst_m < 0.002, "the floor within {worst_m} m of z = 0");
+        assert!(floor_slope_deg(&cloud) < 0.05, "{} deg", floor_slope_deg(&cloud));
+        let mut standing = sweep.clone();
+        standing.mount_to_world = heads[rows - 1].1 * lidar.lidar().mount_in_head;
+        standing.rows.iter_mut().for_each(|r| r.mount_to_world = None);
+        let cloud = standing.assemble(&AssembleParams::default()).expect("cloud");
+        let worst_m = cloud.points().iter().map(|p| f64::from(p.z).abs()).fold(0.0, f64::max);
+        assert!(worst_m > 0.05, "assembled from one pose, the floor is {worst_m} m off at most");
     }
 
     #[test]

@@ -299,6 +299,7 @@ impl HardwareSource {
                     tilt_rad: tilt,
                     ranges_m: ranges.clone(),
                     gravity_mount: g,
+                    mount_to_world: None,
                 })
             })
             .collect()

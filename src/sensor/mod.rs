@@ -46,6 +46,11 @@ pub struct ScanRow {
     pub ranges_m: Vec<f32>,
     /// Gravity direction measured by the IMU, unit vector in the servo base (mount) frame.
     pub gravity_mount: Vector3<f64>,
+    /// Pose of the servo base in the world at `stamp_s` as the source knew it, when the head
+    /// moved during the sweep (a sweep taken while the robot walks: the robot's own estimate
+    /// at the row's instant); `None`: the head stood at the sweep's
+    /// [`Sweep::mount_to_world`] all along.
+    pub mount_to_world: Option<nalgebra::Isometry3<f64>>,
 }
 
 impl ScanRow {
@@ -124,7 +129,8 @@ pub struct Sweep {
     pub lidar: LidarModel,
     /// Pose of the servo base (tilt axis frame) in the world during the sweep, as the source
     /// (or the loop, from the robot's configuration) knows it; the cloud's frame is this
-    /// levelled by the rows' measured gravity ([`assemble::mount_in_cloud`]).
+    /// levelled by the rows' measured gravity ([`assemble::mount_in_cloud`]). A row with a
+    /// pose of its own ([`ScanRow::mount_to_world`]) is assembled there instead.
     pub mount_to_world: nalgebra::Isometry3<f64>,
 }
 
@@ -132,6 +138,20 @@ impl Sweep {
     /// The sweep's point cloud.
     pub fn assemble(&self, params: &AssembleParams) -> Result<crate::cloud::PointCloud, SensorError> {
         assemble(&self.rows, &self.lidar, &self.mount_to_world, params)
+    }
+
+    /// The sweep moved by `offset` (a registration's, in the world): its mount and every
+    /// row's own pose.
+    pub fn moved(&mut self, offset: &nalgebra::Isometry3<f64>) {
+        self.mount_to_world = offset * self.mount_to_world;
+        for pose in self.rows.iter_mut().filter_map(|r| r.mount_to_world.as_mut()) {
+            *pose = offset * *pose;
+        }
+    }
+
+    /// Whether the head moved during the sweep (its rows carry poses of their own).
+    pub fn moving(&self) -> bool {
+        self.rows.iter().any(|r| r.mount_to_world.is_some())
     }
 
     /// Beams cast in the sweep.

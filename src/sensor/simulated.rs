@@ -29,14 +29,22 @@ pub trait RayCaster: Sync {
 }
 
 /// A tilting lidar whose servo base sits at `mount_to_world` in a world seen through a
-/// [`RayCaster`], frozen at the world's current state (the robot stands still during a
-/// sweep, as on the real robot).
+/// [`RayCaster`], frozen at the world's current state (the robot standing still during a
+/// sweep), or moving along a head's path ([`SimLidar::moving`]).
 pub struct SimLidar<'w, C: RayCaster> {
     world: &'w C,
     lidar: LidarModel,
     sweep: TiltSweep,
     mount_to_world: Isometry3<f64>,
+    motion: Option<Motion>,
     seed: u64,
+}
+
+/// The servo base's path through a sweep, one pose per row: where it was, and where the
+/// robot believed it was.
+struct Motion {
+    truth: Vec<Isometry3<f64>>,
+    believed: Vec<Isometry3<f64>>,
 }
 
 impl<'w, C: RayCaster> SimLidar<'w, C> {
@@ -45,7 +53,32 @@ impl<'w, C: RayCaster> SimLidar<'w, C> {
     pub fn new(world: &'w C, spec: &LidarSpec, head_to_world: &Isometry3<f64>, seed: u64) -> Self {
         let lidar = LidarModel::from_spec(spec);
         let mount_to_world = head_to_world * lidar.mount_in_head;
-        Self { world, sweep: TiltSweep::from_spec(spec), lidar, mount_to_world, seed }
+        Self { world, sweep: TiltSweep::from_spec(spec), lidar, mount_to_world, motion: None, seed }
+    }
+
+    /// The lidar of `spec` on a head that moves during the sweep (a robot walking): row `k`
+    /// is cast from the head at `heads[k].0` (its true pose at the row's stamp, held through
+    /// the row) and carries `heads[k].1`, where the robot believed the head was then, for
+    /// the assembly ([`ScanRow::mount_to_world`]). As many heads as the sweep has rows, else
+    /// `None`.
+    pub fn moving(
+        world: &'w C,
+        spec: &LidarSpec,
+        heads: &[(Isometry3<f64>, Isometry3<f64>)],
+        seed: u64,
+    ) -> Option<Self> {
+        let sweep = TiltSweep::from_spec(spec);
+        let (last, _) = heads.last()?;
+        if heads.len() != sweep.rows() {
+            return None;
+        }
+        let mut lidar = Self::new(world, spec, last, seed);
+        let mount = lidar.lidar.mount_in_head;
+        lidar.motion = Some(Motion {
+            truth: heads.iter().map(|(t, _)| t * mount).collect(),
+            believed: heads.iter().map(|(_, b)| b * mount).collect(),
+        });
+        Some(lidar)
     }
 
     /// The lidar's model (what the assembler needs).
@@ -96,10 +129,11 @@ impl<'w, C: RayCaster> SimLidar<'w, C> {
         let noise =
             Normal::new(0.0, self.lidar.noise_sigma_m).ok().filter(|_| self.lidar.noise_sigma_m > 0.0);
         let beams = self.lidar.beams();
+        let mount_to_world = self.motion.as_ref().map_or(&self.mount_to_world, |m| &m.truth[k]);
         let mut ranges_m = Vec::with_capacity(beams);
         for i in 0..beams {
             let tilt = self.sweep.tilt_at(stamp_s + self.lidar.beam_time_offset_s(i));
-            let scanner = self.mount_to_world * self.lidar.scanner_in_mount(tilt);
+            let scanner = mount_to_world * self.lidar.scanner_in_mount(tilt);
             let origin = scanner.translation.vector.into();
             let dir = scanner.rotation * self.lidar.beam_direction(i);
             let hit = self.world.ray(&origin, &dir);
@@ -115,8 +149,10 @@ impl<'w, C: RayCaster> SimLidar<'w, C> {
                 h.push(hit);
             }
         }
-        let gravity_mount = self.mount_to_world.rotation.inverse() * -Vector3::z();
-        ScanRow { stamp_s, tilt_rad: self.sweep.reading_at(stamp_s), ranges_m, gravity_mount }
+        let gravity_mount = mount_to_world.rotation.inverse() * -Vector3::z();
+        let believed = self.motion.as_ref().map(|m| m.believed[k]);
+        let tilt_rad = self.sweep.reading_at(stamp_s);
+        ScanRow { stamp_s, tilt_rad, ranges_m, gravity_mount, mount_to_world: believed }
     }
 
     /// The whole sweep, cast in chunks of rows; `on_rows(done_rows, total_rows)` is called

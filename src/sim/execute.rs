@@ -5,6 +5,7 @@
 //! simulated HRP-4 as the closed loop's [`Executor`].
 
 use super::checks::{fall_check, slip_check, Ids, Monitor};
+use super::head_track::HeadTrack;
 use super::params::{ServoParams, SimParams};
 use super::sensors::SimSensors;
 use super::world::{SimError, World};
@@ -120,6 +121,7 @@ pub fn execute_from(
         sole_sites,
         root_body: world.body_id(&model.root().name)?,
     };
+    let head_site = world.site_id(crate::scene::mjcf::HEAD_SITE)?;
     let mut mon = Monitor::new(world, ids, scene, hrp4::sole_half_m(model)?, p, &params.plan.step);
     mon.plan_to_world = *plan_to_world;
     let joints = &model.joints()[..servos.kp.len().min(model.joints().len())];
@@ -242,6 +244,7 @@ pub fn execute_from(
             max_torque_ratio,
             gyro_rad_s,
             up_base,
+            head_to_world: Some(world.site_pose(head_site)),
         };
         observer.event(&Event::State { stamp_s: world.data().time(), state: &state });
         // The planned base carried into the world, where the fall is judged.
@@ -434,6 +437,9 @@ pub struct SimRobot<'a> {
     imu: SimSensors,
     /// The gyro as the estimate reads it during executions, carried from plan to plan.
     gyro: SimSensors,
+    /// Where the lidar head goes as the robot moves and stands, for a lidar that sweeps on
+    /// the way ([`SimRobot::with_track`]).
+    track: Option<&'a RefCell<HeadTrack>>,
 }
 
 impl<'a> SimRobot<'a> {
@@ -468,7 +474,35 @@ impl<'a> SimRobot<'a> {
         let tilt =
             TiltFilter::new(params.stabilizer.tilt_filter_time_s, params.stabilizer.tilt_accel_tolerance);
         let gyro = gyro_reader(&world.borrow(), params)?;
-        Ok(Self { world, model, scene, params: params.clone(), odometry, tilt, imu, gyro })
+        Ok(Self { world, model, scene, params: params.clone(), odometry, tilt, imu, gyro, track: None })
+    }
+
+    /// The robot recording into `track`, at the lidar's row period, its head's true pose and
+    /// where it believes the head is (its own estimate's configuration through the model's
+    /// kinematics), as it executes and as it stands: the path a lidar sweeping on the way
+    /// takes ([`super::SimSource::with_track`]).
+    pub fn with_track(mut self, track: &'a RefCell<HeadTrack>) -> Self {
+        self.track = Some(track);
+        self
+    }
+}
+
+/// Records the head into `track`, when a sample is due at `t_s` (a physics step of `dt_s`
+/// ends there): its true pose `truth`, and where the robot believes it is, from the
+/// configuration `believed_q` gives through `model`'s kinematics.
+fn sample_head(
+    track: Option<&RefCell<HeadTrack>>,
+    model: &RobotModel,
+    t_s: f64,
+    dt_s: f64,
+    truth: Option<&Isometry3<f64>>,
+    believed_q: impl FnOnce() -> Option<Vec<f64>>,
+) {
+    let Some(track) = track else { return };
+    let mut track = track.borrow_mut();
+    if let (true, Some(truth)) = (track.due(t_s, dt_s), truth) {
+        let believed = believed_q().and_then(|q| crate::climb::head_pose(model, &q));
+        track.record(t_s, *truth, believed);
     }
 }
 
@@ -493,6 +527,9 @@ impl Executor for SimRobot<'_> {
         match self.odometry.as_mut() {
             Some(odo) => {
                 odo.correct(offset);
+                if let Some(track) = self.track {
+                    track.borrow_mut().correct(offset);
+                }
                 true
             }
             None => false,
@@ -523,6 +560,8 @@ impl Executor for SimRobot<'_> {
         let stood = soles.map(|s| world.site_pose(s).translation.vector);
         let mut slid: Option<Check> = None;
         let checks = &self.params.checks;
+        let (track, model) = (self.track, self.model);
+        let head_site = world.site_id(crate::scene::mjcf::HEAD_SITE)?;
         let mut feed = |w: &World| {
             for (k, foot) in [Foot::Right, Foot::Left].into_iter().enumerate() {
                 let at = w.site_pose(soles[k]).translation.vector;
@@ -545,6 +584,11 @@ impl Executor for SimRobot<'_> {
                 }
                 since_gyro_s = Some(dt);
             }
+            let believed_q = || match odometry.as_ref() {
+                Some(odo) => odo.configuration(&w.configuration()[Q_JOINTS..]).ok(),
+                None => Some(w.configuration().to_vec()),
+            };
+            sample_head(track, model, w.data().time(), dt, Some(&w.site_pose(head_site)), believed_q);
         };
         settle_watched(world, seconds, &mut feed);
         let run = &self.params.run;
@@ -576,8 +620,17 @@ impl Executor for SimRobot<'_> {
     ) -> Result<Execution, SimError> {
         let mut world = self.world.borrow_mut();
         let (tilt, gyro) = (Some(&mut self.tilt), Some(&mut self.gyro));
+        let (track, model, dt) = (self.track, self.model, world.model().opt().timestep);
         let Some(odo) = self.odometry.as_mut() else {
             let identity = Isometry3::identity();
+            // The head's belief is the true configuration through the model's kinematics.
+            let mut head = Watch(|e: &Event| {
+                if let Event::State { stamp_s, state } = e {
+                    let truth = state.head_to_world.as_ref();
+                    sample_head(track, model, *stamp_s, dt, truth, || Some(state.q.to_vec()));
+                }
+                observer.event(e);
+            });
             return execute_from(
                 &mut world,
                 self.model,
@@ -587,7 +640,7 @@ impl Executor for SimRobot<'_> {
                 &self.params,
                 tilt,
                 gyro,
-                observer,
+                &mut head,
                 cancel,
             );
         };
@@ -610,6 +663,8 @@ impl Executor for SimRobot<'_> {
                 {
                     lost.get_or_insert(error);
                 }
+                let truth = state.head_to_world.as_ref();
+                sample_head(track, model, *stamp_s, dt, truth, || odo.configuration(joints).ok());
             }
             observer.event(e);
         });

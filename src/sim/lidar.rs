@@ -1,7 +1,10 @@
 //! The simulated lidar as a [`Source`]: the scenario's tilting lidar on the robot's head in a
-//! MuJoCo [`World`], swept from wherever the robot stands when the loop asks. Each sweep draws
-//! its own noise (the scenario's seed plus the sweep's number, from 1).
+//! MuJoCo [`World`], swept from wherever the robot stands when the loop asks, or, given the
+//! head's track ([`HeadTrack`]), along the path the head took over the last sweep's time
+//! (the robot sweeping as it moves). Each sweep draws its own noise (the scenario's seed plus
+//! the sweep's number, from 1).
 
+use super::head_track::HeadTrack;
 use super::world::{SimError, World};
 use crate::cancel::Cancel;
 use crate::scenario::LidarSpec;
@@ -16,13 +19,23 @@ pub struct SimSource<'a> {
     head_site: usize,
     seed: u64,
     sweeps: u64,
+    track: Option<&'a RefCell<HeadTrack>>,
 }
 
 impl<'a> SimSource<'a> {
     /// The lidar of `spec` on the head of `world`'s robot; `seed` drives noise and dropouts.
     pub fn new(world: &'a RefCell<World>, spec: &LidarSpec, seed: u64) -> Result<Self, SimError> {
         let head_site = world.borrow().site_id(HEAD_SITE)?;
-        Ok(Self { world, spec: spec.clone(), head_site, seed, sweeps: 0 })
+        Ok(Self { world, spec: spec.clone(), head_site, seed, sweeps: 0, track: None })
+    }
+
+    /// The lidar sweeping as the head moves: a sweep is cast along the last sweep's worth
+    /// of `track` (the rows' true poses, the robot's beliefs carried by the rows), or, while
+    /// the track holds less (the robot has not yet moved or stood that long), from where the
+    /// head stands.
+    pub fn with_track(mut self, track: &'a RefCell<HeadTrack>) -> Self {
+        self.track = Some(track);
+        self
     }
 }
 
@@ -45,8 +58,12 @@ impl Source for SimSource<'_> {
     ) -> Result<Sweep, SensorError> {
         self.sweeps += 1;
         let world = self.world.borrow();
+        let seed = self.seed.wrapping_add(self.sweeps);
+        let heads = self.track.and_then(|t| t.borrow().sweep());
+        if let Some(lidar) = heads.and_then(|heads| SimLidar::moving(&*world, &self.spec, &heads, seed)) {
+            return lidar.sweep_rows(cancel, on_rows);
+        }
         let head = world.site_pose(self.head_site);
-        let lidar = SimLidar::new(&*world, &self.spec, &head, self.seed.wrapping_add(self.sweeps));
-        lidar.sweep_rows(cancel, on_rows)
+        SimLidar::new(&*world, &self.spec, &head, seed).sweep_rows(cancel, on_rows)
     }
 }

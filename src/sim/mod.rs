@@ -7,6 +7,7 @@
 pub mod checks;
 pub mod emulator;
 pub mod execute;
+pub mod head_track;
 pub mod lidar;
 pub mod params;
 pub mod plant;
@@ -61,9 +62,14 @@ pub fn climb_scenario(
     let scene = Scene::from_scenario(scenario)?;
     let model = crate::robot::hrp4::model()?;
     let world = RefCell::new(World::with_plant(&scene, &Plant::of_scenario(&model, scenario))?);
+    let track = RefCell::new(head_track::HeadTrack::new(&scenario.lidar));
     let mut source = SimSource::new(&world, &scenario.lidar, scenario.seed)?;
     debug_assert!(p.plan == &sim.plan && p.run == &sim.run, "the loop and the robot under one plan");
     let mut robot = SimRobot::new(&world, &model, &scene, sim)?;
+    if sim.run.sweep_while_moving {
+        source = source.with_track(&track);
+        robot = robot.with_track(&track);
+    }
     let bench = Bench { source: &mut source, robot: &mut robot, model: &model, truth: &scene };
     Ok(climb::run(bench, p, observer, cancel)?)
 }
