@@ -65,13 +65,15 @@ pub struct RunParams {
     /// The lidar sweeps as the robot moves (issue 42's "no standing still for a scan"): the
     /// sweep a plan is made from is the last sweep's time of rows up to the moment the loop
     /// looks, each row cast from where the head was at its instant and assembled where the
-    /// robot's own estimate had the head then (in simulation the robot records the head's
-    /// path, `sim::head_track`; the real sensors sweep standing). Until the robot has moved
-    /// or stood a sweep's time (the first look), the sweep is taken standing. Off (the
+    /// robot's own estimate had the head then, smoothed back from the sweep's end by its
+    /// gyro (`crate::estimate::path`; in simulation the robot records the head's path,
+    /// `sim::head_track`; the real sensors sweep standing). Until the robot has moved or
+    /// stood a sweep's time (the first look), the sweep is taken standing. Off (the
     /// default): every sweep is taken where the robot stands after its settle (in
     /// simulation cast in no simulated time; a real robot stands the sweep's 6 s). Not yet
-    /// the default: a moving head's sweep draws lines along the walls that a standing one
-    /// does not, and one `smoke` case saw a plane that is not there (CHANGELOG, 2026-12-02).
+    /// the default: a moving head's sweep shows what a standing one does not (the beams
+    /// along the tilt axis draw lines along the walls), and `regressions` (52 of 55) and
+    /// `wide` (54 of 60) refuse climbs falsely with it (CHANGELOG, 2026-12-02).
     pub sweep_while_moving: bool,
     /// Friction coefficient of the surfaces of a hardware rehearsal's world (`run
     /// --hardware`: the perceived steps rebuilt in simulation, whose true friction nobody

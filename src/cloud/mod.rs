@@ -12,6 +12,9 @@ pub struct ScanGrid {
     rows: usize,
     beams: usize,
     cell_to_point: Vec<u32>,
+    /// Where each row was seen from, when the sensor moved during the sweep; empty when
+    /// every row was seen from the cloud's viewpoint.
+    row_origins: Vec<Point3<f64>>,
 }
 
 impl ScanGrid {
@@ -35,7 +38,21 @@ impl ScanGrid {
             rows,
             beams,
             cell_to_point,
+            row_origins: Vec::new(),
         })
+    }
+
+    /// The grid of a sensor that moved during the sweep: row `k` seen from `origins[k]` (the
+    /// scanner's optical centre at the row's middle beam). `None` unless there is one origin
+    /// a row.
+    pub fn with_row_origins(self, origins: Vec<Point3<f64>>) -> Option<Self> {
+        (origins.len() == self.rows).then_some(Self { row_origins: origins, ..self })
+    }
+
+    /// Where each row was seen from, when the sensor moved during the sweep (one a row);
+    /// empty when every row was seen from the cloud's viewpoint.
+    pub fn row_origins(&self) -> &[Point3<f64>] {
+        &self.row_origins
     }
 
     /// Rows in the grid.

@@ -25,6 +25,8 @@
 //! MuJoCo-free: the simulated robot feeds it the encoders, the feet's loads and the gyro, a
 //! real robot would feed it the same.
 
+pub mod path;
+
 use crate::robot::hrp4;
 use crate::robot::kinematics::frame_in_base;
 use crate::robot::model::{base_pose, set_base_pose, RobotError, RobotModel, Q_JOINTS};
@@ -276,6 +278,12 @@ impl<'m> Odometry<'m> {
     /// anchor, and with it the base, moves by `delta` (applied in the estimate's frame).
     pub fn correct(&mut self, delta: &Isometry3<f64>) {
         self.anchor = delta * self.anchor;
+    }
+
+    /// The anchor's sole as the odometry holds it (levelled where it became the anchor,
+    /// then turned and tilted as it followed).
+    pub fn anchor(&self) -> Isometry3<f64> {
+        self.anchor
     }
 
     /// Times the anchor moved to the other foot.

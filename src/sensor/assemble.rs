@@ -139,12 +139,16 @@ pub fn assemble(
     let mut points = Vec::new();
     let mut cell_to_point = vec![u32::MAX; rows.len() * beams];
     let mut viewpoint_sum = Vector3::zeros();
+    let mut row_origins = Vec::with_capacity(if moved.is_some() { rows.len() } else { 0 });
     let dirs: Vec<Vector3<f64>> = (0..beams).map(|i| lidar.beam_direction(i)).collect();
     for (k, row) in rows.iter().enumerate() {
         let (tilt0, rate) = tilts[k];
         let mount_to_world = moved.as_ref().map_or(mount_to_world, |poses| &poses[k]);
         let mid = mount_to_world * lidar.scanner_in_mount(tilt0 + rate * lidar.beam_time_offset_s(beams / 2));
         viewpoint_sum += mid.translation.vector;
+        if moved.is_some() {
+            row_origins.push(Point3::from(mid.translation.vector));
+        }
         for (i, &r) in row.ranges_m.iter().enumerate() {
             if !(r.is_finite() && r > 0.0) {
                 continue;
@@ -162,7 +166,14 @@ pub fn assemble(
         Point3::from(viewpoint_sum / rows.len() as f64)
     };
     let gravity = -Vector3::z_axis();
-    let grid = ScanGrid::new(rows.len(), beams, cell_to_point);
+    // A head that moved saw each row from its own place.
+    let grid = ScanGrid::new(rows.len(), beams, cell_to_point).and_then(|g| {
+        if moved.is_some() {
+            g.with_row_origins(row_origins)
+        } else {
+            Some(g)
+        }
+    });
     Ok(PointCloud::new(points, viewpoint, gravity, grid))
 }
 

@@ -15,13 +15,14 @@ use crate::climb::{
 };
 use crate::control::attitude::TiltFilter;
 use crate::control::Stabilizer;
+use crate::estimate::path::Belief;
 use crate::estimate::Odometry;
 use crate::planning::gait::Swing;
 use crate::planning::{Foot, Plan};
 use crate::robot::hrp4;
 use crate::robot::model::{base_pose, set_base_pose, RobotModel, Q_JOINTS};
 use crate::scene::Scene;
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Vector3};
 use std::cell::RefCell;
 
 /// The position servos with the integral term of [`ServoParams`].
@@ -488,21 +489,34 @@ impl<'a> SimRobot<'a> {
 }
 
 /// Records the head into `track`, when a sample is due at `t_s` (a physics step of `dt_s`
-/// ends there): its true pose `truth`, and where the robot believes it is, from the
-/// configuration `believed_q` gives through `model`'s kinematics.
+/// ends there): its true pose `truth`, and the robot's belief from what `believed` gives (the
+/// configuration it believes and where it holds its anchor sole's origin) through `model`'s
+/// kinematics.
 fn sample_head(
     track: Option<&RefCell<HeadTrack>>,
     model: &RobotModel,
     t_s: f64,
     dt_s: f64,
     truth: Option<&Isometry3<f64>>,
-    believed_q: impl FnOnce() -> Option<Vec<f64>>,
+    believed: impl FnOnce() -> Option<(Vec<f64>, nalgebra::Point3<f64>)>,
 ) {
     let Some(track) = track else { return };
     let mut track = track.borrow_mut();
     if let (true, Some(truth)) = (track.due(t_s, dt_s), truth) {
-        let believed = believed_q().and_then(|q| crate::climb::head_pose(model, &q));
-        track.record(t_s, *truth, believed);
+        let belief = believed().and_then(|(q, pivot)| {
+            let base = base_pose(&q);
+            let head = crate::climb::head_pose(model, &q)?;
+            Some(Belief { base, head_in_base: base.inverse() * head, pivot, turn: None })
+        });
+        track.record(t_s, *truth, belief);
+    }
+}
+
+/// The base's turn the gyro reads, `gyro_rad_s` less the bias `odometry` measured standing,
+/// over `dt_s`, into `track`.
+fn turn_head(track: Option<&RefCell<HeadTrack>>, odometry: &Odometry, gyro_rad_s: &Vector3<f64>, dt_s: f64) {
+    if let Some(track) = track {
+        track.borrow_mut().turn_by(&(gyro_rad_s - odometry.gyro_bias_rad_s()), dt_s);
     }
 }
 
@@ -579,16 +593,25 @@ impl Executor for SimRobot<'_> {
             if let Some(odo) = odometry.as_mut() {
                 let joints = &w.configuration()[Q_JOINTS..];
                 let up = tilt.up_base();
-                if let Err(error) = odo.follow(joints, up.as_ref(), &gyro.imu(w).gyro_rad_s, since_gyro_s) {
+                let gyro_rad_s = gyro.imu(w).gyro_rad_s;
+                if let Err(error) = odo.follow(joints, up.as_ref(), &gyro_rad_s, since_gyro_s) {
                     lost.get_or_insert(error);
                 }
+                turn_head(track, odo, &gyro_rad_s, dt);
                 since_gyro_s = Some(dt);
             }
-            let believed_q = || match odometry.as_ref() {
-                Some(odo) => odo.configuration(&w.configuration()[Q_JOINTS..]).ok(),
-                None => Some(w.configuration().to_vec()),
+            let believed = || match odometry.as_ref() {
+                Some(odo) => {
+                    let q = odo.configuration(&w.configuration()[Q_JOINTS..]).ok()?;
+                    Some((q, odo.anchor().translation.vector.into()))
+                }
+                None => {
+                    let q = w.configuration().to_vec();
+                    let pivot = base_pose(&q).translation.vector.into();
+                    Some((q, pivot))
+                }
             };
-            sample_head(track, model, w.data().time(), dt, Some(&w.site_pose(head_site)), believed_q);
+            sample_head(track, model, w.data().time(), dt, Some(&w.site_pose(head_site)), believed);
         };
         settle_watched(world, seconds, &mut feed);
         let run = &self.params.run;
@@ -627,7 +650,12 @@ impl Executor for SimRobot<'_> {
             let mut head = Watch(|e: &Event| {
                 if let Event::State { stamp_s, state } = e {
                     let truth = state.head_to_world.as_ref();
-                    sample_head(track, model, *stamp_s, dt, truth, || Some(state.q.to_vec()));
+                    let believed = || {
+                        let q = state.q.to_vec();
+                        let pivot = base_pose(&q).translation.vector.into();
+                        Some((q, pivot))
+                    };
+                    sample_head(track, model, *stamp_s, dt, truth, believed);
                 }
                 observer.event(e);
             });
@@ -663,8 +691,11 @@ impl Executor for SimRobot<'_> {
                 {
                     lost.get_or_insert(error);
                 }
+                turn_head(track, odo, &state.gyro_rad_s, since_last_s.unwrap_or(dt));
                 let truth = state.head_to_world.as_ref();
-                sample_head(track, model, *stamp_s, dt, truth, || odo.configuration(joints).ok());
+                let believed =
+                    || Some((odo.configuration(joints).ok()?, odo.anchor().translation.vector.into()));
+                sample_head(track, model, *stamp_s, dt, truth, believed);
             }
             observer.event(e);
         });
