@@ -195,33 +195,20 @@ fn symmetric(u: &[f64; 6]) -> Matrix3<f64> {
 }
 
 impl Moments {
-    // Inlined, the sums stay in registers over a cell's points.
-    #[inline(always)]
+    /// A point `q` seen from the viewpoint.
+    #[cfg(test)]
     fn add(&mut self, q: &Vector3<f64>) {
-        let (x, y, z) = (q.x, q.y, q.z);
-        let o = [x * x, x * y, x * z, y * y, y * z, z * z];
-        let norm2 = o[0] + o[3] + o[5];
-        let inv = if norm2 > 0.0 { 1.0 / norm2 } else { 0.0 };
-        self.n += 1.0;
-        self.sum[0] += x;
-        self.sum[1] += y;
-        self.sum[2] += z;
-        for ((outer, rays), o) in self.outer.iter_mut().zip(&mut self.rays).zip(o) {
-            *outer += o;
-            *rays += o * inv;
-        }
+        self.add_seen(q, q);
     }
 
-    /// [`Moments::add`] of a point `q` seen along the ray `d` (from its row's own origin,
-    /// when the sensor moved during the sweep; `q` itself when it did not).
+    /// A point `q` seen along the ray `d` (from its row's own origin, when the sensor moved
+    /// during the sweep; `q` itself when it did not). Inlined, the sums stay in registers
+    /// over a cell's points.
     #[inline(always)]
     fn add_seen(&mut self, q: &Vector3<f64>, d: &Vector3<f64>) {
-        if q == d {
-            return self.add(q);
-        }
         let (x, y, z) = (q.x, q.y, q.z);
         let o = [x * x, x * y, x * z, y * y, y * z, z * z];
-        let r = [d.x * d.x, d.x * d.y, d.x * d.z, d.y * d.y, d.y * d.z, d.z * d.z];
+        let r = if q == d { o } else { [d.x * d.x, d.x * d.y, d.x * d.z, d.y * d.y, d.y * d.z, d.z * d.z] };
         let norm2 = r[0] + r[3] + r[5];
         let inv = if norm2 > 0.0 { 1.0 / norm2 } else { 0.0 };
         self.n += 1.0;
