@@ -365,7 +365,8 @@ struct Near {
     reach2_m2: f64,
 }
 
-/// The region the point `q` (from the viewpoint) joins among `near`, if any: the likeliest
+/// The region the point `q` (from the viewpoint, seen along the ray `d`: from its row's own
+/// origin where the sensor moved, else `q` again) joins among `near`, if any: the likeliest
 /// plane in the point's own noise, which moves it along its ray (distance over
 /// `sigma |ray . n|`); a region's only within its tolerance and within reach of the cell it
 /// was found in, and not when the point lies behind a steep plane its ray meets near that
@@ -500,8 +501,8 @@ struct Grid<'a> {
 }
 
 impl<'a> Grid<'a> {
-    /// `cloud`'s grid for `p`, with its rows' offsets from the viewpoint (`row_offsets`,
-    /// [`row_offsets`]); `None` without a grid.
+    /// `cloud`'s grid for `p`, its rows seen from `row_offsets` (their own origins from the
+    /// viewpoint, [`row_offsets`]; empty for a sensor that stood); `None` without a grid.
     fn of(cloud: &'a PointCloud, row_offsets: &'a [Vector3<f64>], p: &'a CellParams) -> Option<Self> {
         Some(Self {
             grid: cloud.grid()?,

@@ -489,26 +489,29 @@ impl<'a> SimRobot<'a> {
 }
 
 /// Records the head into `track`, when a sample is due at `t_s` (a physics step of `dt_s`
-/// ends there): its true pose `truth`, and the robot's belief from what `believed` gives (the
-/// configuration it believes and where it holds its anchor sole's origin) through `model`'s
-/// kinematics.
+/// ends there): its true pose `truth` gives, and the robot's belief from what `believed`
+/// gives (the configuration it believes and where it holds its anchor sole's origin) through
+/// `model`'s kinematics.
 fn sample_head(
     track: Option<&RefCell<HeadTrack>>,
     model: &RobotModel,
     t_s: f64,
     dt_s: f64,
-    truth: Option<&Isometry3<f64>>,
+    truth: impl FnOnce() -> Option<Isometry3<f64>>,
     believed: impl FnOnce() -> Option<(Vec<f64>, nalgebra::Point3<f64>)>,
 ) {
     let Some(track) = track else { return };
     let mut track = track.borrow_mut();
-    if let (true, Some(truth)) = (track.due(t_s, dt_s), truth) {
+    if !track.due(t_s, dt_s) {
+        return;
+    }
+    if let Some(truth) = truth() {
         let belief = believed().and_then(|(q, pivot)| {
             let base = base_pose(&q);
             let head = crate::climb::head_pose(model, &q)?;
             Some(Belief { base, head_in_base: base.inverse() * head, pivot, turn: None })
         });
-        track.record(t_s, *truth, belief);
+        track.record(t_s, truth, belief);
     }
 }
 
@@ -611,7 +614,7 @@ impl Executor for SimRobot<'_> {
                     Some((q, pivot))
                 }
             };
-            sample_head(track, model, w.data().time(), dt, Some(&w.site_pose(head_site)), believed);
+            sample_head(track, model, w.data().time(), dt, || Some(w.site_pose(head_site)), believed);
         };
         settle_watched(world, seconds, &mut feed);
         let run = &self.params.run;
@@ -649,7 +652,7 @@ impl Executor for SimRobot<'_> {
             // The head's belief is the true configuration through the model's kinematics.
             let mut head = Watch(|e: &Event| {
                 if let Event::State { stamp_s, state } = e {
-                    let truth = state.head_to_world.as_ref();
+                    let truth = || state.head_to_world;
                     let believed = || {
                         let q = state.q.to_vec();
                         let pivot = base_pose(&q).translation.vector.into();
@@ -692,7 +695,7 @@ impl Executor for SimRobot<'_> {
                     lost.get_or_insert(error);
                 }
                 turn_head(track, odo, &state.gyro_rad_s, since_last_s.unwrap_or(dt));
-                let truth = state.head_to_world.as_ref();
+                let truth = || state.head_to_world;
                 let believed =
                     || Some((odo.configuration(joints).ok()?, odo.anchor().translation.vector.into()));
                 sample_head(track, model, *stamp_s, dt, truth, believed);
