@@ -72,10 +72,9 @@ pub struct RunParams {
     /// default): every sweep is taken where the robot stands after its settle (in
     /// simulation cast in no simulated time; a real robot stands the sweep's 6 s). Not yet
     /// the default, nor safe: a moving head's sweep shows what a standing one does not (the
-    /// beams along the tilt axis draw lines along the walls); with it `regressions` (52 of
-    /// 55) and `wide` (54 of 60) refuse climbs falsely, `envelope` sets a foot 3 cm over a
-    /// step's edge, and `real` has three falls, the chest into a handrail (CHANGELOG,
-    /// 2026-12-02).
+    /// beams along the tilt axis draw lines along the walls) and leaves gaps beside the
+    /// body, which the clearance takes for free space (the suites' figures with it on:
+    /// BENCHMARKS.md).
     pub sweep_while_moving: bool,
     /// Friction coefficient of the surfaces of a hardware rehearsal's world (`run
     /// --hardware`: the perceived steps rebuilt in simulation, whose true friction nobody
