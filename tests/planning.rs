@@ -778,6 +778,47 @@ fn the_ik_keeps_the_body_off_a_wall_the_lidar_saw() {
     );
 }
 
+/// Issue 42, real-0014 with sweeps taken as the robot moved: the chest met a right handrail
+/// in a gap no ray had crossed, planned as free space. Space the lidar could have seen and
+/// did not is kept off as a surface is: the same wall as unseen space 2 cm beyond the blind
+/// plan's reach is kept off by the body's clearance, reported as unseen; through the body,
+/// the plan is refused as unseen space, not planned through; and the legs and the footholds
+/// do not take it for a surface (a plan among unseen space at the legs' height only is the
+/// blind plan).
+#[test]
+fn the_body_keeps_off_space_the_lidar_could_have_seen_and_did_not() {
+    let (model, rects, q0, p, blind) = planned_blind();
+    let (_, [_, reach_y]) = upper_body_reach(&blind, &[]);
+    let unseen = wall_at(reach_y + 0.02);
+    let among = |points: Vec<Point3<f64>>| {
+        PlanRequest::new(&model, &q0, &rects, &p)
+            .among(std::sync::Arc::new(clearance::SeenPoints::with_unseen(Vec::new(), points)))
+            .max_stances(Some(2))
+            .climb()
+    };
+    let kept_off = among(unseen.clone()).expect("planned beside unseen space");
+    let (least, _) = upper_body_reach(&kept_off, &unseen);
+    assert!(least >= p.ik.body_clearance_m - 1e-3, "the body came within {least} m of unseen space");
+    let nearest = kept_off.tracking.nearest_body_surface.as_ref().expect("the body came near it");
+    assert!(nearest.unseen, "{nearest:?}");
+    let through: Vec<Point3<f64>> = unseen.iter().map(|q| Point3::new(q.x, reach_y - 0.2, q.z)).collect();
+    let e = among(through).expect_err("unseen space through the body");
+    assert!(matches!(e, PlanError::BodyNearUnseen { .. } | PlanError::Ik { .. }), "{e}");
+    let kind = e.refusal().kind;
+    assert_eq!(
+        kind == stairbench::planning::RefusalKind::BodyNearUnseen,
+        matches!(e, PlanError::BodyNearUnseen { .. })
+    );
+    // At the shanks' height only, across the lanes: neither footholds nor legs keep off it.
+    let low: Vec<Point3<f64>> = (0..80)
+        .flat_map(|i| {
+            (0..30).map(move |j| Point3::new(-0.5 + 0.03 * i as f64, -0.45 + 0.03 * j as f64, 0.25))
+        })
+        .collect();
+    let legs = among(low).expect("unseen space at the shanks' height is not a surface for the legs");
+    assert_eq!(legs.stances, blind.stances);
+}
+
 /// Issue 39, real-0042 (two handrails 0.82 m apart): the IK holds each capsule off its one
 /// nearest seen point, and between two surfaces it gives way toward the other; the body's
 /// sway about the plan then put the chest on a rail. Walls on both sides, from 1 cm beyond

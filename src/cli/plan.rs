@@ -167,7 +167,8 @@ fn inputs(a: &PlanArgs, model: &RobotModel) -> Result<Inputs> {
         let p = SurroundingsParams::default();
         let mut around = Surroundings::default();
         add_view(&mut around, &cloud, model, &q0, &p);
-        return Ok((rects, q0, Arc::new(SeenPoints::new(around.points(&p))), true));
+        let seen = SeenPoints::with_unseen(around.points(&p), around.unseen(&p));
+        return Ok((rects, q0, Arc::new(seen), true));
     }
     Ok((rectangles::from_step_tops(scene.steps()), q0, Arc::default(), false))
 }

@@ -440,7 +440,8 @@ pub fn plan_next(
 pub struct ViewInput {
     /// The steps ahead (and a partly seen top step left for a closer look).
     pub next: NextInput,
-    /// Everything the lidar saw so far, the robot's own body left out.
+    /// Everything the lidar saw so far, the robot's own body left out, and the edge of the
+    /// space near the body it could have seen and did not.
     pub surfaces: Arc<SeenPoints>,
 }
 
@@ -458,7 +459,8 @@ pub fn take_view(
 ) -> ViewInput {
     add_view(around, cloud, model, q, p.surroundings);
     let next = map.next_input(seen, feet_height_m(model, q), p.plan.gait.min_tread_m, p.step_map);
-    ViewInput { next, surfaces: Arc::new(SeenPoints::new(around.points(p.surroundings))) }
+    let surfaces = SeenPoints::with_unseen(around.points(p.surroundings), around.unseen(p.surroundings));
+    ViewInput { next, surfaces: Arc::new(surfaces) }
 }
 
 /// Adds a sweep's cloud to the surroundings, leaving out the robot's own body at the

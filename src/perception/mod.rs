@@ -8,6 +8,7 @@
 //! from them, an order of magnitude faster.
 
 pub mod cells;
+pub mod free_space;
 pub mod metrics;
 pub mod noise;
 pub mod normals;

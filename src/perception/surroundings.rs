@@ -6,8 +6,11 @@
 //! blind to them, so the filter costs nothing there); the planner keeps the upper body off
 //! the occupied voxels' centroids (`planning::clearance::SeenPoints`), the legs off those
 //! that are not the steps' or the floor's own, and the soles off what stands on the floor,
-//! a tread or a landing (`planning::footholds`).
+//! a tread or a landing (`planning::footholds`). The space the rays crossed is kept beside
+//! (`free_space`), and the edge of what the lidar could have seen there and did not is kept
+//! off by the upper body as a surface is ([`Surroundings::unseen`]).
 
+use super::free_space::{FreeSpace, FreeSpaceParams};
 use crate::cloud::PointCloud;
 use crate::geom3d::Capsule;
 use nalgebra::{Point3, Vector3};
@@ -28,6 +31,45 @@ pub struct SurroundingsParams {
     /// metres.
     #[serde(deserialize_with = "positive_m")]
     pub self_margin_m: f64,
+    /// Whether the upper body is kept off the edge of the space the lidar could have seen
+    /// and no ray crossed (a shadow, a moving head's gap), as off a surface. On by default:
+    /// unseen space taken for free let a chest meet a handrail no ray had met.
+    pub unseen_kept_off: bool,
+    /// Edge of a voxel of the crossed space, metres. 5 cm: a few beams cross each at the
+    /// body's distances, and the edge's voxels are closer together than the body's
+    /// capsules are thick.
+    #[serde(deserialize_with = "positive_m")]
+    pub free_voxel_m: f64,
+    /// Every how many beams and rows a ray is traced into the crossed space (the sweep's
+    /// 0.25 deg beams and rows are 1 cm apart at 2 m: a 5 cm voxel is crossed by several
+    /// of every second).
+    pub ray_stride: usize,
+    /// Rays are traced this far from the sensor into the crossed space, metres: farther than
+    /// the body's next plan reaches from the head.
+    #[serde(deserialize_with = "positive_m")]
+    pub ray_reach_m: f64,
+    /// The unseen edge is drawn this far around the body's box, metres: a plan's moves of the
+    /// upper body stay nearer (two stairs ahead, 0.6 m).
+    #[serde(deserialize_with = "positive_m")]
+    pub unseen_around_body_m: f64,
+    /// The unseen edge is drawn from this height above the soles up, metres: the upper
+    /// body's lowest point (a hand, 0.6 m over the soles of HRP-4) is higher; the legs are
+    /// kept off the steps' solids instead.
+    pub unseen_above_soles_m: f64,
+}
+
+impl SurroundingsParams {
+    /// The crossed space's parameters.
+    pub fn free_space(&self) -> FreeSpaceParams {
+        FreeSpaceParams {
+            voxel_m: self.free_voxel_m,
+            ray_stride: self.ray_stride,
+            reach_m: self.ray_reach_m,
+            around_body_m: self.unseen_around_body_m,
+            above_soles_m: self.unseen_above_soles_m,
+            self_margin_m: self.self_margin_m,
+        }
+    }
 }
 
 /// A parameters file's length that must be positive and finite.
@@ -42,7 +84,17 @@ fn positive_m<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
 
 impl Default for SurroundingsParams {
     fn default() -> Self {
-        Self { voxel_m: 0.03, min_returns: 2, self_margin_m: 0.05 }
+        Self {
+            voxel_m: 0.03,
+            min_returns: 2,
+            self_margin_m: 0.05,
+            unseen_kept_off: true,
+            free_voxel_m: 0.05,
+            ray_stride: 2,
+            ray_reach_m: 2.5,
+            unseen_around_body_m: 1.0,
+            unseen_above_soles_m: 0.3,
+        }
     }
 }
 
@@ -58,6 +110,8 @@ pub struct Surroundings {
     /// Each voxel's place in `cells`, by its integer coordinates.
     index: FxHashMap<[i32; 3], u32>,
     cells: Vec<Cell>,
+    /// The space the rays crossed (kept only when `unseen_kept_off`).
+    free: FreeSpace,
 }
 
 impl Surroundings {
@@ -67,6 +121,9 @@ impl Surroundings {
     pub fn add(&mut self, cloud: &PointCloud, body: &[Capsule], p: &SurroundingsParams) {
         if p.voxel_m.is_nan() || p.voxel_m <= 0.0 {
             return; // no parameters file gives one (`positive_m`); only code could
+        }
+        if p.unseen_kept_off {
+            self.free.add(cloud, body, &p.free_space());
         }
         // The body's box: most returns (the floor, the room) are outside it and need no
         // test against each shape.
@@ -119,6 +176,15 @@ impl Surroundings {
         // one order whatever the sweeps' order.
         out.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)).then(a.z.total_cmp(&b.z)));
         out
+    }
+
+    /// The edge of the space the last sweep could have seen near the body and no ray
+    /// crossed ([`FreeSpace::unseen_edge`]); none unless `p.unseen_kept_off`.
+    pub fn unseen(&self, p: &SurroundingsParams) -> Vec<Point3<f64>> {
+        match p.unseen_kept_off {
+            true => self.free.unseen_edge(&p.free_space()),
+            false => Vec::new(),
+        }
     }
 
     /// Voxels holding any return.

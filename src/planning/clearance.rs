@@ -125,16 +125,20 @@ pub fn body_capsules(model: &RobotModel, kin: &Kinematics) -> Vec<Capsule> {
 /// Spacing of the axis samples of [`SeenPoints::nearest`]'s bounds, metres.
 const SAMPLE_SPACING_M: f64 = 0.05;
 
-/// The surfaces the lidar saw, as points (the surroundings' voxel centroids), with a k-d
-/// tree for the clearance queries.
+/// The surfaces the lidar saw, as points (the surroundings' voxel centroids), and the edge
+/// of the space it could have seen near the body and did not (`perception::free_space`),
+/// with a k-d tree over both for the upper body's clearance queries.
 pub struct SeenPoints {
+    /// The surfaces' points, then the unseen edge's.
     points: Vec<Point3<f64>>,
+    /// How many of `points` are surfaces'.
+    surfaces: usize,
     tree: Option<kiddo::ImmutableKdTree<f64, 3>>,
 }
 
 impl std::fmt::Debug for SeenPoints {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "SeenPoints({} points)", self.points.len())
+        write!(f, "SeenPoints({} points, {} unseen)", self.surfaces, self.points.len() - self.surfaces)
     }
 }
 
@@ -144,29 +148,51 @@ impl Default for SeenPoints {
     }
 }
 
+fn finite(points: Vec<Point3<f64>>) -> Vec<Point3<f64>> {
+    points.into_iter().filter(|p| p.coords.iter().all(|v| v.is_finite())).collect()
+}
+
 impl SeenPoints {
-    /// The points (non-finite ones dropped).
+    /// The surfaces' points (non-finite ones dropped).
     pub fn new(points: Vec<Point3<f64>>) -> Self {
-        let points: Vec<Point3<f64>> =
-            points.into_iter().filter(|p| p.coords.iter().all(|v| v.is_finite())).collect();
+        Self::with_unseen(points, Vec::new())
+    }
+
+    /// The surfaces' points and the unseen edge's (non-finite ones dropped).
+    pub fn with_unseen(surfaces: Vec<Point3<f64>>, unseen: Vec<Point3<f64>>) -> Self {
+        let mut points = finite(surfaces);
+        let surfaces = points.len();
+        points.extend(finite(unseen));
         let coords: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
         let tree =
             (!coords.is_empty()).then(|| kiddo::ImmutableKdTree::new_from_slice(&coords).ok()).flatten();
-        Self { points, tree }
+        Self { points, surfaces, tree }
     }
 
-    /// The points.
+    /// The surfaces' points.
     pub fn points(&self) -> &[Point3<f64>] {
-        &self.points
+        &self.points[..self.surfaces]
     }
 
-    /// The points that are neither the steps' nor the floor's own surfaces: farther than
+    /// The unseen edge's points.
+    pub fn unseen(&self) -> &[Point3<f64>] {
+        &self.points[self.surfaces..]
+    }
+
+    /// Point `i` of a [`Nearest::block`], and whether it is of the unseen edge (`None` if
+    /// there is no such point).
+    pub fn point(&self, i: usize) -> Option<(Point3<f64>, bool)> {
+        self.points.get(i).map(|p| (*p, i >= self.surfaces))
+    }
+
+    /// The surfaces' points that are neither the steps' nor the floor's own: farther than
     /// `band_m` from every one of `blocks` (the steps as solids, [`step_blocks`]) and more
     /// than `band_m` above `floor_z` (the floor under the start, and all below it). What the
-    /// legs are kept off: a parcel on a tread, a box or a wall beside a lane.
+    /// legs are kept off: a parcel on a tread, a box or a wall beside a lane (not the unseen
+    /// edge: the lidar looks down past the legs' places at their shadows).
     pub fn off_the_steps(&self, blocks: &[SceneBox], floor_z: f64, band_m: f64) -> Self {
         Self::new(
-            self.points
+            self.points()
                 .iter()
                 .filter(|q| q.z > floor_z + band_m && blocks.iter().all(|b| b.signed_distance(q) > band_m))
                 .copied()
@@ -174,8 +200,8 @@ impl SeenPoints {
         )
     }
 
-    /// The point nearest to `limb` at the configuration `kin` holds, `Nearest::block` being
-    /// its index; `None` when no point is within `range_m` of the capsule.
+    /// The point (of a surface or the unseen edge) nearest to `limb` at the configuration
+    /// `kin` holds, `Nearest::block` being its index ([`SeenPoints::point`]); `None` when no point is within `range_m` of the capsule.
     pub fn nearest(&self, kin: &Kinematics, limb: &Limb, range_m: f64) -> Option<Nearest> {
         match self.probe(&limb.capsule(kin), range_m) {
             Probe::Near(n) => Some(n),

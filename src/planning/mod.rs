@@ -245,6 +245,24 @@ pub enum PlanError {
         /// When, seconds from the plan's start.
         t_s: f64,
     },
+    /// The body (an arm, the trunk, the head) comes nearer the edge of the space the lidar
+    /// could have seen and did not than the body's sway allows: what is there is not known
+    /// (a shadow, a gap a moving head left), and it is not walked into.
+    #[error("segment {}: {limb} comes {:.1} mm from space the lidar could have seen and no ray crossed, at ({:.3}, {:.3}, {:.3}) m at t = {t_s:.2} s, nearer than the {:.0} mm the body's sway needs", .segment + 1, .clearance_m * 1e3, .point_m[0], .point_m[1], .point_m[2], .min_m * 1e3)]
+    BodyNearUnseen {
+        /// 0-based segment.
+        segment: usize,
+        /// The limb (its link's name).
+        limb: String,
+        /// The unseen voxel's centre, world frame, metres.
+        point_m: [f64; 3],
+        /// Its distance from the limb's capsule, metres (negative: inside it).
+        clearance_m: f64,
+        /// The least accepted, metres.
+        min_m: f64,
+        /// When, seconds from the plan's start.
+        t_s: f64,
+    },
     /// What the lidar saw beside the flight at the body's height (handrails, walls) leaves
     /// less room across than the body's lane (twice `GaitParams::body_half_width_m`).
     #[error("the flight leaves {room_m:.2} m between what stands beside it at the body's height, less than the {needs_m:.2} m the body sweeps")]
@@ -325,6 +343,8 @@ pub enum RefusalKind {
     BodyTouchesSurface,
     /// [`PlanError::BodyNearSurface`].
     BodyNearSurface,
+    /// [`PlanError::BodyNearUnseen`].
+    BodyNearUnseen,
     /// [`PlanError::NarrowFlight`].
     NarrowFlight,
     /// [`PlanError::FootMisses`].
@@ -445,6 +465,9 @@ impl PlanError {
             }
             PlanError::BodyNearSurface { segment, clearance_m, min_m, .. } => {
                 (K::BodyNearSurface, None, None, Some(*segment), m(*clearance_m, *min_m))
+            }
+            PlanError::BodyNearUnseen { segment, clearance_m, min_m, .. } => {
+                (K::BodyNearUnseen, None, None, Some(*segment), m(*clearance_m, *min_m))
             }
             PlanError::FootMisses { segment, error_m, limit_m, .. } => {
                 (K::FootMisses, None, None, Some(*segment), m(*error_m, *limit_m))

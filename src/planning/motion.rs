@@ -277,8 +277,11 @@ pub struct NearestSurface {
     pub clearance_m: f64,
     /// The body's capsule (its link's name).
     pub limb: String,
-    /// The seen point (a voxel's centroid), world frame, metres.
+    /// The seen point (a voxel's centroid, or an unseen voxel's centre), world frame, metres.
     pub point_m: [f64; 3],
+    /// Whether the point is of the edge of the unseen space, not a surface.
+    #[serde(default)]
+    pub unseen: bool,
     /// The trajectory's time, seconds.
     pub t_s: f64,
 }
@@ -798,23 +801,37 @@ pub fn track(
                 }
             }
             if let Some((d, limb, point)) = tracker.least_body_clearance() {
-                let at = tracker.seen().points()[point];
+                let (at, unseen) = tracker.seen().point(point).unwrap_or((Point3::origin(), false));
                 if stats.nearest_body_surface.as_ref().is_none_or(|n| d < n.clearance_m) {
                     stats.nearest_body_surface = Some(NearestSurface {
                         clearance_m: d,
                         limb: tracker.upper_limb_name(limb).to_string(),
                         point_m: [at.x, at.y, at.z],
+                        unseen,
                         t_s: t,
                     });
                 }
                 if d < p.min_body_clearance_m {
-                    return Err(PlanError::BodyNearSurface {
-                        segment: si,
-                        limb: tracker.upper_limb_name(limb).to_string(),
-                        point_m: [at.x, at.y, at.z],
-                        clearance_m: d,
-                        min_m: p.min_body_clearance_m,
-                        t_s: t,
+                    let (segment, limb, point_m) =
+                        (si, tracker.upper_limb_name(limb).to_string(), [at.x, at.y, at.z]);
+                    let min_m = p.min_body_clearance_m;
+                    return Err(match unseen {
+                        true => PlanError::BodyNearUnseen {
+                            segment,
+                            limb,
+                            point_m,
+                            clearance_m: d,
+                            min_m,
+                            t_s: t,
+                        },
+                        false => PlanError::BodyNearSurface {
+                            segment,
+                            limb,
+                            point_m,
+                            clearance_m: d,
+                            min_m,
+                            t_s: t,
+                        },
                     });
                 }
             }

@@ -1,0 +1,401 @@
+//! The space the lidar's rays crossed, and the space it could have seen but did not. A
+//! return says a surface is at its end and nothing is between it and the sensor; the
+//! surroundings' voxels (`surroundings`) keep the first, this keeps the second. Where the
+//! last sweep looked (its rays' directions from its viewpoint) and no ray of any sweep
+//! passed, nothing is known: a standing sweep's shadows, and the gaps a moving head leaves
+//! (it looks in a direction only once a sweep, from wherever it then is). The planner keeps
+//! the upper body off the edge of the space known free ([`FreeSpace::unseen_edge`]) as off
+//! a surface: taken for free space, such a gap let a chest walk into a handrail no ray had
+//! met. Space the sensor cannot look at (above its highest beam, behind its field of view)
+//! is not judged: the body goes there unseen, as it must (the head rises above where its
+//! scan plane was).
+
+use crate::cloud::PointCloud;
+use crate::geom3d::Capsule;
+use nalgebra::{Point3, Unit, Vector3};
+use rustc_hash::FxHashMap;
+
+/// Edge of a chunk of voxels, in voxels (a chunk's bits fill `CHUNK_WORDS` words).
+const CHUNK: i32 = 16;
+const CHUNK_WORDS: usize = (CHUNK * CHUNK * CHUNK / 64) as usize;
+/// Bins of the directions a sweep looked in, per degree of azimuth and of elevation.
+const BINS_PER_DEG: f64 = 1.0;
+const AZIMUTH_BINS: usize = (360.0 * BINS_PER_DEG) as usize;
+const ELEVATION_BINS: usize = (180.0 * BINS_PER_DEG) as usize + 1;
+
+/// How the crossed space is kept and its unseen edge drawn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FreeSpaceParams {
+    /// Edge of a voxel of the crossed space, metres.
+    pub voxel_m: f64,
+    /// Every how many beams and rows a ray is traced (1: all).
+    pub ray_stride: usize,
+    /// Rays are traced this far from their origin, metres: the body's next moves are
+    /// nearer.
+    pub reach_m: f64,
+    /// The unseen edge is drawn this far around the body, metres.
+    pub around_body_m: f64,
+    /// The unseen edge is drawn from this height above the body's lowest point up, metres:
+    /// the upper body's lowest point (the hands) is higher.
+    pub above_soles_m: f64,
+    /// Returns within this distance of the body are its own, metres: what lies behind
+    /// them (the body's own shadow, on a real robot) is not judged.
+    pub self_margin_m: f64,
+}
+
+/// The directions a sweep's rays went in, binned by azimuth and elevation about `up`.
+#[derive(Debug, Clone)]
+struct Regard {
+    from: Point3<f64>,
+    up: Unit<Vector3<f64>>,
+    east: Vector3<f64>,
+    north: Vector3<f64>,
+    /// The bins rays went in, and those in which a ray met the body itself.
+    looked: Vec<u64>,
+    shadowed: Vec<u64>,
+}
+
+impl Regard {
+    fn new(from: Point3<f64>, up: Unit<Vector3<f64>>) -> Self {
+        let east = up
+            .cross(&Vector3::x())
+            .try_normalize(1e-6)
+            .unwrap_or_else(|| up.cross(&Vector3::y()).normalize());
+        let north = up.cross(&east);
+        let words = (AZIMUTH_BINS * ELEVATION_BINS).div_ceil(64);
+        Self { from, up, east, north, looked: vec![0; words], shadowed: vec![0; words] }
+    }
+
+    fn bin(&self, d: &Vector3<f64>) -> Option<usize> {
+        let n = d.norm();
+        if n.is_nan() || n <= 1e-9 {
+            return None;
+        }
+        let elevation = (d.dot(&self.up) / n).clamp(-1.0, 1.0).asin().to_degrees() + 90.0;
+        let azimuth = d.dot(&self.north).atan2(d.dot(&self.east)).to_degrees() + 180.0;
+        let e = ((elevation * BINS_PER_DEG) as usize).min(ELEVATION_BINS - 1);
+        let a = ((azimuth * BINS_PER_DEG) as usize).min(AZIMUTH_BINS - 1);
+        Some(e * AZIMUTH_BINS + a)
+    }
+
+    fn mark(&mut self, d: &Vector3<f64>, on_body: bool) {
+        if let Some(i) = self.bin(d) {
+            let bins = if on_body { &mut self.shadowed } else { &mut self.looked };
+            bins[i / 64] |= 1 << (i % 64);
+        }
+    }
+
+    /// Whether a ray went in the direction of `p`'s bin, and none there met the body.
+    fn looks_at(&self, p: &Point3<f64>) -> bool {
+        let bit = |bins: &[u64], i: usize| bins[i / 64] & (1 << (i % 64)) != 0;
+        self.bin(&(p - self.from)).is_some_and(|i| bit(&self.looked, i) && !bit(&self.shadowed, i))
+    }
+
+    /// Whether rays went in the directions of all of voxel `v`'s corners: the voxel lies
+    /// within where the sweep looked, not across its border (the space just past its
+    /// steepest row, or past its field of view's ends, is not judged).
+    fn looks_at_voxel(&self, v: [i32; 3], voxel_m: f64) -> bool {
+        (0..8).all(|c: i32| {
+            let corner = [0, 1, 2].map(|k| (v[k] + ((c >> k) & 1)) as f64 * voxel_m);
+            self.looks_at(&Point3::from(corner))
+        })
+    }
+}
+
+/// The voxels rays crossed (or the body filled) over every sweep, and where the last sweep
+/// looked.
+#[derive(Debug, Clone, Default)]
+pub struct FreeSpace {
+    chunks: FxHashMap<[i32; 3], Box<[u64; CHUNK_WORDS]>>,
+    last: Option<Regard>,
+    body: Vec<Capsule>,
+}
+
+/// The box around the capsules of `body`, grown by `margin_m`.
+fn body_box(body: &[Capsule], margin_m: f64) -> (Vector3<f64>, Vector3<f64>) {
+    let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
+    for c in body {
+        let r = Vector3::repeat(c.radius_m + margin_m);
+        lo = lo.inf(&(c.a.coords.inf(&c.b.coords) - r));
+        hi = hi.sup(&(c.a.coords.sup(&c.b.coords) + r));
+    }
+    (lo, hi)
+}
+
+fn chunk_of(v: [i32; 3]) -> ([i32; 3], usize) {
+    let key = v.map(|c| c.div_euclid(CHUNK));
+    let [x, y, z] = v.map(|c| c.rem_euclid(CHUNK) as usize);
+    (key, x + (y + z * CHUNK as usize) * CHUNK as usize)
+}
+
+impl FreeSpace {
+    fn voxel(p: &Point3<f64>, voxel_m: f64) -> [i32; 3] {
+        [0, 1, 2].map(|i| (p[i] / voxel_m).floor() as i32)
+    }
+
+    fn set(&mut self, v: [i32; 3]) {
+        let (key, bit) = chunk_of(v);
+        self.chunks.entry(key).or_insert_with(|| Box::new([0; CHUNK_WORDS]))[bit / 64] |= 1 << (bit % 64);
+    }
+
+    /// Whether a ray crossed voxel `v` (or the body filled it).
+    fn crossed(&self, v: [i32; 3]) -> bool {
+        let (key, bit) = chunk_of(v);
+        self.chunks.get(&key).is_some_and(|c| c[bit / 64] & (1 << (bit % 64)) != 0)
+    }
+
+    /// Adds a sweep: the voxels its rays crossed short of their returns (traced from each
+    /// row's own origin where the sweep moved, else from its viewpoint), the voxels the
+    /// robot's `body` fills (it stands there), and the directions it looked in (those
+    /// where a ray met the body apart).
+    pub fn add(&mut self, cloud: &PointCloud, body: &[Capsule], p: &FreeSpaceParams) {
+        if !(p.voxel_m > 0.0 && p.voxel_m.is_finite() && p.reach_m.is_finite()) {
+            return;
+        }
+        let stride = p.ray_stride.max(1);
+        let grid = cloud.grid();
+        let origins = grid.map(|g| g.row_origins()).unwrap_or(&[]);
+        let last_origin = origins.last().copied().unwrap_or_else(|| cloud.viewpoint());
+        let mut regard = Regard::new(last_origin, -cloud.gravity());
+        let mut rays: Vec<(Point3<f64>, Point3<f64>)> = Vec::new();
+        match grid {
+            Some(g) => {
+                for row in (0..g.rows()).step_by(stride) {
+                    let from = origins.get(row).copied().unwrap_or_else(|| cloud.viewpoint());
+                    for beam in (0..g.beams()).step_by(stride) {
+                        if let Some(i) = g.point_at(row, beam) {
+                            let q = cloud.points()[i];
+                            rays.push((from, Point3::new(q.x as f64, q.y as f64, q.z as f64)));
+                        }
+                    }
+                }
+            }
+            None => {
+                let from = cloud.viewpoint();
+                for q in cloud.points().iter().step_by(stride * stride) {
+                    rays.push((from, Point3::new(q.x as f64, q.y as f64, q.z as f64)));
+                }
+            }
+        }
+        let (lo, hi) = body_box(body, p.self_margin_m);
+        for (from, to) in rays {
+            if !(from.coords.iter().chain(to.coords.iter()).all(|v| v.is_finite())) {
+                continue;
+            }
+            let in_box = (0..3).all(|i| to[i] >= lo[i] && to[i] <= hi[i]);
+            let on_body = in_box && body.iter().any(|c| c.distance_m(&to) < p.self_margin_m);
+            regard.mark(&(to - from), on_body);
+            self.trace(&from, &to, p);
+        }
+        for c in body {
+            self.fill(c, p.voxel_m);
+        }
+        self.last = Some(regard);
+        self.body = body.to_vec();
+    }
+
+    /// Marks the voxels the segment from `from` toward `to` crosses, up to a voxel short of
+    /// `to` and no farther than `p.reach_m` (Amanatides and Woo's walk).
+    fn trace(&mut self, from: &Point3<f64>, to: &Point3<f64>, p: &FreeSpaceParams) {
+        let d = to - from;
+        let length = d.norm();
+        let end = (length - p.voxel_m).min(p.reach_m);
+        if end <= 0.0 {
+            return;
+        }
+        let dir = d / length;
+        let mut v = Self::voxel(from, p.voxel_m);
+        let mut step = [0i32; 3];
+        let mut t_next = [f64::INFINITY; 3];
+        let mut t_delta = [f64::INFINITY; 3];
+        for i in 0..3 {
+            if dir[i] > 0.0 {
+                step[i] = 1;
+                t_next[i] = ((v[i] + 1) as f64 * p.voxel_m - from[i]) / dir[i];
+                t_delta[i] = p.voxel_m / dir[i];
+            } else if dir[i] < 0.0 {
+                step[i] = -1;
+                t_next[i] = (v[i] as f64 * p.voxel_m - from[i]) / dir[i];
+                t_delta[i] = -p.voxel_m / dir[i];
+            }
+        }
+        // Consecutive voxels share a chunk mostly: the chunk is looked up when it changes.
+        let (mut key, _) = chunk_of(v);
+        let mut words = self.chunks.entry(key).or_insert_with(|| Box::new([0; CHUNK_WORDS]));
+        let mut t = 0.0;
+        while t < end {
+            let (k, bit) = chunk_of(v);
+            if k != key {
+                key = k;
+                words = self.chunks.entry(key).or_insert_with(|| Box::new([0; CHUNK_WORDS]));
+            }
+            words[bit / 64] |= 1 << (bit % 64);
+            let i = (0..3).min_by(|&a, &b| t_next[a].total_cmp(&t_next[b])).unwrap_or(0);
+            t = t_next[i];
+            t_next[i] += t_delta[i];
+            v[i] += step[i];
+        }
+    }
+
+    /// Marks the voxels whose centres lie in capsule `c`.
+    fn fill(&mut self, c: &Capsule, voxel_m: f64) {
+        let r = Vector3::repeat(c.radius_m);
+        let lo = Self::voxel(&Point3::from(c.a.coords.inf(&c.b.coords) - r), voxel_m);
+        let hi = Self::voxel(&Point3::from(c.a.coords.sup(&c.b.coords) + r), voxel_m);
+        for x in lo[0]..=hi[0] {
+            for y in lo[1]..=hi[1] {
+                for z in lo[2]..=hi[2] {
+                    let centre = Point3::new(x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5) * voxel_m;
+                    if c.distance_m(&centre) <= 0.0 {
+                        self.set([x, y, z]);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The centres of the voxels at the edge of the space known free near the body of the
+    /// last sweep: those no ray crossed, beside one a ray crossed, in a direction the last
+    /// sweep looked in, within `p.around_body_m` of the body's box and higher than
+    /// `p.above_soles_m` over its lowest point.
+    pub fn unseen_edge(&self, p: &FreeSpaceParams) -> Vec<Point3<f64>> {
+        let Some(regard) = self.last.as_ref() else { return Vec::new() };
+        if self.body.is_empty() || p.voxel_m.is_nan() || p.voxel_m <= 0.0 {
+            return Vec::new();
+        }
+        let (lo, hi) = body_box(&self.body, 0.0);
+        let bottom = lo.z + p.above_soles_m;
+        let lo = Self::voxel(&Point3::new(lo.x - p.around_body_m, lo.y - p.around_body_m, bottom), p.voxel_m);
+        let hi = Self::voxel(&Point3::from(hi + Vector3::repeat(p.around_body_m)), p.voxel_m);
+        let mut out = Vec::new();
+        for x in lo[0]..=hi[0] {
+            for y in lo[1]..=hi[1] {
+                for z in lo[2]..=hi[2] {
+                    let v = [x, y, z];
+                    if self.crossed(v) {
+                        continue;
+                    }
+                    let beside = (0..3).any(|i| {
+                        [-1, 1].iter().any(|&s| {
+                            let mut n = v;
+                            n[i] += s;
+                            self.crossed(n)
+                        })
+                    });
+                    if !beside {
+                        continue;
+                    }
+                    if regard.looks_at_voxel(v, p.voxel_m) {
+                        out.push(Point3::new(x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5) * p.voxel_m);
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const VIEW: Point3<f64> = Point3::new(0.0, 0.0, 1.5);
+
+    fn params() -> FreeSpaceParams {
+        FreeSpaceParams {
+            voxel_m: 0.05,
+            ray_stride: 1,
+            reach_m: 2.5,
+            around_body_m: 1.0,
+            above_soles_m: 0.3,
+            self_margin_m: 0.05,
+        }
+    }
+
+    /// A sweep's returns on a floor 0.3-2.5 m ahead, 1 cm apart, seen from 1.5 m up, one
+    /// ray a row, but for the rays that would cross `gap` (lower and upper corners): those
+    /// were cast in the same directions from 0.3 m behind and 0.2 m below, as a head that
+    /// walked while it swept casts them, and passed beside the gap.
+    fn floor_seen_but(gap: Option<(Point3<f64>, Point3<f64>)>) -> PointCloud {
+        let crosses = |q: &Point3<f64>| {
+            gap.is_some_and(|(lo, hi)| {
+                (0..=200).any(|i| {
+                    let at = VIEW + (q - VIEW) * (i as f64 / 200.0);
+                    (0..3).all(|k| at[k] >= lo[k] && at[k] <= hi[k])
+                })
+            })
+        };
+        let (mut points, mut origins) = (Vec::new(), Vec::new());
+        for i in 0..=220 {
+            for j in 0..=200 {
+                let q = Point3::new(0.3 + 0.01 * i as f64, -1.0 + 0.01 * j as f64, 0.0);
+                let from = if crosses(&q) { VIEW + Vector3::new(-0.3, 0.0, -0.2) } else { VIEW };
+                let d = (q - VIEW).normalize();
+                points.push((from + d * (from.z / -d.z)).cast::<f32>());
+                origins.push(from);
+            }
+        }
+        let n = points.len();
+        let grid = crate::cloud::ScanGrid::new(n, 1, (0..n as u32).collect())
+            .and_then(|g| g.with_row_origins(origins))
+            .expect("a grid");
+        PointCloud::new(points, VIEW, -Vector3::z_axis(), Some(grid))
+    }
+
+    fn body() -> Vec<Capsule> {
+        vec![Capsule { a: Point3::new(0.0, 0.0, 0.05), b: Point3::new(0.0, 0.0, 1.4), radius_m: 0.15 }]
+    }
+
+    #[test]
+    fn space_no_ray_crossed_where_the_sweep_looked_is_the_edge_of_the_known_free_space() {
+        let p = params();
+        // Every ray there: nothing near the body is unseen (the floor is below the drawn
+        // band; behind the body, beside it at its height and above the head no ray looked).
+        let mut all = FreeSpace::default();
+        all.add(&floor_seen_but(None), &body(), &p);
+        assert_eq!(all.unseen_edge(&p), Vec::<Point3<f64>>::new());
+        // A gap where a handrail could stand, 0.8-1.0 m ahead, 0.3-0.5 m to the right, at
+        // 0.9-1.1 m: its edge is drawn round it, and only along the rays that missed it.
+        let (lo, hi) = (Point3::new(0.8, -0.5, 0.9), Point3::new(1.0, -0.3, 1.1));
+        let mut gap = FreeSpace::default();
+        gap.add(&floor_seen_but(Some((lo, hi))), &body(), &p);
+        let edge = gap.unseen_edge(&p);
+        let centre = Point3::from((lo.coords + hi.coords) / 2.0);
+        let axis = (centre - VIEW).normalize();
+        let within_cone = |q: &Point3<f64>| {
+            let d = q - VIEW;
+            // The gap's half-width seen from the view, and a voxel's diagonal more.
+            let half_angle = (0.18_f64 / (centre - VIEW).norm()).atan();
+            let off = d.norm() * d.normalize().angle(&axis).sin();
+            off <= d.norm() * half_angle.tan() + p.voxel_m * 3f64.sqrt()
+        };
+        assert!(!edge.is_empty());
+        assert!(edge.iter().all(within_cone), "{:?}", edge.iter().find(|q| !within_cone(q)));
+        let in_gap = |q: &Point3<f64>| (0..3).all(|k| q[k] >= lo[k] - p.voxel_m && q[k] <= hi[k] + p.voxel_m);
+        assert!(edge.iter().any(in_gap), "no unseen point at the gap: {edge:?}");
+        // The body's own place is known free, the gap or not.
+        assert!(edge.iter().all(|q| body()[0].distance_m(q) > 0.0));
+    }
+
+    #[test]
+    fn the_rows_of_a_moving_sweep_are_traced_from_their_own_origins() {
+        // Two rows of one beam each, down onto the floor from two origins 1 m apart: each
+        // crosses the voxels below its own origin.
+        let points = vec![Point3::new(0.0f32, 0.0, 0.0), Point3::new(1.0, 0.0, 0.0)];
+        let grid = crate::cloud::ScanGrid::new(2, 1, vec![0, 1])
+            .and_then(|g| g.with_row_origins(vec![Point3::new(0.0, 0.0, 1.0), Point3::new(1.0, 0.0, 1.0)]))
+            .expect("a grid");
+        let cloud = PointCloud::new(points, Point3::new(0.5, 0.0, 1.0), -Vector3::z_axis(), Some(grid));
+        let p = params();
+        let mut s = FreeSpace::default();
+        s.add(&cloud, &[], &p);
+        for x in [0.01, 1.01] {
+            for z in [0.12, 0.5, 0.9] {
+                assert!(s.crossed(FreeSpace::voxel(&Point3::new(x, 0.01, z), p.voxel_m)), "({x}, {z})");
+            }
+        }
+        assert!(!s.crossed(FreeSpace::voxel(&Point3::new(0.51, 0.01, 0.5), p.voxel_m)));
+        // The returns' own voxels are not crossed.
+        assert!(!s.crossed(FreeSpace::voxel(&Point3::new(0.01, 0.01, 0.01), p.voxel_m)));
+    }
+}
