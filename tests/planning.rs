@@ -803,11 +803,11 @@ fn the_body_keeps_off_space_the_lidar_could_have_seen_and_did_not() {
     assert!(nearest.unseen, "{nearest:?}");
     let through: Vec<Point3<f64>> = unseen.iter().map(|q| Point3::new(q.x, reach_y - 0.2, q.z)).collect();
     let e = among(through).expect_err("unseen space through the body");
-    assert!(matches!(e, PlanError::BodyNearUnseen { .. } | PlanError::Ik { .. }), "{e}");
+    assert!(matches!(e, PlanError::BodyNearSurface { unseen: true, .. } | PlanError::Ik { .. }), "{e}");
     let kind = e.refusal().kind;
     assert_eq!(
         kind == stairbench::planning::RefusalKind::BodyNearUnseen,
-        matches!(e, PlanError::BodyNearUnseen { .. })
+        matches!(e, PlanError::BodyNearSurface { .. })
     );
     // At the shanks' height only, across the lanes: neither footholds nor legs keep off it.
     let low: Vec<Point3<f64>> = (0..80)

@@ -229,33 +229,20 @@ pub enum PlanError {
         t_s: f64,
     },
     /// The body (an arm, the trunk, the head) comes nearer a surface the lidar saw than the
-    /// execution's sway about the plan allows (`motion::IkParams::min_body_clearance_m`).
-    #[error("segment {}: {limb} comes {:.1} mm from a surface the lidar saw at ({:.3}, {:.3}, {:.3}) m at t = {t_s:.2} s, nearer than the {:.0} mm the body's sway needs", .segment + 1, .clearance_m * 1e3, .point_m[0], .point_m[1], .point_m[2], .min_m * 1e3)]
+    /// execution's sway about the plan allows (`motion::IkParams::min_body_clearance_m`), or
+    /// nearer the edge of the space the lidar could have seen and did not (`unseen`): what
+    /// is there is not known (a shadow, a gap a moving head left), and it is not walked into.
+    #[error("segment {}: {limb} comes {:.1} mm from {} at ({:.3}, {:.3}, {:.3}) m at t = {t_s:.2} s, nearer than the {:.0} mm the body's sway needs", .segment + 1, .clearance_m * 1e3, if *.unseen { "space the lidar could have seen and no ray crossed" } else { "a surface the lidar saw" }, .point_m[0], .point_m[1], .point_m[2], .min_m * 1e3)]
     BodyNearSurface {
         /// 0-based segment.
         segment: usize,
         /// The limb (its link's name).
         limb: String,
-        /// The surface's point (a voxel centroid of the surroundings), world frame, metres.
+        /// The surface's point (a voxel centroid of the surroundings) or the unseen voxel's
+        /// centre, world frame, metres.
         point_m: [f64; 3],
-        /// Its distance from the limb's capsule, metres (negative: inside it).
-        clearance_m: f64,
-        /// The least accepted, metres.
-        min_m: f64,
-        /// When, seconds from the plan's start.
-        t_s: f64,
-    },
-    /// The body (an arm, the trunk, the head) comes nearer the edge of the space the lidar
-    /// could have seen and did not than the body's sway allows: what is there is not known
-    /// (a shadow, a gap a moving head left), and it is not walked into.
-    #[error("segment {}: {limb} comes {:.1} mm from space the lidar could have seen and no ray crossed, at ({:.3}, {:.3}, {:.3}) m at t = {t_s:.2} s, nearer than the {:.0} mm the body's sway needs", .segment + 1, .clearance_m * 1e3, .point_m[0], .point_m[1], .point_m[2], .min_m * 1e3)]
-    BodyNearUnseen {
-        /// 0-based segment.
-        segment: usize,
-        /// The limb (its link's name).
-        limb: String,
-        /// The unseen voxel's centre, world frame, metres.
-        point_m: [f64; 3],
+        /// Whether the point is of the edge of the unseen space, not a surface.
+        unseen: bool,
         /// Its distance from the limb's capsule, metres (negative: inside it).
         clearance_m: f64,
         /// The least accepted, metres.
@@ -343,7 +330,7 @@ pub enum RefusalKind {
     BodyTouchesSurface,
     /// [`PlanError::BodyNearSurface`].
     BodyNearSurface,
-    /// [`PlanError::BodyNearUnseen`].
+    /// [`PlanError::BodyNearSurface`] at the edge of unseen space.
     BodyNearUnseen,
     /// [`PlanError::NarrowFlight`].
     NarrowFlight,
@@ -463,11 +450,9 @@ impl PlanError {
             PlanError::NarrowFlight { room_m, needs_m } => {
                 (K::NarrowFlight, None, None, None, m(*room_m, *needs_m))
             }
-            PlanError::BodyNearSurface { segment, clearance_m, min_m, .. } => {
-                (K::BodyNearSurface, None, None, Some(*segment), m(*clearance_m, *min_m))
-            }
-            PlanError::BodyNearUnseen { segment, clearance_m, min_m, .. } => {
-                (K::BodyNearUnseen, None, None, Some(*segment), m(*clearance_m, *min_m))
+            PlanError::BodyNearSurface { segment, clearance_m, min_m, unseen, .. } => {
+                let kind = if *unseen { K::BodyNearUnseen } else { K::BodyNearSurface };
+                (kind, None, None, Some(*segment), m(*clearance_m, *min_m))
             }
             PlanError::FootMisses { segment, error_m, limit_m, .. } => {
                 (K::FootMisses, None, None, Some(*segment), m(*error_m, *limit_m))

@@ -812,26 +812,14 @@ pub fn track(
                     });
                 }
                 if d < p.min_body_clearance_m {
-                    let (segment, limb, point_m) =
-                        (si, tracker.upper_limb_name(limb).to_string(), [at.x, at.y, at.z]);
-                    let min_m = p.min_body_clearance_m;
-                    return Err(match unseen {
-                        true => PlanError::BodyNearUnseen {
-                            segment,
-                            limb,
-                            point_m,
-                            clearance_m: d,
-                            min_m,
-                            t_s: t,
-                        },
-                        false => PlanError::BodyNearSurface {
-                            segment,
-                            limb,
-                            point_m,
-                            clearance_m: d,
-                            min_m,
-                            t_s: t,
-                        },
+                    return Err(PlanError::BodyNearSurface {
+                        segment: si,
+                        limb: tracker.upper_limb_name(limb).to_string(),
+                        point_m: [at.x, at.y, at.z],
+                        unseen,
+                        clearance_m: d,
+                        min_m: p.min_body_clearance_m,
+                        t_s: t,
                     });
                 }
             }
