@@ -206,6 +206,7 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         let mut json = serde_json::to_value(&report)?;
         json["plant"] = serde_json::to_value(scenario.plant.errors())?;
         json["s_per_stair"] = serde_json::to_value(report.seconds_per_stair())?;
+        json["s_per_stair_with_stand"] = serde_json::to_value(report.seconds_per_stair_with_stand())?;
         json["plant_preset"] = serde_json::to_value(scenario.plant.preset)?;
         if let Some((e, v)) = &verdict {
             json["verdict"] = serde_json::to_value(v)?;
@@ -296,8 +297,8 @@ fn print_summary(r: &ClimbReport) {
     if let Some(why) = &r.stop {
         println!("stopped: {why}");
     }
-    if let Some(s) = r.seconds_per_stair() {
-        println!("seconds per stair: {s:.1} s of motion per cycle that went up a step (the stand and the sweep before each not counted)");
+    if let (Some(s), Some(with)) = (r.seconds_per_stair(), r.seconds_per_stair_with_stand()) {
+        println!("seconds per stair: {s:.1} s of motion per cycle that went up a step; {with:.1} s with the stand and the standing sweep before each plan, as a real robot spends them");
     }
     if !r.cycles.is_empty() {
         let st = r.stage_times();

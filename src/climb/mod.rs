@@ -165,6 +165,7 @@ pub fn run<E: Executor>(
     let mut start_floor = None;
     for cycle in 1..=p.run.max_cycles {
         last_cycle = cycle;
+        let stand_from_s = robot.now_s();
         if let Some(stop) = standing_stop(robot.settle(p.run.settle_s).map_err(failed)?, cycle) {
             report.stop = Some(stop);
             break;
@@ -181,6 +182,7 @@ pub fn run<E: Executor>(
                     break;
                 }
             };
+        let stood_s = stood_s(&sweep, stand_from_s, stamp_s, robot.now_s());
         // A view under the estimate's drift is moved onto the known steps, and the estimate
         // with it (the robot's own; a robot that keeps none is not moved, nor is its view).
         let (mut correction_m, mut correction_yaw_rad) = (None, None);
@@ -240,6 +242,7 @@ pub fn run<E: Executor>(
             pass: execution.pass(),
             steps_seen: ahead.len(),
             closer_look,
+            stood_s,
             scan_s,
             perceive_s,
             plan_s,
@@ -287,6 +290,18 @@ struct View {
     nothing: Option<crate::perception::NoStaircase>,
     scan_s: f64,
     perceive_s: f64,
+}
+
+/// Seconds the robot stood before a plan: from `from_s` (the settle's start) to `looked_s`
+/// (the view in hand), and, for a sweep taken standing, the rows' time a real head takes
+/// that the source's clock did not pass from `still_s` (the settle's end) on (a simulated
+/// standing sweep is cast in none).
+fn stood_s(sweep: &crate::sensor::Sweep, from_s: f64, still_s: f64, looked_s: f64) -> f64 {
+    let rows_s = match sweep.moving() {
+        true => 0.0,
+        false => sweep.rows.len() as f64 * sweep.lidar.row_period_s(),
+    };
+    (looked_s - from_s) + (rows_s - (looked_s - still_s)).max(0.0)
 }
 
 /// Sweeps `source` and perceives the view at configuration `q` (its events told to

@@ -54,6 +54,11 @@ pub struct CycleReport {
     /// steps below the refused one); `None` for a cycle of the climb's own plan.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub closer_look: Option<Refusal>,
+    /// Simulated (or the robot's clock's) seconds it stood before the cycle's plan: its
+    /// settle, and its sweep when the sweep was taken standing, at the time a real head
+    /// takes for the rows (the simulated lidar casts a standing sweep in no simulated time).
+    /// A sweep taken as the robot moved costs no standing.
+    pub stood_s: f64,
     /// Wall time of the sweep, seconds.
     pub scan_s: f64,
     /// Perception wall time, seconds.
@@ -139,21 +144,29 @@ impl ClimbReport {
     /// of the plan's end until the body is still counted, without the standing still before
     /// each scan and the sweep; `None` when no cycle went up.
     pub fn seconds_per_stair(&self) -> Option<f64> {
-        let mut below = Footing::Floor;
-        let ups: Vec<f64> = self
-            .cycles
-            .iter()
-            .filter_map(|c| {
-                let up = match (below, c.to) {
-                    (Footing::Floor, Footing::Step(_)) => true,
-                    (Footing::Step(a), Footing::Step(b)) => b > a,
-                    _ => false,
-                };
-                below = c.to;
-                up.then_some(c.execution.sim_s)
-            })
-            .collect();
+        let ups: Vec<f64> = self.up_cycles().map(|c| c.execution.sim_s).collect();
         (!ups.is_empty()).then(|| ups.iter().sum::<f64>() / ups.len() as f64)
+    }
+
+    /// Seconds per stair as a real robot spends them: [`Self::seconds_per_stair`]'s cycles,
+    /// each with the standing before its plan ([`CycleReport::stood_s`]) counted.
+    pub fn seconds_per_stair_with_stand(&self) -> Option<f64> {
+        let ups: Vec<f64> = self.up_cycles().map(|c| c.stood_s + c.execution.sim_s).collect();
+        (!ups.is_empty()).then(|| ups.iter().sum::<f64>() / ups.len() as f64)
+    }
+
+    /// The cycles that went up onto a step.
+    fn up_cycles(&self) -> impl Iterator<Item = &CycleReport> {
+        let mut below = Footing::Floor;
+        self.cycles.iter().filter(move |c| {
+            let up = match (below, c.to) {
+                (Footing::Floor, Footing::Step(_)) => true,
+                (Footing::Step(a), Footing::Step(b)) => b > a,
+                _ => false,
+            };
+            below = c.to;
+            up
+        })
     }
 
     /// The longest a cycle waited for perception and planning, seconds.

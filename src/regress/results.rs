@@ -68,6 +68,10 @@ pub struct CaseResult {
     /// none did, or in results written before it was kept).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub s_per_stair: Option<f64>,
+    /// The same cycles' seconds with the standing before each plan counted (a settle, and a
+    /// sweep taken standing), as a real robot spends them (`None` likewise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub s_per_stair_with_stand: Option<f64>,
     /// Steps climbed.
     pub steps_climbed: usize,
     /// Steps of the flight.
@@ -105,6 +109,7 @@ impl CaseResult {
         self.max_estimate_error_m = r.max_estimate_error_m();
         self.max_estimate_yaw_rad = r.max_estimate_yaw_rad();
         self.s_per_stair = r.seconds_per_stair();
+        self.s_per_stair_with_stand = r.seconds_per_stair_with_stand();
         self.steps_climbed = r.steps_climbed;
         self.steps_total = r.steps_total;
         self.cycles = r.cycles.len();

@@ -157,16 +157,21 @@ pub fn text(results: &[CaseResult], min_rate: f64, pace: Option<Pace>, worst: us
         pct(wall - scan - perceive - plan - execute),
         sum(|r| r.sim_s)
     );
-    let mut per_stair: Vec<f64> = results.iter().filter_map(|r| r.s_per_stair).collect();
-    if !per_stair.is_empty() {
-        per_stair.sort_by(f64::total_cmp);
+    let spread = |f: fn(&CaseResult) -> Option<f64>| {
+        let mut v: Vec<f64> = results.iter().filter_map(f).collect();
+        v.sort_by(f64::total_cmp);
+        (!v.is_empty()).then(|| (v[v.len() / 2], v[0], v[v.len() - 1], v.len()))
+    };
+    if let Some((median, least, most, n)) = spread(|r| r.s_per_stair) {
         let _ = writeln!(
             t,
-            "seconds of motion per stair: median {:.1} s, {:.1} to {:.1} s over the {} runs that went up a step",
-            per_stair[per_stair.len() / 2],
-            per_stair[0],
-            per_stair[per_stair.len() - 1],
-            per_stair.len()
+            "seconds of motion per stair: median {median:.1} s, {least:.1} to {most:.1} s over the {n} runs that went up a step"
+        );
+    }
+    if let Some((median, least, most, _)) = spread(|r| r.s_per_stair_with_stand) {
+        let _ = writeln!(
+            t,
+            "seconds per stair with the stand and the standing sweep before each plan: median {median:.1} s, {least:.1} to {most:.1} s"
         );
     }
     if let Some(p) = pace.filter(|p| p.elapsed_s > 0.0 && p.runs > 0) {

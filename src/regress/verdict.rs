@@ -185,6 +185,7 @@ mod tests {
                     pass: !violated,
                     steps_seen: 3,
                     closer_look: None,
+                    stood_s: 0.0,
                     scan_s: 0.0,
                     perceive_s: 0.0,
                     plan_s: 0.0,
@@ -211,15 +212,17 @@ mod tests {
     }
 
     /// Seconds per stair count the cycles that went up a step only: not the floor walk, not
-    /// a cycle that stayed on its step.
+    /// a cycle that stayed on its step; with the stand, each one's standing before its plan.
     #[test]
     fn seconds_per_stair_counts_the_cycles_that_went_up() {
         use Footing::*;
         let mut r = report(&[Floor, Step(1), Step(1), Step(2)], None, false);
-        for (c, s) in r.cycles.iter_mut().zip([10.0, 17.0, 5.0, 19.0]) {
+        for ((c, s), stood) in r.cycles.iter_mut().zip([10.0, 17.0, 5.0, 19.0]).zip([7.0, 6.5, 9.0, 7.5]) {
             c.execution.sim_s = s;
+            c.stood_s = stood;
         }
         assert_eq!(r.seconds_per_stair(), Some(18.0));
+        assert_eq!(r.seconds_per_stair_with_stand(), Some(25.0));
         assert_eq!(report(&[Floor, Floor], None, false).seconds_per_stair(), None);
     }
 
