@@ -253,9 +253,10 @@ fn print_tables(p: &Plan, wall_s: f64) {
     }
     match &t.nearest_body_surface {
         Some(n) => println!(
-            "body: at least {:.1} mm from the seen surfaces ({} by ({:.3}, {:.3}, {:.3}) m at {:.2} s)",
+            "body: at least {:.1} mm from the seen surfaces and unseen space ({} by {} at ({:.3}, {:.3}, {:.3}) m at {:.2} s)",
             n.clearance_m * 1e3,
             n.limb,
+            if n.unseen { "unseen space" } else { "a surface" },
             n.point_m[0],
             n.point_m[1],
             n.point_m[2],

@@ -298,7 +298,7 @@ fn print_summary(r: &ClimbReport) {
         println!("stopped: {why}");
     }
     if let (Some(s), Some(with)) = (r.seconds_per_stair(), r.seconds_per_stair_with_stand()) {
-        println!("seconds per stair: {s:.1} s of motion per cycle that went up a step; {with:.1} s with the stand and the standing sweep before each plan, as a real robot spends them");
+        println!("seconds per stair: {s:.1} s of motion per cycle that went up a step; {with:.1} s with the settle and the standing sweep before each plan (perception and planning not counted)");
     }
     if !r.cycles.is_empty() {
         let st = r.stage_times();

@@ -148,8 +148,10 @@ impl ClimbReport {
         (!ups.is_empty()).then(|| ups.iter().sum::<f64>() / ups.len() as f64)
     }
 
-    /// Seconds per stair as a real robot spends them: [`Self::seconds_per_stair`]'s cycles,
-    /// each with the standing before its plan ([`CycleReport::stood_s`]) counted.
+    /// Seconds per stair with the standing: [`Self::seconds_per_stair`]'s cycles, each with
+    /// the standing before its plan ([`CycleReport::stood_s`]: the settle and a standing
+    /// sweep) counted; perception and planning, which a real robot also stands through
+    /// (a fraction of a second each here), are not.
     pub fn seconds_per_stair_with_stand(&self) -> Option<f64> {
         let ups: Vec<f64> = self.up_cycles().map(|c| c.stood_s + c.execution.sim_s).collect();
         (!ups.is_empty()).then(|| ups.iter().sum::<f64>() / ups.len() as f64)

@@ -15,6 +15,11 @@ use crate::geom3d::Capsule;
 use nalgebra::{Point3, Unit, Vector3};
 use rustc_hash::FxHashMap;
 
+/// Coordinates farther than this from the origin are not traced, metres: a pose or a
+/// return there is garbage, and its voxel indices would near the integers' ends.
+const FAR_M: f64 = 1e4;
+/// Most voxels the unseen edge is looked for in (the defaults' box: about 10^5).
+const MAX_EDGE_VOXELS: f64 = 1e7;
 /// Edge of a chunk of voxels, in voxels (a chunk's bits fill `CHUNK_WORDS` words).
 const CHUNK: i32 = 16;
 const CHUNK_WORDS: usize = (CHUNK * CHUNK * CHUNK / 64) as usize;
@@ -149,8 +154,8 @@ impl FreeSpace {
     /// robot's `body` fills (it stands there), and the directions it looked in (those
     /// where a ray met the body apart).
     pub fn add(&mut self, cloud: &PointCloud, body: &[Capsule], p: &FreeSpaceParams) {
-        if !(p.voxel_m > 0.0 && p.voxel_m.is_finite() && p.reach_m.is_finite()) {
-            return;
+        if !(p.voxel_m >= 1e-3 && p.voxel_m.is_finite() && p.reach_m.is_finite()) {
+            return; // a parameters file gives neither (`SurroundingsParams`); only code could
         }
         let stride = p.ray_stride.max(1);
         let grid = cloud.grid();
@@ -172,15 +177,15 @@ impl FreeSpace {
             }
             None => {
                 let from = cloud.viewpoint();
-                for q in cloud.points().iter().step_by(stride * stride) {
+                for q in cloud.points().iter().step_by(stride.saturating_mul(stride)) {
                     rays.push((from, Point3::new(q.x as f64, q.y as f64, q.z as f64)));
                 }
             }
         }
         let (lo, hi) = body_box(body, p.self_margin_m);
         for (from, to) in rays {
-            if !(from.coords.iter().chain(to.coords.iter()).all(|v| v.is_finite())) {
-                continue;
+            if !(from.coords.iter().chain(to.coords.iter()).all(|v| v.abs() < FAR_M)) {
+                continue; // non-finite, or garbage far away
             }
             let in_box = (0..3).all(|i| to[i] >= lo[i] && to[i] <= hi[i]);
             let on_body = in_box && body.iter().any(|c| c.distance_m(&to) < p.self_margin_m);
@@ -194,9 +199,11 @@ impl FreeSpace {
         self.body = body.to_vec();
     }
 
-    /// Marks the voxels the segment from `from` toward `to` crosses, up to a voxel short of
-    /// `to` and no farther than `p.reach_m` (Amanatides and Woo's walk).
+    /// Marks the voxels the segment from `from` toward `to` crosses, up to a voxel's edge
+    /// short of `to` along it, never `to`'s own voxel, and no farther than `p.reach_m`
+    /// (Amanatides and Woo's walk).
     fn trace(&mut self, from: &Point3<f64>, to: &Point3<f64>, p: &FreeSpaceParams) {
+        let hit = Self::voxel(to, p.voxel_m);
         let d = to - from;
         let length = d.norm();
         let end = (length - p.voxel_m).min(p.reach_m);
@@ -223,7 +230,7 @@ impl FreeSpace {
         let (mut key, _) = chunk_of(v);
         let mut words = self.chunks.entry(key).or_insert_with(|| Box::new([0; CHUNK_WORDS]));
         let mut t = 0.0;
-        while t < end {
+        while t < end && v != hit {
             let (k, bit) = chunk_of(v);
             if k != key {
                 key = k;
@@ -260,13 +267,16 @@ impl FreeSpace {
     /// `p.above_soles_m` over its lowest point.
     pub fn unseen_edge(&self, p: &FreeSpaceParams) -> Vec<Point3<f64>> {
         let Some(regard) = self.last.as_ref() else { return Vec::new() };
-        if self.body.is_empty() || p.voxel_m.is_nan() || p.voxel_m <= 0.0 {
+        let (lo, hi) = body_box(&self.body, 0.0);
+        let lo = Point3::new(lo.x - p.around_body_m, lo.y - p.around_body_m, lo.z + p.above_soles_m);
+        let hi = Point3::from(hi + Vector3::repeat(p.around_body_m));
+        // A garbage pose, or parameters only code could give (a file's are bounded): nothing.
+        let voxels: f64 = (0..3).map(|i| ((hi[i] - lo[i]) / p.voxel_m).max(0.0) + 1.0).product();
+        let sane = lo.coords.iter().chain(hi.coords.iter()).all(|v| v.abs() < FAR_M);
+        if self.body.is_empty() || !sane || !(p.voxel_m >= 1e-3 && voxels <= MAX_EDGE_VOXELS) {
             return Vec::new();
         }
-        let (lo, hi) = body_box(&self.body, 0.0);
-        let bottom = lo.z + p.above_soles_m;
-        let lo = Self::voxel(&Point3::new(lo.x - p.around_body_m, lo.y - p.around_body_m, bottom), p.voxel_m);
-        let hi = Self::voxel(&Point3::from(hi + Vector3::repeat(p.around_body_m)), p.voxel_m);
+        let (lo, hi) = (Self::voxel(&lo, p.voxel_m), Self::voxel(&hi, p.voxel_m));
         let mut out = Vec::new();
         for x in lo[0]..=hi[0] {
             for y in lo[1]..=hi[1] {

@@ -35,26 +35,29 @@ pub struct SurroundingsParams {
     /// and no ray crossed (a shadow, a moving head's gap), as off a surface. On by default:
     /// unseen space taken for free let a chest meet a handrail no ray had met.
     pub unseen_kept_off: bool,
-    /// Edge of a voxel of the crossed space, metres. 5 cm: a few beams cross each at the
-    /// body's distances, and the edge's voxels are closer together than the body's
+    /// Edge of a voxel of the crossed space, metres (1-50 cm). 5 cm: a few beams cross each
+    /// at the body's distances, and the edge's voxels are closer together than the body's
     /// capsules are thick.
-    #[serde(deserialize_with = "positive_m")]
+    #[serde(deserialize_with = "free_voxel_m")]
     pub free_voxel_m: f64,
     /// Every how many beams and rows a ray is traced into the crossed space (the sweep's
     /// 0.25 deg beams and rows are 1 cm apart at 2 m: a 5 cm voxel is crossed by several
-    /// of every second).
+    /// of every second). 1 to 64.
+    #[serde(deserialize_with = "ray_stride")]
     pub ray_stride: usize,
-    /// Rays are traced this far from the sensor into the crossed space, metres: farther than
-    /// the body's next plan reaches from the head.
-    #[serde(deserialize_with = "positive_m")]
+    /// Rays are traced this far from the sensor into the crossed space, metres (up to 30,
+    /// the lidar's range): farther than the body's box and `unseen_around_body_m` reach from
+    /// the head (about 2.2 m at the defaults), or the reach's own end reads as unseen.
+    #[serde(deserialize_with = "ray_reach_m")]
     pub ray_reach_m: f64,
-    /// The unseen edge is drawn this far around the body's box, metres: a plan's moves of the
-    /// upper body stay nearer (two stairs ahead, 0.6 m).
-    #[serde(deserialize_with = "positive_m")]
+    /// The unseen edge is drawn this far around the body's box, metres (up to 3): a plan's
+    /// moves of the upper body stay nearer (two stairs ahead, 0.6 m).
+    #[serde(deserialize_with = "around_body_m")]
     pub unseen_around_body_m: f64,
-    /// The unseen edge is drawn from this height above the soles up, metres: the upper
+    /// The unseen edge is drawn from this height above the soles up, metres (0-2): the upper
     /// body's lowest point (a hand, 0.6 m over the soles of HRP-4) is higher; the legs are
     /// kept off the steps' solids instead.
+    #[serde(deserialize_with = "above_soles_m")]
     pub unseen_above_soles_m: f64,
 }
 
@@ -69,6 +72,41 @@ impl SurroundingsParams {
             above_soles_m: self.unseen_above_soles_m,
             self_margin_m: self.self_margin_m,
         }
+    }
+}
+
+/// A parameters file's number that must lie in `[lo, hi]`, named for the error.
+fn within<'de, D: serde::Deserializer<'de>>(d: D, lo: f64, hi: f64, unit: &str) -> Result<f64, D::Error> {
+    let v = <f64 as serde::Deserialize>::deserialize(d)?;
+    if (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err(serde::de::Error::custom(format!("{v} is not within {lo} to {hi} {unit}")))
+    }
+}
+
+fn free_voxel_m<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    within(d, 0.01, 0.5, "metres")
+}
+
+fn ray_reach_m<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    within(d, 0.1, 30.0, "metres")
+}
+
+fn around_body_m<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    within(d, 0.0, 3.0, "metres")
+}
+
+fn above_soles_m<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    within(d, 0.0, 2.0, "metres")
+}
+
+fn ray_stride<'de, D: serde::Deserializer<'de>>(d: D) -> Result<usize, D::Error> {
+    let v = <usize as serde::Deserialize>::deserialize(d)?;
+    if (1..=64).contains(&v) {
+        Ok(v)
+    } else {
+        Err(serde::de::Error::custom(format!("{v} is not a stride of 1 to 64 rays")))
     }
 }
 
@@ -261,10 +299,26 @@ mod tests {
     }
 
     #[test]
-    fn a_voxel_that_is_not_a_positive_length_is_refused_when_read() {
-        for bad in ["voxel_m = 0.0", "voxel_m = -0.03", "voxel_m = nan", "self_margin_m = inf"] {
+    fn a_length_or_stride_out_of_its_range_is_refused_when_read() {
+        for bad in [
+            "voxel_m = 0.0",
+            "voxel_m = -0.03",
+            "voxel_m = nan",
+            "self_margin_m = inf",
+            "free_voxel_m = 1e-9",
+            "ray_stride = 0",
+            "ray_reach_m = inf",
+            "unseen_around_body_m = 1e9",
+            "unseen_above_soles_m = -inf",
+            "unseen_above_soles_m = nan",
+        ] {
             let e = toml::from_str::<SurroundingsParams>(bad).expect_err(bad).to_string();
-            assert!(e.contains("not a positive length"), "{bad}: {e}");
+            assert!(
+                e.contains("not a positive length")
+                    || e.contains("is not within")
+                    || e.contains("not a stride"),
+                "{bad}: {e}"
+            );
         }
         let ok: SurroundingsParams = toml::from_str("voxel_m = 0.05").expect("a positive voxel");
         assert_eq!(ok.voxel_m, 0.05);

@@ -68,8 +68,8 @@ pub struct CaseResult {
     /// none did, or in results written before it was kept).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub s_per_stair: Option<f64>,
-    /// The same cycles' seconds with the standing before each plan counted (a settle, and a
-    /// sweep taken standing), as a real robot spends them (`None` likewise).
+    /// The same cycles' seconds with the standing before each plan counted (the settle, and
+    /// a sweep taken standing; perception and planning not), `None` likewise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub s_per_stair_with_stand: Option<f64>,
     /// Steps climbed.

@@ -171,7 +171,7 @@ pub fn text(results: &[CaseResult], min_rate: f64, pace: Option<Pace>, worst: us
     if let Some((median, least, most, _)) = spread(|r| r.s_per_stair_with_stand) {
         let _ = writeln!(
             t,
-            "seconds per stair with the stand and the standing sweep before each plan: median {median:.1} s, {least:.1} to {most:.1} s"
+            "seconds per stair with the settle and the standing sweep before each plan: median {median:.1} s, {least:.1} to {most:.1} s"
         );
     }
     if let Some(p) = pace.filter(|p| p.elapsed_s > 0.0 && p.runs > 0) {
