@@ -5,8 +5,8 @@
 //! passed, nothing is known: a standing sweep's shadows, and the gaps a moving head leaves
 //! (it looks in a direction only once a sweep, from wherever it then is). The planner keeps
 //! the upper body off the edge of the space known free ([`FreeSpace::unseen_edge`]) as off
-//! a surface: taken for free space, such a gap let a chest walk into a handrail no ray had
-//! met. Space the sensor cannot look at (above its highest beam, behind its field of view)
+//! a surface: such a gap may hold what no ray met (a handrail beside the chest). Space the
+//! sensor cannot look at (above its highest beam, behind its field of view)
 //! is not judged: the body goes there unseen, as it must (the head rises above where its
 //! scan plane was).
 

@@ -33,7 +33,7 @@ pub struct SurroundingsParams {
     pub self_margin_m: f64,
     /// Whether the upper body is kept off the edge of the space the lidar could have seen
     /// and no ray crossed (a shadow, a moving head's gap), as off a surface. On by default:
-    /// unseen space taken for free let a chest meet a handrail no ray had met.
+    /// what is there is not known (a handrail no ray met, beside the chest).
     pub unseen_kept_off: bool,
     /// Edge of a voxel of the crossed space, metres (1-50 cm). 5 cm: a few beams cross each
     /// at the body's distances, and the edge's voxels are closer together than the body's
