@@ -107,13 +107,91 @@ impl Regard {
     }
 }
 
+/// Chunks of voxel bits by their chunk coordinates.
+type Chunks = FxHashMap<[i32; 3], Box<[u64; CHUNK_WORDS]>>;
+
+/// `from`'s bits added to `into`'s.
+fn merge(into: &mut Chunks, from: Chunks) {
+    for (key, words) in from {
+        match into.entry(key) {
+            std::collections::hash_map::Entry::Occupied(mut e) => {
+                for (a, b) in e.get_mut().iter_mut().zip(words.iter()) {
+                    *a |= b;
+                }
+            }
+            std::collections::hash_map::Entry::Vacant(e) => {
+                e.insert(words);
+            }
+        }
+    }
+}
+
 /// The voxels rays crossed (or the body filled) over every sweep, and where the last sweep
 /// looked.
 #[derive(Debug, Clone, Default)]
 pub struct FreeSpace {
-    chunks: FxHashMap<[i32; 3], Box<[u64; CHUNK_WORDS]>>,
+    chunks: Chunks,
     last: Option<Regard>,
     body: Vec<Capsule>,
+}
+
+/// Rays a thread walks at a time.
+const RAYS_PER_TASK: usize = 4096;
+
+/// Marks in `chunks` the voxels the segment from `from` toward `to` crosses, up to a voxel's
+/// edge short of `to` along it, never `to`'s own voxel, and no farther than `p.reach_m`
+/// (Amanatides and Woo's walk).
+fn trace(chunks: &mut Chunks, from: &Point3<f64>, to: &Point3<f64>, p: &FreeSpaceParams) {
+    let hit = FreeSpace::voxel(to, p.voxel_m);
+    let d = to - from;
+    let length = d.norm();
+    let end = (length - p.voxel_m).min(p.reach_m);
+    if end <= 0.0 {
+        return;
+    }
+    let dir = d / length;
+    let mut v = FreeSpace::voxel(from, p.voxel_m);
+    let mut step = [0i32; 3];
+    let mut t_next = [f64::INFINITY; 3];
+    let mut t_delta = [f64::INFINITY; 3];
+    for i in 0..3 {
+        if dir[i] > 0.0 {
+            step[i] = 1;
+            t_next[i] = ((v[i] + 1) as f64 * p.voxel_m - from[i]) / dir[i];
+            t_delta[i] = p.voxel_m / dir[i];
+        } else if dir[i] < 0.0 {
+            step[i] = -1;
+            t_next[i] = (v[i] as f64 * p.voxel_m - from[i]) / dir[i];
+            t_delta[i] = -p.voxel_m / dir[i];
+        }
+    }
+    // The voxel's chunk and its place in it are stepped with the voxel: the chunk is looked
+    // up only when the walk leaves it.
+    let (mut key, _) = chunk_of(v);
+    let mut local = v.map(|c| c.rem_euclid(CHUNK));
+    let mut words = chunks.entry(key).or_insert_with(|| Box::new([0; CHUNK_WORDS]));
+    let mut t = 0.0;
+    while t < end && v != hit {
+        let bit = (local[0] + (local[1] + local[2] * CHUNK) * CHUNK) as usize;
+        words[bit / 64] |= 1 << (bit % 64);
+        // The axis whose boundary comes first (the first of equals).
+        let i = if t_next[0] <= t_next[1] && t_next[0] <= t_next[2] {
+            0
+        } else if t_next[1] <= t_next[2] {
+            1
+        } else {
+            2
+        };
+        t = t_next[i];
+        t_next[i] += t_delta[i];
+        v[i] += step[i];
+        local[i] += step[i];
+        if !(0..CHUNK).contains(&local[i]) {
+            local[i] -= step[i] * CHUNK;
+            key[i] += step[i];
+            words = chunks.entry(key).or_insert_with(|| Box::new([0; CHUNK_WORDS]));
+        }
+    }
 }
 
 /// The box around the capsules of `body`, grown by `margin_m`.
@@ -183,65 +261,36 @@ impl FreeSpace {
             }
         }
         let (lo, hi) = body_box(body, p.self_margin_m);
-        for (from, to) in rays {
-            if !(from.coords.iter().chain(to.coords.iter()).all(|v| v.abs() < FAR_M)) {
-                continue; // non-finite, or garbage far away
-            }
+        let sane = |(from, to): &&(Point3<f64>, Point3<f64>)| {
+            from.coords.iter().chain(to.coords.iter()).all(|v| v.abs() < FAR_M) // non-finite, garbage
+        };
+        for (from, to) in rays.iter().filter(sane) {
             let in_box = (0..3).all(|i| to[i] >= lo[i] && to[i] <= hi[i]);
-            let on_body = in_box && body.iter().any(|c| c.distance_m(&to) < p.self_margin_m);
+            let on_body = in_box && body.iter().any(|c| c.distance_m(to) < p.self_margin_m);
             regard.mark(&(to - from), on_body);
-            self.trace(&from, &to, p);
         }
+        // Each thread walks its share of the rays into chunks of its own, merged after: the
+        // set of crossed voxels is the same on any number of threads.
+        use rayon::prelude::*;
+        let crossed = rays
+            .par_chunks(RAYS_PER_TASK)
+            .map(|share| {
+                let mut chunks = Chunks::default();
+                for (from, to) in share.iter().filter(sane) {
+                    trace(&mut chunks, from, to, p);
+                }
+                chunks
+            })
+            .reduce(Chunks::default, |mut a, b| {
+                merge(&mut a, b);
+                a
+            });
+        merge(&mut self.chunks, crossed);
         for c in body {
             self.fill(c, p.voxel_m);
         }
         self.last = Some(regard);
         self.body = body.to_vec();
-    }
-
-    /// Marks the voxels the segment from `from` toward `to` crosses, up to a voxel's edge
-    /// short of `to` along it, never `to`'s own voxel, and no farther than `p.reach_m`
-    /// (Amanatides and Woo's walk).
-    fn trace(&mut self, from: &Point3<f64>, to: &Point3<f64>, p: &FreeSpaceParams) {
-        let hit = Self::voxel(to, p.voxel_m);
-        let d = to - from;
-        let length = d.norm();
-        let end = (length - p.voxel_m).min(p.reach_m);
-        if end <= 0.0 {
-            return;
-        }
-        let dir = d / length;
-        let mut v = Self::voxel(from, p.voxel_m);
-        let mut step = [0i32; 3];
-        let mut t_next = [f64::INFINITY; 3];
-        let mut t_delta = [f64::INFINITY; 3];
-        for i in 0..3 {
-            if dir[i] > 0.0 {
-                step[i] = 1;
-                t_next[i] = ((v[i] + 1) as f64 * p.voxel_m - from[i]) / dir[i];
-                t_delta[i] = p.voxel_m / dir[i];
-            } else if dir[i] < 0.0 {
-                step[i] = -1;
-                t_next[i] = (v[i] as f64 * p.voxel_m - from[i]) / dir[i];
-                t_delta[i] = -p.voxel_m / dir[i];
-            }
-        }
-        // Consecutive voxels share a chunk mostly: the chunk is looked up when it changes.
-        let (mut key, _) = chunk_of(v);
-        let mut words = self.chunks.entry(key).or_insert_with(|| Box::new([0; CHUNK_WORDS]));
-        let mut t = 0.0;
-        while t < end && v != hit {
-            let (k, bit) = chunk_of(v);
-            if k != key {
-                key = k;
-                words = self.chunks.entry(key).or_insert_with(|| Box::new([0; CHUNK_WORDS]));
-            }
-            words[bit / 64] |= 1 << (bit % 64);
-            let i = (0..3).min_by(|&a, &b| t_next[a].total_cmp(&t_next[b])).unwrap_or(0);
-            t = t_next[i];
-            t_next[i] += t_delta[i];
-            v[i] += step[i];
-        }
     }
 
     /// Marks the voxels whose centres lie in capsule `c`.
@@ -385,6 +434,27 @@ mod tests {
         assert!(edge.iter().any(in_gap), "no unseen point at the gap: {edge:?}");
         // The body's own place is known free, the gap or not.
         assert!(edge.iter().all(|q| body()[0].distance_m(q) > 0.0));
+    }
+
+    #[test]
+    fn the_crossed_space_is_the_same_on_any_number_of_threads() {
+        let cloud = floor_seen_but(Some((Point3::new(0.8, -0.5, 0.9), Point3::new(1.0, -0.3, 1.1))));
+        let on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a pool");
+            let mut s = FreeSpace::default();
+            pool.install(|| s.add(&cloud, &body(), &params()));
+            let mut bits: Vec<([i32; 3], Vec<u64>)> = s
+                .chunks
+                .iter()
+                .filter(|(_, w)| w.iter().any(|&x| x != 0))
+                .map(|(k, w)| (*k, w.to_vec()))
+                .collect();
+            bits.sort();
+            (bits, s.unseen_edge(&params()))
+        };
+        let one = on(1);
+        assert!(!one.0.is_empty() && !one.1.is_empty());
+        assert_eq!(one, on(3));
     }
 
     #[test]
