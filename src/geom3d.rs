@@ -2,7 +2,7 @@
 //! sphere, the robot's limbs as the clearance constraints and the self-filter see them) and
 //! a point's distance to it.
 
-use nalgebra::Point3;
+use nalgebra::{Point3, Vector3};
 
 /// A segment from `a` to `b` swept by a sphere of `radius_m`, world frame, metres.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -28,6 +28,18 @@ impl Capsule {
     pub fn distance_m(&self, p: &Point3<f64>) -> f64 {
         (p - self.axis_point_nearest(p)).norm() - self.radius_m
     }
+}
+
+/// The box (least and greatest corners) around `capsules`, grown by `margin_m`; inverted
+/// (least +inf) when there are none.
+pub fn capsules_box(capsules: &[Capsule], margin_m: f64) -> (Vector3<f64>, Vector3<f64>) {
+    let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
+    for c in capsules {
+        let reach = Vector3::repeat(c.radius_m + margin_m);
+        lo = lo.inf(&(c.a.coords.inf(&c.b.coords) - reach));
+        hi = hi.sup(&(c.a.coords.sup(&c.b.coords) + reach));
+    }
+    (lo, hi)
 }
 
 #[cfg(test)]

@@ -11,7 +11,7 @@
 //! scan plane was).
 
 use crate::cloud::PointCloud;
-use crate::geom3d::Capsule;
+use crate::geom3d::{capsules_box, Capsule};
 use nalgebra::{Point3, Unit, Vector3};
 use rustc_hash::FxHashMap;
 
@@ -194,17 +194,6 @@ fn trace(chunks: &mut Chunks, from: &Point3<f64>, to: &Point3<f64>, p: &FreeSpac
     }
 }
 
-/// The box around the capsules of `body`, grown by `margin_m`.
-fn body_box(body: &[Capsule], margin_m: f64) -> (Vector3<f64>, Vector3<f64>) {
-    let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
-    for c in body {
-        let r = Vector3::repeat(c.radius_m + margin_m);
-        lo = lo.inf(&(c.a.coords.inf(&c.b.coords) - r));
-        hi = hi.sup(&(c.a.coords.sup(&c.b.coords) + r));
-    }
-    (lo, hi)
-}
-
 fn chunk_of(v: [i32; 3]) -> ([i32; 3], usize) {
     let key = v.map(|c| c.div_euclid(CHUNK));
     let [x, y, z] = v.map(|c| c.rem_euclid(CHUNK) as usize);
@@ -260,7 +249,7 @@ impl FreeSpace {
                 }
             }
         }
-        let (lo, hi) = body_box(body, p.self_margin_m);
+        let (lo, hi) = capsules_box(body, p.self_margin_m);
         let sane = |(from, to): &&(Point3<f64>, Point3<f64>)| {
             from.coords.iter().chain(to.coords.iter()).all(|v| v.abs() < FAR_M) // non-finite, garbage
         };
@@ -316,7 +305,7 @@ impl FreeSpace {
     /// `p.above_soles_m` over its lowest point.
     pub fn unseen_edge(&self, p: &FreeSpaceParams) -> Vec<Point3<f64>> {
         let Some(regard) = self.last.as_ref() else { return Vec::new() };
-        let (lo, hi) = body_box(&self.body, 0.0);
+        let (lo, hi) = capsules_box(&self.body, 0.0);
         let lo = Point3::new(lo.x - p.around_body_m, lo.y - p.around_body_m, lo.z + p.above_soles_m);
         let hi = Point3::from(hi + Vector3::repeat(p.around_body_m));
         // A garbage pose, or parameters only code could give (a file's are bounded): nothing.

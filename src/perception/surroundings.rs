@@ -165,12 +165,7 @@ impl Surroundings {
         }
         // The body's box: most returns (the floor, the room) are outside it and need no
         // test against each shape.
-        let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
-        for c in body {
-            let reach = Vector3::repeat(c.radius_m + p.self_margin_m);
-            lo = lo.inf(&(c.a.coords.inf(&c.b.coords) - reach));
-            hi = hi.sup(&(c.a.coords.sup(&c.b.coords) + reach));
-        }
+        let (lo, hi) = crate::geom3d::capsules_box(body, p.self_margin_m);
         // Neighbouring returns of a scan row often fall in one voxel: the last one is kept at
         // hand, and the map is read only when a return leaves it.
         let mut last: Option<([i32; 3], usize)> = None;
