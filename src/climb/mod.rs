@@ -350,8 +350,6 @@ fn look(
     Ok(View { sweep, cloud, seen, nothing, scan_s, perceive_s })
 }
 
-/// Why the loop stops after a cycle's execution: a fall, a simulation gone unstable, or a
-/// cancellation.
 /// Why the loop stops after the robot stood before `cycle`'s sweep, if it does.
 fn standing_stop(standing: Standing, cycle: usize) -> Option<StopReason> {
     match standing {
@@ -361,6 +359,8 @@ fn standing_stop(standing: Standing, cycle: usize) -> Option<StopReason> {
     }
 }
 
+/// Why the loop stops after a cycle's execution: a fall, a simulation gone unstable, or a
+/// cancellation.
 fn stop_after(ex: &Execution, cycle: usize, cancel: &Cancel) -> Option<StopReason> {
     if ex.fell {
         Some(StopReason::Fell { cycle })

@@ -302,7 +302,9 @@ impl FreeSpace {
     /// The centres of the voxels at the edge of the space known free near the body of the
     /// last sweep: those no ray crossed, beside one a ray crossed, in a direction the last
     /// sweep looked in, within `p.around_body_m` of the body's box and higher than
-    /// `p.above_soles_m` over its lowest point.
+    /// `p.above_soles_m` over its lowest point. Those within `p.self_margin_m` of the body
+    /// are not judged: a return there would have been taken for the body's own, so a
+    /// missing one says nothing either (the same blind margin the surfaces have).
     pub fn unseen_edge(&self, p: &FreeSpaceParams) -> Vec<Point3<f64>> {
         let Some(regard) = self.last.as_ref() else { return Vec::new() };
         let (lo, hi) = capsules_box(&self.body, 0.0);
@@ -333,8 +335,10 @@ impl FreeSpace {
                     if !beside {
                         continue;
                     }
-                    if regard.looks_at_voxel(v, p.voxel_m) {
-                        out.push(Point3::new(x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5) * p.voxel_m);
+                    let centre = Point3::new(x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5) * p.voxel_m;
+                    let by_body = self.body.iter().any(|c| c.distance_m(&centre) < p.self_margin_m);
+                    if !by_body && regard.looks_at_voxel(v, p.voxel_m) {
+                        out.push(centre);
                     }
                 }
             }
@@ -466,5 +470,79 @@ mod tests {
         assert!(!s.crossed(FreeSpace::voxel(&Point3::new(0.51, 0.01, 0.5), p.voxel_m)));
         // The returns' own voxels are not crossed.
         assert!(!s.crossed(FreeSpace::voxel(&Point3::new(0.01, 0.01, 0.01), p.voxel_m)));
+    }
+
+    /// Space no ray crossed a few centimetres from the body is where a return would have been
+    /// taken for the body's own: not judged; the same 20 cm off is.
+    #[test]
+    fn space_within_the_self_margin_of_the_body_is_not_judged() {
+        let p = params();
+        let mut s = FreeSpace::default();
+        let near = [3, 0, 20]; // centre 2.7 cm from the capsule's surface
+        let far = [6, 0, 20]; // 17.6 cm
+        for x in -40..40 {
+            for y in -40..40 {
+                for z in 0..60 {
+                    if [x, y, z] != near && [x, y, z] != far {
+                        s.set([x, y, z]);
+                    }
+                }
+            }
+        }
+        let mut regard = Regard::new(VIEW, Vector3::z_axis());
+        regard.looked.iter_mut().for_each(|w| *w = !0);
+        s.last = Some(regard);
+        s.body = body();
+        let at =
+            |v: [i32; 3]| Point3::new(v[0] as f64 + 0.5, v[1] as f64 + 0.5, v[2] as f64 + 0.5) * p.voxel_m;
+        assert!(body()[0].distance_m(&at(near)) < p.self_margin_m);
+        let edge = s.unseen_edge(&p);
+        assert!(edge == vec![at(far)], "{} points, first {:?}", edge.len(), edge.first());
+    }
+
+    /// A ground a sweep's rays fall on, nothing else.
+    struct Ground;
+
+    impl crate::sensor::RayCaster for Ground {
+        fn ray(&self, o: &Point3<f64>, d: &Vector3<f64>) -> Option<crate::sensor::RayHit> {
+            (d.z < -1e-9).then(|| crate::sensor::RayHit { distance_m: o.z / -d.z, geom: 0 })
+        }
+    }
+
+    /// A head that walks 0.3 m forward and 0.15 m up a step while the lidar sweeps: the
+    /// space the chest moves into next, just ahead of the head and below it, is looked at
+    /// by the shallow rows, which a sweep run level last casts from where the head ends
+    /// (one run from level down casts them from 0.3 m back and lower, under that space).
+    #[test]
+    fn a_sweep_taken_walking_crosses_the_space_just_ahead_of_where_the_head_ends() {
+        let spec = crate::scenario::LidarSpec {
+            noise_sigma_m: 0.0,
+            dropout_probability: 0.0,
+            ..crate::scenario::LidarSpec::default()
+        };
+        let rows = crate::sensor::TiltSweep::from_spec(&spec).rows();
+        let heads: Vec<_> = (0..rows)
+            .map(|k| {
+                let s = k as f64 / (rows - 1) as f64;
+                let at = nalgebra::Isometry3::translation(0.3 * s, 0.0, 1.3 + 0.15 * s);
+                (at, at)
+            })
+            .collect();
+        let sweep = crate::sensor::SimLidar::moving(&Ground, &spec, &heads, 1)
+            .expect("a head per row")
+            .sweep_rows(&crate::cancel::Cancel::never(), &mut |_, _| {})
+            .expect("a sweep");
+        let cloud = sweep.assemble(&Default::default()).expect("a cloud");
+        let chest = Capsule { a: Point3::new(0.3, 0.0, 0.1), b: Point3::new(0.3, 0.0, 1.3), radius_m: 0.15 };
+        let p = FreeSpaceParams { ray_stride: 2, ..params() };
+        let mut space = FreeSpace::default();
+        space.add(&cloud, &[chest], &p);
+        let head = heads[rows - 1].0.translation.vector;
+        let ahead = |q: &&Point3<f64>| {
+            let d = q.coords - head;
+            (0.1..=0.5).contains(&d.x) && d.y.abs() <= 0.3 && (-0.3..=0.05).contains(&d.z)
+        };
+        let edge = space.unseen_edge(&p);
+        assert!(!edge.iter().any(|q| ahead(&q)), "{:?}", edge.iter().filter(ahead).collect::<Vec<_>>());
     }
 }

@@ -32,6 +32,18 @@ impl TiltSweep {
         }
     }
 
+    /// The same sweep run from its steeper end to the one nearer level (the smaller tilt
+    /// either way of level): the pass a head that sweeps as it walks takes, so that the
+    /// shallow rows, which cross the space just ahead of the head and chest, are the newest
+    /// at the sweep's end, cast from nearest where the head then stands. Unchanged when the
+    /// sweep already ends nearer level.
+    pub fn level_last(mut self) -> Self {
+        if self.end_rad.abs() > self.start_rad.abs() {
+            std::mem::swap(&mut self.start_rad, &mut self.end_rad);
+        }
+        self
+    }
+
     /// Rows in the sweep (one every row period while the servo moves).
     pub fn rows(&self) -> usize {
         self.rows
@@ -66,5 +78,26 @@ impl TiltSweep {
     /// One encoder tick, radians.
     pub fn tick_rad(&self) -> f64 {
         self.tick_rad
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_sweep_run_level_last_ends_at_the_tilt_nearer_level() {
+        let spec = LidarSpec::default();
+        let forward = TiltSweep::from_spec(&spec);
+        let back = forward.clone().level_last();
+        let end_s = forward.duration_s();
+        assert_eq!(back.rows(), forward.rows());
+        assert!((back.tilt_at(0.0) - forward.tilt_at(end_s)).abs() < 1e-12);
+        assert!((back.tilt_at(end_s) - forward.tilt_at(0.0)).abs() < 1e-12);
+        assert!(back.tilt_at(end_s).abs() < back.tilt_at(0.0).abs());
+        // A sweep that already ends nearer level is kept; so is one starting below level.
+        assert_eq!(back.clone().level_last(), back);
+        let up = LidarSpec { tilt_start_deg: 60.0, tilt_end_deg: -20.0, ..LidarSpec::default() };
+        assert_eq!(TiltSweep::from_spec(&up).level_last(), TiltSweep::from_spec(&up));
     }
 }

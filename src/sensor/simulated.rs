@@ -59,8 +59,10 @@ impl<'w, C: RayCaster> SimLidar<'w, C> {
     /// The lidar of `spec` on a head that moves during the sweep (a robot walking): row `k`
     /// is cast from the head at `heads[k].0` (its true pose at the row's stamp, held through
     /// the row) and carries `heads[k].1`, where the robot believed the head was then, for
-    /// the assembly ([`ScanRow::mount_to_world`]). As many heads as the sweep has rows, else
-    /// `None`.
+    /// the assembly ([`ScanRow::mount_to_world`]). The servo runs the sweep level last
+    /// ([`TiltSweep::level_last`]): the loop commands each pass to end when it looks, so
+    /// the rows that cross the space just ahead of the head are cast from nearest where it
+    /// stands then. As many heads as the sweep has rows, else `None`.
     pub fn moving(
         world: &'w C,
         spec: &LidarSpec,
@@ -73,6 +75,7 @@ impl<'w, C: RayCaster> SimLidar<'w, C> {
             return None;
         }
         let mut lidar = Self::new(world, spec, last, seed);
+        lidar.sweep = sweep.level_last();
         let mount = lidar.lidar.mount_in_head;
         lidar.motion = Some(Motion {
             truth: heads.iter().map(|(t, _)| t * mount).collect(),
