@@ -70,11 +70,12 @@ pub struct RunParams {
     /// `sim::head_track`; the real sensors sweep standing). Until the robot has moved or
     /// stood a sweep's time (the first look), the sweep is taken standing. Off (the
     /// default): every sweep is taken where the robot stands after its settle (in
-    /// simulation cast in no simulated time; a real robot stands the sweep's 6 s). Not yet
-    /// the default, nor safe: a moving head's sweep shows what a standing one does not (the
-    /// beams along the tilt axis draw lines along the walls) and leaves gaps beside the
-    /// body, which the clearance takes for free space (the suites' figures with it on:
-    /// BENCHMARKS.md).
+    /// simulation cast in no simulated time; a real robot stands the sweep's 6 s). Each
+    /// pass runs level last, ending at the look ([`crate::sensor::TiltSweep::level_last`]).
+    /// Not yet the default: a moving head's sweep leaves space near the body no ray crossed
+    /// (its steep rows are the oldest), which the body keeps off, so some plans a standing
+    /// sweep allows are refused; and nothing drives the real servo so (the suites' figures
+    /// with it on: BENCHMARKS.md).
     pub sweep_while_moving: bool,
     /// Friction coefficient of the surfaces of a hardware rehearsal's world (`run
     /// --hardware`: the perceived steps rebuilt in simulation, whose true friction nobody

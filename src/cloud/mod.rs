@@ -125,6 +125,13 @@ impl PointCloud {
         self.viewpoint
     }
 
+    /// Where the sensor was when the sweep ended: the last row's origin for a sweep whose
+    /// head moved ([`ScanGrid::row_origins`]), else the viewpoint. It is where the robot
+    /// stands when it acts on the cloud: what "under the sensor" and "ahead of it" mean.
+    pub fn sensor_at_end(&self) -> Point3<f64> {
+        self.grid.as_ref().and_then(|g| g.row_origins().last().copied()).unwrap_or(self.viewpoint)
+    }
+
     /// Unit direction of gravity in the cloud's frame.
     pub fn gravity(&self) -> Unit<Vector3<f64>> {
         self.gravity
@@ -133,5 +140,30 @@ impl PointCloud {
     /// The scan organization, when the cloud came from a lidar sweep.
     pub fn grid(&self) -> Option<&ScanGrid> {
         self.grid.as_ref()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A sweep taken walking up a step is seen from along the head's path: its viewpoint
+    /// (the mean) lies behind and below where the head ended, which is where the robot
+    /// stands when it plans; a standing sweep's is its viewpoint.
+    #[test]
+    fn a_moving_sweep_ends_where_its_last_row_was_cast() {
+        let points = vec![Point3::new(1.0f32, 0.0, 0.0), Point3::new(1.3, 0.0, 0.2)];
+        let origins = vec![Point3::new(0.0, 0.0, 1.4), Point3::new(0.3, 0.0, 1.6)];
+        let grid = ScanGrid::new(2, 1, vec![0, 1]).expect("a grid");
+        let standing = PointCloud::new(
+            points.clone(),
+            Point3::new(0.15, 0.0, 1.5),
+            -Vector3::z_axis(),
+            Some(grid.clone()),
+        );
+        assert_eq!(standing.sensor_at_end(), Point3::new(0.15, 0.0, 1.5));
+        let walked = grid.with_row_origins(origins).expect("an origin a row");
+        let moving = PointCloud::new(points, Point3::new(0.15, 0.0, 1.5), -Vector3::z_axis(), Some(walked));
+        assert_eq!(moving.sensor_at_end(), Point3::new(0.3, 0.0, 1.6));
     }
 }

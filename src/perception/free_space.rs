@@ -227,8 +227,7 @@ impl FreeSpace {
         let stride = p.ray_stride.max(1);
         let grid = cloud.grid();
         let origins = grid.map(|g| g.row_origins()).unwrap_or(&[]);
-        let last_origin = origins.last().copied().unwrap_or_else(|| cloud.viewpoint());
-        let mut regard = Regard::new(last_origin, -cloud.gravity());
+        let mut regard = Regard::new(cloud.sensor_at_end(), -cloud.gravity());
         let mut rays: Vec<(Point3<f64>, Point3<f64>)> = Vec::new();
         match grid {
             Some(g) => {

@@ -835,7 +835,7 @@ fn by_paper(
     let voxels = voxel::filter_sparse(&all, p.min_adjacent_voxels);
     timings.voxels_ms = ms(t);
     counts.after_filter2 = voxels.len();
-    from_voxels(voxels, cloud.viewpoint(), cloud.gravity(), p, timings, counts)
+    from_voxels(voxels, cloud.sensor_at_end(), cloud.gravity(), p, timings, counts)
 }
 
 /// The planes grown on the scan grid ([`cells`]) up to the steps, their fronts not yet on
@@ -877,9 +877,8 @@ fn by_cells(
         }));
     }
     let t = Instant::now();
-    let (viewpoint, gravity) = (cloud.viewpoint(), cloud.gravity());
-    let result =
-        staircase::from_surfaces(&found.voxels, found.surfaces, counts.planes, &viewpoint, &gravity, p);
+    let (sensor, gravity) = (cloud.sensor_at_end(), cloud.gravity());
+    let result = staircase::from_surfaces(&found.voxels, found.surfaces, counts.planes, &sensor, &gravity, p);
     timings.staircase_ms = ms(t);
     let detail = Detail { voxels: found.voxels, ..Default::default() };
     finish(Method::Cells, result, timings, counts, detail)
@@ -925,12 +924,12 @@ pub fn perceive_voxels(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perce
     timings.voxels_ms = ms(t);
     counts.voxels = voxels.len();
     counts.after_filter2 = voxels.len();
-    from_voxels(voxels, cloud.viewpoint(), cloud.gravity(), p, timings, counts)
+    from_voxels(voxels, cloud.sensor_at_end(), cloud.gravity(), p, timings, counts)
 }
 
 fn from_voxels(
     voxels: voxel::VoxelCloud,
-    viewpoint: Point3<f64>,
+    sensor: Point3<f64>,
     gravity: Unit<Vector3<f64>>,
     p: &PerceptionParams,
     mut timings: PhaseTimings,
@@ -964,7 +963,7 @@ fn from_voxels(
     counts.planes = planes.len();
 
     let t = Instant::now();
-    let result = staircase::extract(&voxels, &sv, &clusters, &planes, &viewpoint, &gravity, p);
+    let result = staircase::extract(&voxels, &sv, &clusters, &planes, &sensor, &gravity, p);
     timings.staircase_ms = ms(t);
     finish(Method::Paper, result, timings, counts, Detail { voxels, supervoxels: sv, clusters })
 }

@@ -8,6 +8,7 @@
 //!    than the sole are dropped (Filter 3's rule).
 //! 3. The ground, the surface the robot stands on (the segment under the sensor, else the
 //!    lowest segment), and every segment at its height, are set aside: they are the floor.
+//!    So is every segment lower: the flight rises from the ground.
 //! 4. The remaining segments are clustered by their (depth, width) with single linkage; the
 //!    biggest cluster is the staircase (ties: the cluster nearest the sensor); a segment of
 //!    another shape that continues the flight by a rise at either end (a top landing) joins
@@ -40,13 +41,15 @@ struct Candidate {
 }
 
 /// The steps (lowest first), the number of candidate segments considered, and the ground's
-/// height (the candidate under the sensor, else the lowest), metres.
+/// height (the candidate under the sensor, else the lowest), metres. `sensor` is where the
+/// sensor was at the sweep's end ([`crate::cloud::PointCloud::sensor_at_end`]): where the
+/// robot stands, for a sweep taken walking too.
 pub fn extract(
     vc: &VoxelCloud,
     sv: &Supervoxels,
     clusters: &Clusters,
     planes: &[Plane],
-    viewpoint: &Point3<f64>,
+    sensor: &Point3<f64>,
     gravity: &Unit<Vector3<f64>>,
     p: &PerceptionParams,
 ) -> Result<(Vec<PlaneSegment>, usize, f64), PerceptionError> {
@@ -75,7 +78,7 @@ pub fn extract(
             parts.extend(candidate(vc, voxels, plane.normal.cast(), p));
         }
     }
-    from_parts(vc, parts, planes.len(), viewpoint, gravity, p)
+    from_parts(vc, parts, planes.len(), sensor, gravity, p)
 }
 
 /// The steps, as [`extract`] gives them, from surfaces found another way: each a set of
@@ -87,7 +90,7 @@ pub fn from_surfaces(
     vc: &VoxelCloud,
     surfaces: Vec<(Vec<u32>, Vector3<f64>)>,
     planes: usize,
-    viewpoint: &Point3<f64>,
+    sensor: &Point3<f64>,
     gravity: &Unit<Vector3<f64>>,
     p: &PerceptionParams,
 ) -> Result<(Vec<PlaneSegment>, usize, f64), PerceptionError> {
@@ -98,7 +101,7 @@ pub fn from_surfaces(
         .filter(|(voxels, _)| surface_height_extent_m(&vc.positions, voxels, &up) <= p.max_height_extent_m)
         .filter_map(|(voxels, normal)| candidate(vc, voxels, normal, p))
         .collect();
-    from_parts(vc, parts, planes, viewpoint, gravity, p)
+    from_parts(vc, parts, planes, sensor, gravity, p)
 }
 
 /// Steps 2 (from the joining on) to 5 of the module's doc, on the plane segments `parts`.
@@ -106,7 +109,7 @@ fn from_parts(
     vc: &VoxelCloud,
     parts: Vec<Candidate>,
     planes: usize,
-    viewpoint: &Point3<f64>,
+    sensor: &Point3<f64>,
     gravity: &Unit<Vector3<f64>>,
     p: &PerceptionParams,
 ) -> Result<(Vec<PlaneSegment>, usize, f64), PerceptionError> {
@@ -128,15 +131,17 @@ fn from_parts(
 
     // The ground: under the sensor, else the lowest segment (a sloped floor may have failed
     // the epsilon test, as in the paper's own Exp. 1 data; the lowest flat piece is then floor).
-    let below = P2::new(viewpoint.x, viewpoint.y);
+    let below = P2::new(sensor.x, sensor.y);
     let ground = cands
         .iter()
         .position(|c| geom2d::contains(&c.hull, &below))
         .or_else(|| (0..cands.len()).min_by(|&a, &b| cands[a].height.total_cmp(&cands[b].height)))
         .unwrap_or(0);
     let ground_h = cands[ground].height;
+    // The flight rises from the ground: what lies lower (the floor beside the stairs, seen
+    // from a step) is no step of it.
     let steps: Vec<&Candidate> =
-        cands.iter().filter(|c| (c.height - ground_h).abs() > p.max_height_extent_m).collect();
+        cands.iter().filter(|c| c.height - ground_h > p.max_height_extent_m).collect();
     if steps.is_empty() {
         return Err(PerceptionError::NoStaircase(NoStaircase::OnlyGround {
             segments: n_candidates,
@@ -915,6 +920,47 @@ mod tests {
             from_surfaces(&vc, parts, 6, &Point3::new(0.0, 0.0, 1.5), &gravity, &p).expect("steps");
         let heights: Vec<f64> = steps.iter().map(|s| (s.height_m() * 1000.0).round() / 1000.0).collect();
         assert_eq!(heights, [0.171, 0.342, 0.514], "the staircase found");
+    }
+
+    /// A robot on step 1 (its sensor above that tread), the floor beside the flight in sight
+    /// past the handrail: a strip of it the steps' shape, lower than the ground. It is no
+    /// step of the flight up from where the robot stands; taken for one (a sweep taken
+    /// walking, `real-0001`'s seventh view), it turned the flight by 90 deg ("not a straight
+    /// staircase").
+    #[test]
+    fn a_surface_lower_than_the_ground_is_no_step() {
+        let p = PerceptionParams::default();
+        let g = 0.02f32;
+        let patch = |x0: f32, x1: f32, y0: f32, y1: f32, z: f32| -> Vec<Point3<f32>> {
+            let (nx, ny) = (((x1 - x0) / g).round() as usize, ((y1 - y0) / g).round() as usize);
+            (0..nx)
+                .flat_map(|i| {
+                    (0..ny).map(move |j| Point3::new(x0 + (i as f32 + 0.5) * g, y0 + (j as f32 + 0.5) * g, z))
+                })
+                .collect()
+        };
+        let mut surfaces: Vec<Vec<Point3<f32>>> = (0..5)
+            .map(|k| patch(1.2 + 0.26 * k as f32, 1.46 + 0.26 * k as f32, -0.62, 0.62, 0.19 * (k + 1) as f32))
+            .collect();
+        surfaces.push(patch(2.0, 3.2, -1.76, -1.46, 0.0));
+        let mut positions = Vec::new();
+        let mut parts = Vec::new();
+        for s in &surfaces {
+            let first = positions.len() as u32;
+            positions.extend_from_slice(s);
+            parts.push(((first..positions.len() as u32).collect::<Vec<u32>>(), Vector3::z()));
+        }
+        let vc = voxel_cloud(positions);
+        let gravity = Unit::new_normalize(-Vector3::z());
+        let sensor = Point3::new(1.34, 0.0, 1.7);
+        let (steps, _, ground_m) = from_surfaces(&vc, parts, 6, &sensor, &gravity, &p).expect("steps");
+        let heights: Vec<f64> = steps.iter().map(|s| (s.height_m() * 100.0).round() / 100.0).collect();
+        assert!((ground_m - 0.19).abs() < 1e-3, "the ground at {ground_m} m");
+        assert_eq!(heights, [0.38, 0.57, 0.76, 0.95], "the flight found");
+        for s in &steps {
+            let off_deg = s.along().y.atan2(s.along().x).to_degrees();
+            assert!(off_deg.abs() < 1.0, "a step turned {off_deg:.1} deg");
+        }
     }
 
     #[test]
