@@ -878,6 +878,34 @@ mod tests {
         assert!(off_deg.abs() < 0.5, "the flight's ascent is {off_deg:.2} deg off");
     }
 
+    /// Voxels every 2 cm over `x0..x1`, `y0..y1` at height `z`.
+    fn patch(x0: f32, x1: f32, y0: f32, y1: f32, z: f32) -> Vec<Point3<f32>> {
+        let g = 0.02f32;
+        let (nx, ny) = (((x1 - x0) / g).round() as usize, ((y1 - y0) / g).round() as usize);
+        (0..nx)
+            .flat_map(|i| {
+                (0..ny).map(move |j| Point3::new(x0 + (i as f32 + 0.5) * g, y0 + (j as f32 + 0.5) * g, z))
+            })
+            .collect()
+    }
+
+    /// [`from_surfaces`] on `surfaces` (one level surface each), seen from `sensor`.
+    fn on_surfaces(
+        surfaces: &[Vec<Point3<f32>>],
+        sensor: &Point3<f64>,
+        p: &PerceptionParams,
+    ) -> Result<(Vec<PlaneSegment>, usize, f64), PerceptionError> {
+        let mut positions = Vec::new();
+        let mut parts = Vec::new();
+        for s in surfaces {
+            let first = positions.len() as u32;
+            positions.extend_from_slice(s);
+            parts.push(((first..positions.len() as u32).collect::<Vec<u32>>(), Vector3::z()));
+        }
+        let gravity = Unit::new_normalize(-Vector3::z());
+        from_surfaces(&voxel_cloud(positions), parts, surfaces.len(), sensor, &gravity, p)
+    }
+
     /// `regress wide` case wide-0035 with the cell method, the loop's first view (not in
     /// the `regressions` suite, which runs the default method): step 2 carried one column
     /// 12 cm past the flight's side, step 3 was half hidden, and with the shapes taken from the hulls the
@@ -887,16 +915,6 @@ mod tests {
     #[test]
     fn a_stray_column_does_not_split_the_flight() {
         let p = PerceptionParams::default();
-        let g = 0.02f32;
-        // Voxels every 2 cm over x0..x1, y0..y1 at height z.
-        let patch = |x0: f32, x1: f32, y0: f32, y1: f32, z: f32| -> Vec<Point3<f32>> {
-            let (nx, ny) = (((x1 - x0) / g).round() as usize, ((y1 - y0) / g).round() as usize);
-            (0..nx)
-                .flat_map(|i| {
-                    (0..ny).map(move |j| Point3::new(x0 + (i as f32 + 0.5) * g, y0 + (j as f32 + 0.5) * g, z))
-                })
-                .collect()
-        };
         let mut step_2 = patch(1.28, 1.56, -0.84, 0.84, 0.342);
         step_2.extend([Point3::new(1.41, 0.97, 0.342)]);
         let surfaces = [
@@ -907,17 +925,7 @@ mod tests {
             patch(-0.4, 0.3, 0.6, 1.16, 0.557),
             patch(-0.4, 0.3, -1.22, -0.66, 0.557),
         ];
-        let mut positions = Vec::new();
-        let mut parts = Vec::new();
-        for s in &surfaces {
-            let first = positions.len() as u32;
-            positions.extend_from_slice(s);
-            parts.push(((first..positions.len() as u32).collect::<Vec<u32>>(), Vector3::z()));
-        }
-        let vc = voxel_cloud(positions);
-        let gravity = Unit::new_normalize(-Vector3::z());
-        let (steps, _, _) =
-            from_surfaces(&vc, parts, 6, &Point3::new(0.0, 0.0, 1.5), &gravity, &p).expect("steps");
+        let (steps, _, _) = on_surfaces(&surfaces, &Point3::new(0.0, 0.0, 1.5), &p).expect("steps");
         let heights: Vec<f64> = steps.iter().map(|s| (s.height_m() * 1000.0).round() / 1000.0).collect();
         assert_eq!(heights, [0.171, 0.342, 0.514], "the staircase found");
     }
@@ -930,30 +938,12 @@ mod tests {
     #[test]
     fn a_surface_lower_than_the_ground_is_no_step() {
         let p = PerceptionParams::default();
-        let g = 0.02f32;
-        let patch = |x0: f32, x1: f32, y0: f32, y1: f32, z: f32| -> Vec<Point3<f32>> {
-            let (nx, ny) = (((x1 - x0) / g).round() as usize, ((y1 - y0) / g).round() as usize);
-            (0..nx)
-                .flat_map(|i| {
-                    (0..ny).map(move |j| Point3::new(x0 + (i as f32 + 0.5) * g, y0 + (j as f32 + 0.5) * g, z))
-                })
-                .collect()
-        };
         let mut surfaces: Vec<Vec<Point3<f32>>> = (0..5)
             .map(|k| patch(1.2 + 0.26 * k as f32, 1.46 + 0.26 * k as f32, -0.62, 0.62, 0.19 * (k + 1) as f32))
             .collect();
         surfaces.push(patch(2.0, 3.2, -1.76, -1.46, 0.0));
-        let mut positions = Vec::new();
-        let mut parts = Vec::new();
-        for s in &surfaces {
-            let first = positions.len() as u32;
-            positions.extend_from_slice(s);
-            parts.push(((first..positions.len() as u32).collect::<Vec<u32>>(), Vector3::z()));
-        }
-        let vc = voxel_cloud(positions);
-        let gravity = Unit::new_normalize(-Vector3::z());
         let sensor = Point3::new(1.34, 0.0, 1.7);
-        let (steps, _, ground_m) = from_surfaces(&vc, parts, 6, &sensor, &gravity, &p).expect("steps");
+        let (steps, _, ground_m) = on_surfaces(&surfaces, &sensor, &p).expect("steps");
         let heights: Vec<f64> = steps.iter().map(|s| (s.height_m() * 100.0).round() / 100.0).collect();
         assert!((ground_m - 0.19).abs() < 1e-3, "the ground at {ground_m} m");
         assert_eq!(heights, [0.38, 0.57, 0.76, 0.95], "the flight found");
