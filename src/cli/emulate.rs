@@ -81,7 +81,7 @@ pub fn run(a: EmulateArgs) -> Result<ExitCode> {
     let l = &scenario.lidar;
     let g = emu.gravity_mount(l);
     let config = format!(
-        "# stairbench hardware file for the emulator of `{}`\n[lidar]\n{lidar}\n\n[servo]\nserial = \"{}\"\nbaud = {}\nid = 1\nprotocol = {}\nzero_tick = 2048\nticks_per_rev = 4096\ndirection = 1\n\n[sweep]\ntilt_start_deg = {}\ntilt_end_deg = {}\ntilt_speed_dps = {}\n\n[mount]\nmount_xyz_m = {:?}\nmount_rpy_deg = {:?}\naxis_to_optical_m = {:?}\n\n# what an IMU on the servo base reads at rest\n[gravity]\nmount = [{:.6}, {:.6}, {:.6}]\n",
+        "# stairbench hardware file for the emulator of `{}`\n[lidar]\n{lidar}\n\n[servo]\nserial = \"{}\"\nbaud = {}\nid = 1\nprotocol = {}\nzero_tick = 2048\nticks_per_rev = 4096\ndirection = 1\n\n[sweep]\ntilt_start_deg = {}\ntilt_end_deg = {}\ntilt_speed_dps = {}\nreturn_speed_dps = {}\n\n[mount]\nmount_xyz_m = {:?}\nmount_rpy_deg = {:?}\naxis_to_optical_m = {:?}\n\n# what an IMU on the servo base reads at rest\n[gravity]\nmount = [{:.6}, {:.6}, {:.6}]\n",
         scenario.name,
         emu.servo_pty,
         a.servo_baud,
@@ -89,6 +89,7 @@ pub fn run(a: EmulateArgs) -> Result<ExitCode> {
         l.tilt_start_deg,
         l.tilt_end_deg,
         l.tilt_speed_dps,
+        l.tilt_return_speed_dps,
         l.mount_xyz_m,
         l.mount_rpy_deg,
         l.axis_to_optical_m,

@@ -273,6 +273,9 @@ fn print_cycle(c: &CycleReport) {
         c.plan_s,
         c.execution.sim_s
     );
+    if let Some(r) = &c.looked_again_standing {
+        println!("         stood to look again (the sweep taken walking was refused): {}", r.message);
+    }
     if let Some(r) = &c.closer_look {
         println!(
             "         walked to look again (nearer, or back to see the first riser): from the last view, {}",

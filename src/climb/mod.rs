@@ -63,19 +63,22 @@ pub struct RunParams {
     /// Longest stand before a scan, seconds.
     pub max_settle_s: f64,
     /// The lidar sweeps as the robot moves (issue 42's "no standing still for a scan"): the
-    /// sweep a plan is made from is the last sweep's time of rows up to the moment the loop
-    /// looks, each row cast from where the head was at its instant and assembled where the
-    /// robot's own estimate had the head then, smoothed back from the sweep's end by its
-    /// gyro (`crate::estimate::path`; in simulation the robot records the head's path,
-    /// `sim::head_track`; the real sensors sweep standing). Until the robot has moved or
-    /// stood a sweep's time (the first look), the sweep is taken standing. Off (the
-    /// default): every sweep is taken where the robot stands after its settle (in
-    /// simulation cast in no simulated time; a real robot stands the sweep's 6 s). Each
-    /// pass runs level last, ending at the look ([`crate::sensor::TiltSweep::level_last`]).
-    /// Not yet the default: a moving head's sweep leaves space near the body no ray crossed
-    /// (its steep rows are the oldest), which the body keeps off, so some plans a standing
-    /// sweep allows are refused; and nothing drives the real servo so (the suites' figures
-    /// with it on: BENCHMARKS.md).
+    /// sweep a plan is made from is the servo's last pass, which ends when the loop looks
+    /// and runs level last ([`crate::sensor::TiltSweep::level_last`]), each row cast from
+    /// where the head was at its instant and assembled where the robot's own estimate had
+    /// the head then, smoothed back from the sweep's end by its gyro
+    /// (`crate::estimate::path`; in simulation the robot records the head's path,
+    /// `sim::head_track`; the real sensors sweep standing). After each pass the servo swings
+    /// back (`LidarSpec::tilt_return_speed_dps`) and the next begins; a look that comes
+    /// before it is whole (the first, one after a short motion) stands until it is
+    /// (`crate::sensor::Source::whole_in_s`). Off (the default): every sweep is taken where
+    /// the robot stands after its settle (in simulation cast in no simulated time; a real
+    /// robot stands the sweep's 6 s). A plan refused on a pass the head took moving is made
+    /// again once on a look taken standing where the robot is
+    /// (`CycleReport::looked_again_standing`): a moving head's pass leaves space near the
+    /// body no ray crossed (its steep rows are the oldest), which the body keeps off. Not
+    /// yet the default: some plans are still refused so, and nothing drives the real servo
+    /// so (the suites' figures with it on: BENCHMARKS.md).
     pub sweep_while_moving: bool,
     /// Friction coefficient of the surfaces of a hardware rehearsal's world (`run
     /// --hardware`: the perceived steps rebuilt in simulation, whose true friction nobody
@@ -164,12 +167,24 @@ pub fn run<E: Executor>(
     let mut last_cycle = 0;
     // The floor the climb starts from: the only one the loop walks on to look closer.
     let mut start_floor = None;
+    // The refusal of a plan made from a sweep taken moving, set aside to look again standing,
+    // and the seconds stood before that look.
+    let mut relooked: Option<(Refusal, f64)> = None;
     for cycle in 1..=p.run.max_cycles {
         last_cycle = cycle;
         let stand_from_s = robot.now_s();
         if let Some(stop) = standing_stop(robot.settle(p.run.settle_s).map_err(failed)?, cycle) {
             report.stop = Some(stop);
             break;
+        }
+        // A head sweeping as the robot moves looks when its pass is whole: the robot stands
+        // on while the servo returns from the last pass or the pass under way ends.
+        let wait_s = source.whole_in_s();
+        if wait_s > 0.0 {
+            if let Some(stop) = standing_stop(robot.settle(wait_s).map_err(failed)?, cycle) {
+                report.stop = Some(stop);
+                break;
+            }
         }
         let mut q = robot.configuration();
         let start_floor_z_m = *start_floor.get_or_insert_with(|| feet_height_m(model, &q));
@@ -216,6 +231,14 @@ pub fn run<E: Executor>(
         let (planned, closer_look) =
             match plan_next(model, &q, &next, surfaces, p.run.stances_per_scan, start_floor_z_m, p.plan) {
                 Ok(x) => x,
+                // A plan refused on a sweep the head took moving is refused for what that
+                // sweep saw: its rows crossed the space about the body from where the head
+                // was, seconds before. The robot stands and looks again (a pass cast from
+                // here, as a standing sweep is); a refusal on that view stands.
+                Err(refusal) if relooked.is_none() && sweep.head_travel_m() > STILL_HEAD_M => {
+                    relooked = Some((*refusal, stood_s));
+                    continue;
+                }
                 Err(refusal) => {
                     report.stop = Some(StopReason::Refused { cycle, refusal: *refusal });
                     break;
@@ -243,7 +266,8 @@ pub fn run<E: Executor>(
             pass: execution.pass(),
             steps_seen: ahead.len(),
             closer_look,
-            stood_s,
+            looked_again_standing: relooked.as_ref().map(|(refusal, _)| refusal.clone()),
+            stood_s: stood_s + relooked.take().map_or(0.0, |(_, first_s)| first_s),
             scan_s,
             perceive_s,
             plan_s,
@@ -292,6 +316,10 @@ struct View {
     scan_s: f64,
     perceive_s: f64,
 }
+
+/// A head that went no farther during a sweep, metres, saw as a standing one does (a
+/// standing robot's sway moves it by millimetres; a step's walk by tenths of a metre).
+const STILL_HEAD_M: f64 = 0.02;
 
 /// Seconds the robot stood before a plan: from `from_s` (the settle's start) to `looked_s`
 /// (the view in hand), and, for a sweep taken standing, the rows' time a real head takes

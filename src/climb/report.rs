@@ -54,6 +54,13 @@ pub struct CycleReport {
     /// steps below the refused one); `None` for a cycle of the climb's own plan.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub closer_look: Option<Refusal>,
+    /// The refusal of the plan made from a sweep taken as the robot moved, which the loop set
+    /// aside to stand and look again from where it stood (its pass then all cast from
+    /// there) before this cycle's plan; `None` where the first plan held. The refused look
+    /// took a cycle's number of its own, which no report carries; its stand is in this
+    /// cycle's `stood_s`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub looked_again_standing: Option<Refusal>,
     /// Simulated (or the robot's clock's) seconds it stood before the cycle's plan: its
     /// settle, and its sweep when the sweep was taken standing, at the time a real head
     /// takes for the rows (the simulated lidar casts a standing sweep in no simulated time).

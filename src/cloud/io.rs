@@ -55,7 +55,9 @@ fn fmt_err(path: &Path, reason: impl Into<String>) -> CloudIoError {
     CloudIoError::Format { path: path.display().to_string(), reason: reason.into() }
 }
 
-/// Writes `cloud` to `path` in `format`.
+/// Writes `cloud` to `path` in `format`: its points and its viewpoint. A sweep taken
+/// moving keeps only its mean viewpoint (the rows' own origins are not written): read back,
+/// its ground and risers are judged from there, not from where its last row was cast.
 pub fn write_cloud(cloud: &PointCloud, path: &Path, format: CloudFormat) -> Result<(), CloudIoError> {
     let file = std::fs::File::create(path).map_err(io_err(path))?;
     let mut w = BufWriter::new(file);

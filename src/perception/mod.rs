@@ -275,8 +275,10 @@ pub enum NoStaircase {
         /// The height extent allowed (Table 1's epsilon), metres.
         epsilon_m: f64,
     },
-    /// Every flat segment is at the ground's height.
-    #[error("only the ground: {segments} flat segment(s), all at the ground's height {ground_m:.3} m")]
+    /// Every flat segment is at or below the ground's height.
+    #[error(
+        "only the ground: {segments} flat segment(s), all at or below the ground's height {ground_m:.3} m"
+    )]
     OnlyGround {
         /// Flat segments found.
         segments: usize,
@@ -791,7 +793,7 @@ fn on_risers(
     let placed = riser::place_edges(
         &mut found.segments,
         cloud.points(),
-        &cloud.viewpoint(),
+        &cloud.sensor_at_end(),
         Some(found.ground_m),
         noise_m,
         &p.riser,

@@ -72,6 +72,10 @@ pub struct CaseResult {
     /// a sweep taken standing; perception and planning not), `None` likewise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub s_per_stair_with_stand: Option<f64>,
+    /// Plans made again on a look taken standing, the plan from a sweep taken walking
+    /// refused (`CycleReport::looked_again_standing`; 0 in results written before it).
+    #[serde(default)]
+    pub looked_again_standing: usize,
     /// Steps climbed.
     pub steps_climbed: usize,
     /// Steps of the flight.
@@ -110,6 +114,7 @@ impl CaseResult {
         self.max_estimate_yaw_rad = r.max_estimate_yaw_rad();
         self.s_per_stair = r.seconds_per_stair();
         self.s_per_stair_with_stand = r.seconds_per_stair_with_stand();
+        self.looked_again_standing = r.cycles.iter().filter(|c| c.looked_again_standing.is_some()).count();
         self.steps_climbed = r.steps_climbed;
         self.steps_total = r.steps_total;
         self.cycles = r.cycles.len();

@@ -232,6 +232,7 @@ fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
         max_estimate_yaw_rad: None,
         s_per_stair: None,
         s_per_stair_with_stand: None,
+        looked_again_standing: 0,
         steps_climbed: 0,
         steps_total: scenario.staircase.steps as usize - scenario.staircase.missing_steps.len(),
         cycles: 0,

@@ -174,6 +174,15 @@ pub fn text(results: &[CaseResult], min_rate: f64, pace: Option<Pace>, worst: us
             "seconds per stair with the settle and the standing sweep before each plan: median {median:.1} s, {least:.1} to {most:.1} s"
         );
     }
+    let again: Vec<usize> = results.iter().map(|r| r.looked_again_standing).filter(|&n| n > 0).collect();
+    if !again.is_empty() {
+        let _ = writeln!(
+            t,
+            "plans made again on a look taken standing (the plan from a sweep taken walking refused): {} in {} runs",
+            again.iter().sum::<usize>(),
+            again.len()
+        );
+    }
     if let Some(p) = pace.filter(|p| p.elapsed_s > 0.0 && p.runs > 0) {
         let resumed = results.len().saturating_sub(p.runs);
         let _ = writeln!(

@@ -185,6 +185,7 @@ mod tests {
                     pass: !violated,
                     steps_seen: 3,
                     closer_look: None,
+                    looked_again_standing: None,
                     stood_s: 0.0,
                     scan_s: 0.0,
                     perceive_s: 0.0,

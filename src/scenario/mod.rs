@@ -450,12 +450,18 @@ pub struct LidarSpec {
     /// Scanner optical centre from the tilt axis, in the tilted frame, metres (Fig. 2: the
     /// centre of the scanner is off the servo's axis).
     pub axis_to_optical_m: [f64; 3],
-    /// Tilt at the start of a sweep, degrees (positive pitches the scan plane down).
+    /// Tilt where a sweep taken standing starts, degrees (positive pitches the scan plane
+    /// down; a sweep taken walking runs level last, [`crate::sensor::TiltSweep::level_last`]).
     pub tilt_start_deg: f64,
-    /// Tilt at the end of a sweep, degrees (§3: a 60 degree sweep).
+    /// Tilt where a sweep taken standing ends, degrees (§3: a 60 degree sweep).
     pub tilt_end_deg: f64,
     /// Servo speed during the sweep, degrees per second.
     pub tilt_speed_dps: f64,
+    /// Servo speed back to where a sweep starts, between two passes, degrees per second: a
+    /// head that sweeps as the robot walks casts no row for that long (the hardware head's
+    /// `[sweep] return_speed_dps` defaults to it). Default 30, well under the MX-64's
+    /// no-load 63 rpm (378 deg/s), gentle on the scanner's mount and cable.
+    pub tilt_return_speed_dps: f64,
     /// Servo encoder resolution, ticks per revolution (MX-64: 4096).
     pub servo_ticks_per_rev: u32,
     /// Scanner field of view, degrees (UTM-30LX-EW: 270).
@@ -484,6 +490,7 @@ impl Default for LidarSpec {
             tilt_start_deg: 10.0,
             tilt_end_deg: 70.0,
             tilt_speed_dps: 10.0,
+            tilt_return_speed_dps: 30.0,
             servo_ticks_per_rev: 4096,
             fov_deg: 270.0,
             resolution_deg: 0.25,

@@ -255,6 +255,7 @@ impl Scenario {
             );
         }
         positive(&mut v, "lidar.tilt_speed_dps", l.tilt_speed_dps);
+        positive(&mut v, "lidar.tilt_return_speed_dps", l.tilt_return_speed_dps);
         check(&mut v, l.servo_ticks_per_rev >= 4, "lidar.servo_ticks_per_rev", "must be at least 4");
         if finite(&mut v, "lidar.fov_deg", &[l.fov_deg]) {
             check(&mut v, l.fov_deg > 0.0 && l.fov_deg <= 360.0, "lidar.fov_deg", "must be in (0, 360]");

@@ -42,7 +42,7 @@ impl Default for SweepConfig {
             tilt_start_deg: l.tilt_start_deg,
             tilt_end_deg: l.tilt_end_deg,
             tilt_speed_dps: l.tilt_speed_dps,
-            return_speed_dps: 30.0,
+            return_speed_dps: l.tilt_return_speed_dps,
         }
     }
 }
@@ -147,6 +147,7 @@ impl HardwareConfig {
             tilt_start_deg: self.sweep.tilt_start_deg,
             tilt_end_deg: self.sweep.tilt_end_deg,
             tilt_speed_dps: self.sweep.tilt_speed_dps,
+            tilt_return_speed_dps: self.sweep.return_speed_dps,
             servo_ticks_per_rev: self.servo.ticks_per_rev,
             mount_xyz_m: self.mount.mount_xyz_m,
             mount_rpy_deg: self.mount.mount_rpy_deg,

@@ -32,6 +32,14 @@ pub trait Source {
     /// [`SensorError::Cancelled`].
     fn sweep(&mut self, cancel: &Cancel, on_rows: &mut dyn FnMut(usize, usize))
         -> Result<Sweep, SensorError>;
+
+    /// Seconds before a sweep ending then would be a whole one: for a head that sweeps as
+    /// the robot moves, its servo is on its way back from the last pass or the pass under
+    /// way began less than a sweep ago (the loop stands that long before it looks). 0 for a
+    /// source that sweeps when asked, taking the sweep's time in [`Source::sweep`].
+    fn whole_in_s(&self) -> f64 {
+        0.0
+    }
 }
 
 /// One row of the lidar: one mirror revolution, `beams` ranges in a plane.
@@ -152,6 +160,15 @@ impl Sweep {
     /// Whether the head moved during the sweep (its rows carry poses of their own).
     pub fn moving(&self) -> bool {
         self.rows.iter().any(|r| r.mount_to_world.is_some())
+    }
+
+    /// How far the head went during the sweep: the farthest any row's origin lies from the
+    /// last row's, metres (0 for a sweep taken standing).
+    pub fn head_travel_m(&self) -> f64 {
+        let origins: Vec<_> =
+            self.rows.iter().filter_map(|r| r.mount_to_world.map(|m| m.translation.vector)).collect();
+        let Some(last) = origins.last() else { return 0.0 };
+        origins.iter().map(|o| (o - last).norm()).fold(0.0, f64::max)
     }
 
     /// Beams cast in the sweep.

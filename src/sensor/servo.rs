@@ -9,6 +9,7 @@ pub struct TiltSweep {
     start_rad: f64,
     end_rad: f64,
     speed_radps: f64,
+    return_speed_radps: f64,
     tick_rad: f64,
     rows: usize,
     row_period_s: f64,
@@ -26,6 +27,7 @@ impl TiltSweep {
             start_rad,
             end_rad,
             speed_radps,
+            return_speed_radps: s.tilt_return_speed_dps.to_radians(),
             tick_rad: std::f64::consts::TAU / s.servo_ticks_per_rev as f64,
             rows,
             row_period_s: s.row_period_s,
@@ -36,7 +38,7 @@ impl TiltSweep {
     /// either way of level): the pass a head that sweeps as it walks takes, so that the
     /// shallow rows, which cross the space just ahead of the head and chest, are the newest
     /// at the sweep's end, cast from nearest where the head then stands. Unchanged when the
-    /// sweep already ends nearer level.
+    /// sweep already ends nearer level (one that crosses level may so end looking up).
     pub fn level_last(mut self) -> Self {
         if self.end_rad.abs() > self.start_rad.abs() {
             std::mem::swap(&mut self.start_rad, &mut self.end_rad);
@@ -57,6 +59,12 @@ impl TiltSweep {
     /// Duration of the sweep, seconds.
     pub fn duration_s(&self) -> f64 {
         (self.end_rad - self.start_rad).abs() / self.speed_radps
+    }
+
+    /// Time the servo takes back from the sweep's end to its start, between two passes,
+    /// seconds.
+    pub fn return_s(&self) -> f64 {
+        (self.end_rad - self.start_rad).abs() / self.return_speed_radps
     }
 
     /// The true (continuous) tilt at time `t_s` after the start, radians.
@@ -95,9 +103,21 @@ mod tests {
         assert!((back.tilt_at(0.0) - forward.tilt_at(end_s)).abs() < 1e-12);
         assert!((back.tilt_at(end_s) - forward.tilt_at(0.0)).abs() < 1e-12);
         assert!(back.tilt_at(end_s).abs() < back.tilt_at(0.0).abs());
-        // A sweep that already ends nearer level is kept; so is one starting below level.
+        // A sweep that already ends nearer level is kept: so is one crossing level whose end,
+        // 20 degrees above level, is nearer it than its start (it ends looking up).
         assert_eq!(back.clone().level_last(), back);
         let up = LidarSpec { tilt_start_deg: 60.0, tilt_end_deg: -20.0, ..LidarSpec::default() };
         assert_eq!(TiltSweep::from_spec(&up).level_last(), TiltSweep::from_spec(&up));
+        let crossing = LidarSpec { tilt_start_deg: -20.0, tilt_end_deg: 60.0, ..LidarSpec::default() };
+        let crossing = TiltSweep::from_spec(&crossing).level_last();
+        assert!((crossing.tilt_at(crossing.duration_s()) + 20f64.to_radians()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_servo_returns_over_the_sweeps_range_at_its_return_speed() {
+        let spec = LidarSpec { tilt_return_speed_dps: 40.0, ..LidarSpec::default() };
+        // 60 degrees back at 40 degrees a second, whichever way the sweep runs.
+        assert!((TiltSweep::from_spec(&spec).return_s() - 1.5).abs() < 1e-12);
+        assert!((TiltSweep::from_spec(&spec).level_last().return_s() - 1.5).abs() < 1e-12);
     }
 }

@@ -60,9 +60,9 @@ impl<'w, C: RayCaster> SimLidar<'w, C> {
     /// is cast from the head at `heads[k].0` (its true pose at the row's stamp, held through
     /// the row) and carries `heads[k].1`, where the robot believed the head was then, for
     /// the assembly ([`ScanRow::mount_to_world`]). The servo runs the sweep level last
-    /// ([`TiltSweep::level_last`]): the loop commands each pass to end when it looks, so
-    /// the rows that cross the space just ahead of the head are cast from nearest where it
-    /// stands then. As many heads as the sweep has rows, else `None`.
+    /// ([`TiltSweep::level_last`]), each pass ending when the loop looks, so the rows that
+    /// cross the space just ahead of the head are cast from nearest where it stands then.
+    /// As many heads as the sweep has rows, else `None`.
     pub fn moving(
         world: &'w C,
         spec: &LidarSpec,
@@ -82,6 +82,13 @@ impl<'w, C: RayCaster> SimLidar<'w, C> {
             believed: heads.iter().map(|(_, b)| b * mount).collect(),
         });
         Some(lidar)
+    }
+
+    /// The same lidar run along `sweep` instead (a test's other pass order).
+    #[cfg(test)]
+    pub(crate) fn along(mut self, sweep: TiltSweep) -> Self {
+        self.sweep = sweep;
+        self
     }
 
     /// The lidar's model (what the assembler needs).

@@ -2,7 +2,9 @@
 //! and the robot's belief of it, sampled at the lidar's row period by the simulated robot as
 //! it executes and stands, and read by the simulated lidar when the loop asks for a sweep.
 //! The belief along a sweep is the robot's own, smoothed back from the sweep's end by its
-//! gyro ([`crate::estimate::path`]).
+//! gyro ([`crate::estimate::path`]). The servo runs one pass per look, ending at the look,
+//! then swings back to the sweep's start: the next pass's rows begin after that return, and
+//! a look that comes before a whole pass waits for it standing ([`HeadTrack::whole_at_s`]).
 
 use crate::estimate::path::{smoothed_heads, Belief, GyroTurn};
 use crate::scenario::LidarSpec;
@@ -17,6 +19,8 @@ pub struct HeadTrack {
     period_s: f64,
     /// Samples kept: a sweep's rows.
     rows: usize,
+    /// The servo's way back to the sweep's start after a pass, seconds.
+    return_s: f64,
     /// When the next sample is due, on the world's clock, seconds.
     next_s: f64,
     /// (true head pose, the robot's belief), oldest first.
@@ -28,10 +32,11 @@ pub struct HeadTrack {
 impl HeadTrack {
     /// An empty track for the sweeps of `spec`'s lidar.
     pub fn new(spec: &LidarSpec) -> Self {
-        let rows = TiltSweep::from_spec(spec).rows();
+        let sweep = TiltSweep::from_spec(spec);
         Self {
             period_s: spec.row_period_s,
-            rows,
+            rows: sweep.rows(),
+            return_s: sweep.return_s(),
             next_s: f64::NEG_INFINITY,
             samples: VecDeque::new(),
             gyro: None,
@@ -76,6 +81,28 @@ impl HeadTrack {
         }
     }
 
+    /// When the track will hold a whole pass, on the world's clock, seconds: `now_s` when it
+    /// does, else when the last row it lacks is due (rows one period apart from the next
+    /// due, which may wait for the servo's return).
+    pub fn whole_at_s(&self, now_s: f64) -> f64 {
+        let missing = self.rows.saturating_sub(self.samples.len());
+        if missing == 0 {
+            return now_s;
+        }
+        self.next_s.max(now_s) + (missing - 1) as f64 * self.period_s
+    }
+
+    /// The pass that ends at `now_s` ([`HeadTrack::sweep`]; `None` when the track holds less
+    /// than a whole one, and the head sweeps standing instead). Either way the servo then
+    /// swings back to the sweep's start: the next pass's rows are due from `now_s` plus the
+    /// return on.
+    pub fn take(&mut self, now_s: f64) -> Option<Vec<(Isometry3<f64>, Isometry3<f64>)>> {
+        let heads = self.sweep();
+        self.samples.clear();
+        self.next_s = now_s + self.return_s;
+        heads
+    }
+
     /// The last sweep's worth of heads, oldest first, when the track holds that many: each
     /// true pose, and where the robot believed the head was, smoothed back from the last
     /// ([`smoothed_heads`]).
@@ -92,19 +119,27 @@ impl HeadTrack {
 mod tests {
     use super::*;
 
+    /// A head at `x` along the world's x axis.
+    fn at(x: f64) -> Isometry3<f64> {
+        Isometry3::translation(x, 0.0, 0.0)
+    }
+
+    /// The robot's belief of a head at `x`: its base there, the head at the base.
+    fn belief(x: f64) -> Belief {
+        Belief {
+            base: at(x),
+            head_in_base: Isometry3::identity(),
+            pivot: nalgebra::Point3::new(x, 0.0, 0.0),
+            turn: None,
+        }
+    }
+
     #[test]
     fn a_sweep_is_the_last_rows_on_the_row_grid() {
         let spec = LidarSpec::default();
         let mut track = HeadTrack::new(&spec);
         let rows = TiltSweep::from_spec(&spec).rows();
         let dt = 0.001;
-        let at = |x: f64| Isometry3::translation(x, 0.0, 0.0);
-        let belief = |x: f64| Belief {
-            base: at(x),
-            head_in_base: Isometry3::identity(),
-            pivot: nalgebra::Point3::new(x, 0.0, 0.0),
-            turn: None,
-        };
         let mut t = 0.0;
         let mut sampled = Vec::new();
         while sampled.len() < rows + 10 {
@@ -131,5 +166,45 @@ mod tests {
         assert!((moved[0].1.translation.z - sweep[0].1.translation.z - 1.0).abs() < 1e-12);
         track.record(t + spec.row_period_s, at(0.0), None);
         assert!(track.sweep().is_none());
+    }
+
+    #[test]
+    fn a_pass_taken_starts_the_next_after_the_servos_return() {
+        let spec = LidarSpec::default();
+        let sweep = TiltSweep::from_spec(&spec);
+        let mut track = HeadTrack::new(&spec);
+        let dt = 0.001;
+        // Steps the clock to `until_s`, recording the head (at x = the time) when due.
+        let mut t = 0.0;
+        let mut run_to = |track: &mut HeadTrack, until_s: f64| {
+            while t + dt / 2.0 < until_s {
+                t += dt;
+                if track.due(t, dt) {
+                    track.record(t, at(t), Some(belief(t)));
+                }
+            }
+            t
+        };
+        let now = run_to(&mut track, 2.0);
+        let whole_at = track.whole_at_s(now);
+        assert!(whole_at > now, "two seconds are not a pass");
+        let now = run_to(&mut track, whole_at);
+        assert_eq!(track.whole_at_s(now), now, "whole when it said");
+        let first = track.take(now).expect("a whole pass");
+        assert_eq!(first.len(), sweep.rows());
+        // Nothing is cast while the servo swings back; the next pass is whole a return and a
+        // pass after the look, its first row cast after the return.
+        let looked = now;
+        assert!(track.sweep().is_none());
+        let expected = looked + sweep.return_s() + (sweep.rows() - 1) as f64 * spec.row_period_s;
+        assert!((track.whole_at_s(looked) - expected).abs() < 1e-9);
+        let whole_at = track.whole_at_s(looked);
+        let now = run_to(&mut track, whole_at);
+        let second = track.take(now).expect("whole after the return and a pass");
+        assert!(second[0].0.translation.x >= looked + sweep.return_s() - dt / 2.0);
+        // A look before a whole pass gets none, and starts the servo's return all the same.
+        let now = run_to(&mut track, now + 1.0);
+        assert!(track.take(now).is_none());
+        assert!(!track.due(now + sweep.return_s() - 2.0 * dt, dt));
     }
 }

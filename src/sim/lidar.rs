@@ -29,10 +29,10 @@ impl<'a> SimSource<'a> {
         Ok(Self { world, spec: spec.clone(), head_site, seed, sweeps: 0, track: None })
     }
 
-    /// The lidar sweeping as the head moves: a sweep is cast along the last sweep's worth
-    /// of `track` (the rows' true poses, the robot's beliefs carried by the rows), or, while
-    /// the track holds less (the robot has not yet moved or stood that long), from where the
-    /// head stands.
+    /// The lidar sweeping as the head moves: a sweep is cast along the pass `track` holds
+    /// (the rows' true poses, the robot's beliefs carried by the rows; the servo then swings
+    /// back, [`HeadTrack::take`]), or, while the track holds less than a pass (a look that
+    /// did not wait [`Source::whole_in_s`]), from where the head stands.
     pub fn with_track(mut self, track: &'a RefCell<HeadTrack>) -> Self {
         self.track = Some(track);
         self
@@ -59,11 +59,17 @@ impl Source for SimSource<'_> {
         self.sweeps += 1;
         let world = self.world.borrow();
         let seed = self.seed.wrapping_add(self.sweeps);
-        let heads = self.track.and_then(|t| t.borrow().sweep());
+        let heads = self.track.and_then(|t| t.borrow_mut().take(world.data().time()));
         if let Some(lidar) = heads.and_then(|heads| SimLidar::moving(&*world, &self.spec, &heads, seed)) {
             return lidar.sweep_rows(cancel, on_rows);
         }
         let head = world.site_pose(self.head_site);
         SimLidar::new(&*world, &self.spec, &head, seed).sweep_rows(cancel, on_rows)
+    }
+
+    fn whole_in_s(&self) -> f64 {
+        let Some(track) = self.track else { return 0.0 };
+        let now_s = self.world.borrow().data().time();
+        track.borrow().whole_at_s(now_s) - now_s
     }
 }
