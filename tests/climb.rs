@@ -452,6 +452,7 @@ fn exp1_is_climbed_on_sweeps_taken_as_the_robot_moves() {
         climb_scenario(&s, p.loop_params(), &p.sim(), &mut seen, &Cancel::never()).expect("the world runs");
     println!("sweeps (moving, head's rise m): {:?}", seen.moving);
     assert_climbed(&r, &s, &p.checks);
+    assert!(r.looked_again_standing.is_empty(), "one look a cycle (the sweeps below are read so)");
     assert!(seen.moving.len() >= 5 && seen.moving.iter().all(|m| m.0), "{:?}", seen.moving);
     assert!(seen.moving[0].1.abs() < 0.01, "the first pass is taken standing: nothing moved before it");
     // One pass per look, ending at it (at its last row's instant), and the servo's return
@@ -486,22 +487,56 @@ fn exp1_is_climbed_on_sweeps_taken_as_the_robot_moves() {
 /// there as a standing sweep is, and climbs on that view; the stand is counted.
 #[test]
 fn a_plan_refused_on_a_sweep_taken_walking_is_made_again_on_a_standing_look() {
+    /// The looks (when, how far the head went during the sweep, metres) and the cycles'
+    /// ends (when, the seconds the cycle says it stood), in the order they came.
+    #[derive(Default)]
+    struct Looks(Vec<(bool, f64, f64)>);
+    impl stairbench::climb::Observer for Looks {
+        fn event(&mut self, event: &stairbench::climb::Event) {
+            match event {
+                stairbench::climb::Event::Sweep { sweep, stamp_s } => {
+                    self.0.push((true, *stamp_s, sweep.head_travel_m()))
+                }
+                stairbench::climb::Event::Cycle { stamp_s, report } => {
+                    self.0.push((false, *stamp_s, report.stood_s))
+                }
+                _ => {}
+            }
+        }
+    }
     let s = Scenario { seed: 1, ..Scenario::default() };
     let mut p = ClimbParams::default();
     p.run.sweep_while_moving = true;
+    let mut looks = Looks::default();
     let r =
-        climb_scenario(&s, p.loop_params(), &p.sim(), &mut Nobody, &Cancel::never()).expect("the world runs");
+        climb_scenario(&s, p.loop_params(), &p.sim(), &mut looks, &Cancel::never()).expect("the world runs");
     assert_climbed(&r, &s, &p.checks);
-    let again: Vec<_> = r.cycles.iter().filter(|c| c.looked_again_standing.is_some()).collect();
-    assert!(!again.is_empty(), "no plan was made again on a standing look");
-    let servo = stairbench::sensor::TiltSweep::from_spec(&s.lidar);
-    let pass_s = servo.return_s() + (servo.rows() - 1) as f64 * s.lidar.row_period_s;
-    for c in again {
-        assert!(
-            c.stood_s >= pass_s,
-            "cycle {} stood {:.2} s, less than a return and a pass",
-            c.cycle,
-            c.stood_s
-        );
+    assert!(!r.looked_again_standing.is_empty(), "no plan was made again on a standing look");
+    let again = r.cycles.iter().filter(|c| c.looked_again_standing.is_some()).count();
+    assert_eq!(again, r.looked_again_standing.len(), "each set aside refusal carried by the cycle after it");
+    // Every second of the climb's stands is counted: a cycle stood from the end of the one
+    // before to its last look (its sweeps taken walking cost no stand of their own), the
+    // set-aside look's stand included. A second look is cast standing.
+    let mut cycle_end_s: Option<f64> = None;
+    let mut cycle_looks: Vec<(f64, f64)> = Vec::new();
+    for &(is_look, stamp_s, x) in &looks.0 {
+        if is_look {
+            cycle_looks.push((stamp_s, x));
+            continue;
+        }
+        let (looked_s, _) = *cycle_looks.last().expect("a look before each cycle");
+        if let Some(from_s) = cycle_end_s {
+            assert!(
+                (x - (looked_s - from_s)).abs() < 1e-6,
+                "stood {x:.3} s, {:.3} s from the last cycle to its look",
+                looked_s - from_s
+            );
+        }
+        if cycle_looks.len() > 1 {
+            let (_, travel_m) = cycle_looks[cycle_looks.len() - 1];
+            assert!(travel_m < 0.02, "the second look's head went {travel_m:.3} m");
+        }
+        cycle_end_s = Some(stamp_s);
+        cycle_looks.clear();
     }
 }

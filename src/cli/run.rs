@@ -300,6 +300,12 @@ fn print_summary(r: &ClimbReport) {
     if let Some(why) = &r.stop {
         println!("stopped: {why}");
     }
+    if !r.looked_again_standing.is_empty() {
+        println!(
+            "looked again standing: {} plan(s) made from a sweep taken walking refused and planned again on a look taken standing",
+            r.looked_again_standing.len()
+        );
+    }
     if let (Some(s), Some(with)) = (r.seconds_per_stair(), r.seconds_per_stair_with_stand()) {
         println!("seconds per stair: {s:.1} s of motion per cycle that went up a step; {with:.1} s with the settle and the standing sweep before each plan (perception and planning not counted)");
     }

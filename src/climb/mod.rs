@@ -60,7 +60,8 @@ pub struct RunParams {
     /// The two also end the stabilizer's hold of a plan's last instant
     /// (`StabilizerParams::max_end_hold_s`).
     pub still_s: f64,
-    /// Longest stand before a scan, seconds.
+    /// Longest stand before a scan, seconds: the settle's (a head that sweeps as the robot
+    /// moves then stands on until its pass is whole, `sweep_while_moving`).
     pub max_settle_s: f64,
     /// The lidar sweeps as the robot moves (issue 42's "no standing still for a scan"): the
     /// sweep a plan is made from is the servo's last pass, which ends when the loop looks
@@ -160,6 +161,7 @@ pub fn run<E: Executor>(
         cycles: Vec::new(),
         sim_s: 0.0,
         wall_s: 0.0,
+        looked_again_standing: Vec::new(),
     };
     observer.event(&Event::Scene(truth));
     let mut map = StepMap::default();
@@ -167,9 +169,8 @@ pub fn run<E: Executor>(
     let mut last_cycle = 0;
     // The floor the climb starts from: the only one the loop walks on to look closer.
     let mut start_floor = None;
-    // The refusal of a plan made from a sweep taken moving, set aside to look again standing,
-    // and the seconds stood before that look.
-    let mut relooked: Option<(Refusal, f64)> = None;
+    // The refusal of a plan made from a sweep taken moving, set aside to look again standing.
+    let mut set_aside: Option<SetAside> = None;
     for cycle in 1..=p.run.max_cycles {
         last_cycle = cycle;
         let stand_from_s = robot.now_s();
@@ -235,8 +236,14 @@ pub fn run<E: Executor>(
                 // sweep saw: its rows crossed the space about the body from where the head
                 // was, seconds before. The robot stands and looks again (a pass cast from
                 // here, as a standing sweep is); a refusal on that view stands.
-                Err(refusal) if relooked.is_none() && sweep.head_travel_m() > STILL_HEAD_M => {
-                    relooked = Some((*refusal, stood_s));
+                Err(refusal)
+                    if set_aside.is_none()
+                        && cycle < p.run.max_cycles
+                        && sweep.head_travel_m() > STILL_HEAD_M =>
+                {
+                    report.looked_again_standing.push((*refusal).clone());
+                    let plan_s = t.elapsed().as_secs_f64();
+                    set_aside = Some(SetAside { refusal: *refusal, stood_s, scan_s, perceive_s, plan_s });
                     continue;
                 }
                 Err(refusal) => {
@@ -260,17 +267,18 @@ pub fn run<E: Executor>(
         let to = planned.stances.last().map_or(Footing::Floor, |s| {
             footing(truth, start_floor_z_m, s.right.translation.z - plan_height_error_m)
         });
+        let first = set_aside.take();
         let c = CycleReport {
             cycle,
             to,
             pass: execution.pass(),
             steps_seen: ahead.len(),
             closer_look,
-            looked_again_standing: relooked.as_ref().map(|(refusal, _)| refusal.clone()),
-            stood_s: stood_s + relooked.take().map_or(0.0, |(_, first_s)| first_s),
-            scan_s,
-            perceive_s,
-            plan_s,
+            stood_s: stood_s + first.as_ref().map_or(0.0, |f| f.stood_s),
+            scan_s: scan_s + first.as_ref().map_or(0.0, |f| f.scan_s),
+            perceive_s: perceive_s + first.as_ref().map_or(0.0, |f| f.perceive_s),
+            plan_s: plan_s + first.as_ref().map_or(0.0, |f| f.plan_s),
+            looked_again_standing: first.map(|f| f.refusal),
             execute_s,
             estimate_error,
             correction_m,
@@ -315,6 +323,16 @@ struct View {
     nothing: Option<crate::perception::NoStaircase>,
     scan_s: f64,
     perceive_s: f64,
+}
+
+/// A look whose plan was refused on a sweep taken walking, set aside to look again standing:
+/// the refusal, and what the look took (seconds), carried into the next executed cycle.
+struct SetAside {
+    refusal: Refusal,
+    stood_s: f64,
+    scan_s: f64,
+    perceive_s: f64,
+    plan_s: f64,
 }
 
 /// A head that went no farther during a sweep, metres, saw as a standing one does (a

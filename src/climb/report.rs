@@ -116,6 +116,10 @@ pub struct ClimbReport {
     pub sim_s: f64,
     /// Wall time, seconds.
     pub wall_s: f64,
+    /// Every refusal of a plan made from a sweep taken walking that the loop set aside to
+    /// look again standing, in order (the cycle after each carries it; a last one may be
+    /// followed by the refusal that stopped the climb, made on the standing look).
+    pub looked_again_standing: Vec<Refusal>,
 }
 
 /// Wall time of a climb by stage, seconds.

@@ -114,7 +114,7 @@ impl CaseResult {
         self.max_estimate_yaw_rad = r.max_estimate_yaw_rad();
         self.s_per_stair = r.seconds_per_stair();
         self.s_per_stair_with_stand = r.seconds_per_stair_with_stand();
-        self.looked_again_standing = r.cycles.iter().filter(|c| c.looked_again_standing.is_some()).count();
+        self.looked_again_standing = r.looked_again_standing.len();
         self.steps_climbed = r.steps_climbed;
         self.steps_total = r.steps_total;
         self.cycles = r.cycles.len();

@@ -209,6 +209,7 @@ mod tests {
             cycles,
             sim_s: 0.0,
             wall_s: 0.0,
+            looked_again_standing: Vec::new(),
         }
     }
 

@@ -1,6 +1,6 @@
 //! The simulated lidar as a [`Source`]: the scenario's tilting lidar on the robot's head in a
 //! MuJoCo [`World`], swept from wherever the robot stands when the loop asks, or, given the
-//! head's track ([`HeadTrack`]), along the path the head took over the last sweep's time
+//! head's track ([`HeadTrack`]), along the path the head took over the servo's last pass
 //! (the robot sweeping as it moves). Each sweep draws its own noise (the scenario's seed plus
 //! the sweep's number, from 1).
 
@@ -59,6 +59,7 @@ impl Source for SimSource<'_> {
         self.sweeps += 1;
         let world = self.world.borrow();
         let seed = self.seed.wrapping_add(self.sweeps);
+        // The pass ends here either way (a sweep cancelled below has used it up).
         let heads = self.track.and_then(|t| t.borrow_mut().take(world.data().time()));
         if let Some(lidar) = heads.and_then(|heads| SimLidar::moving(&*world, &self.spec, &heads, seed)) {
             return lidar.sweep_rows(cancel, on_rows);
