@@ -165,10 +165,9 @@ impl Sweep {
     /// How far the head went during the sweep: the farthest any row's origin lies from the
     /// last row's, metres (0 for a sweep taken standing).
     pub fn head_travel_m(&self) -> f64 {
-        let origins: Vec<_> =
-            self.rows.iter().filter_map(|r| r.mount_to_world.map(|m| m.translation.vector)).collect();
-        let Some(last) = origins.last() else { return 0.0 };
-        origins.iter().map(|o| (o - last).norm()).fold(0.0, f64::max)
+        let origins = || self.rows.iter().filter_map(|r| r.mount_to_world.map(|m| m.translation.vector));
+        let Some(last) = origins().next_back() else { return 0.0 };
+        origins().map(|o| (o - last).norm()).fold(0.0, f64::max)
     }
 
     /// Beams cast in the sweep.
