@@ -276,3 +276,45 @@ fn soles_and_only_soles_get_the_sole_friction() {
     }
     assert_eq!(soles, 2, "one box per sole");
 }
+
+/// The body's angular momentum about its CoM from two configurations a short time apart
+/// (`robot::momentum`, link velocities by finite differences on our own kinematics) against
+/// MuJoCo's own (`mj_subtreeVel`'s `subtree_angmom` of the robot's root, from its velocities),
+/// at random configurations moving at random velocities.
+#[test]
+fn angular_momentum_agrees_with_mujoco_at_200_moving_configurations() {
+    use stairbench::planning::ik::integrate;
+    use stairbench::robot::momentum::centroidal_angular_momentum;
+    let m = model();
+    let (mut world, root) = exp1_world(&m);
+    let (mut a, mut b) = (Kinematics::new(&m), Kinematics::new(&m));
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let h = 1e-5;
+    let (mut worst, mut largest) = (0.0f64, 0.0f64);
+    for _ in 0..200 {
+        let q = random_q(&m, &mut rng);
+        let qd: Vec<f64> = (0..m.nv())
+            .map(|i| if i < 3 { rng.random_range(-0.3..0.3) } else { rng.random_range(-1.0..1.0) })
+            .collect();
+        let (mut qa, mut qb) = (q.clone(), q.clone());
+        integrate(&mut qa, &qd, -h / 2.0);
+        integrate(&mut qb, &qd, h / 2.0);
+        a.update(&qa).unwrap();
+        b.update(&qb).unwrap();
+        let ours = centroidal_angular_momentum(&m, a.link_poses(), b.link_poses(), h);
+        let data = world.data_mut();
+        data.qpos_mut().copy_from_slice(&q);
+        data.qvel_mut().copy_from_slice(&qd);
+        data.kinematics();
+        data.com_pos();
+        data.com_vel();
+        data.subtree_vel();
+        let l = world.data().subtree_angmom()[root];
+        let theirs = Vector3::new(l[0], l[1], l[2]);
+        worst = worst.max((ours - theirs).norm());
+        largest = largest.max(theirs.norm());
+    }
+    println!("angular momentum: largest {largest:.3} kg m^2/s, worst difference {worst:.2e}");
+    assert!(largest > 0.5, "the random motions hardly moved: {largest}");
+    assert!(worst < 1e-6 * largest.max(1.0), "angular momenta differ by {worst} (largest {largest})");
+}

@@ -131,7 +131,7 @@ pub fn run(a: PlanArgs) -> Result<ExitCode> {
             PlanReport { ok: true, reason: None, refusal: None, wall_s, closer_look, plan: Some(plan) };
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        print_tables(&planned, wall_s);
+        print_tables(&planned, &model, wall_s);
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -191,7 +191,7 @@ fn start_before(rects: &[PlaneSegment], floor_z: Option<f64>, standoff_m: f64) -
     ))
 }
 
-fn print_tables(p: &Plan, wall_s: f64) {
+fn print_tables(p: &Plan, model: &RobotModel, wall_s: f64) {
     println!("footholds (sole centres, m):");
     println!("  stance  on      right (x, y, z)            left (x, y, z)");
     for (i, s) in p.stances.iter().enumerate() {
@@ -246,6 +246,14 @@ fn print_tables(p: &Plan, wall_s: f64) {
         "posture: the waist tilts at most {:.1} deg from upright; the loaded knees bend at least {}",
         t.max_base_tilt_rad.to_degrees(),
         t.min_loaded_knee_rad.map_or("(none loaded)".to_string(), |k| format!("{:.1} deg", k.to_degrees()))
+    );
+    let weight_n = model.total_mass_kg() * stairbench::robot::GRAVITY_M_S2;
+    println!(
+        "momentum: its change asks at most {:.1} N m about a horizontal axis (the ZMP {:.1} mm off the CoM's projection) and {:.1} N m about the vertical, over {:.2} s",
+        t.max_tipping_moment_nm,
+        t.max_tipping_moment_nm / weight_n * 1e3,
+        t.max_yaw_moment_nm,
+        stairbench::robot::momentum::RATE_WINDOW_S
     );
     match t.min_leg_clearance_m {
         Some(d) => println!("legs: at least {:.1} mm from the steps", d * 1e3),

@@ -284,6 +284,7 @@ pub fn run<E: Executor>(
             correction_m,
             correction_yaw_rad,
             plan_nearest_surface: planned.tracking.nearest_body_surface.clone(),
+            plan_moments_nm: Some(planned.tracking.moments_nm()),
             execution,
         };
         observer.event(&Event::Cycle { stamp_s: robot.now_s(), report: &c });

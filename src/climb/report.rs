@@ -91,6 +91,11 @@ pub struct CycleReport {
     /// IK's clearance range.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub plan_nearest_surface: Option<NearestSurface>,
+    /// The largest moments the plan's change of angular momentum asked of the contacts, N m:
+    /// about a horizontal axis, and about the vertical (`Tracking::max_tipping_moment_nm`,
+    /// `max_yaw_moment_nm`); absent in reports written before it was measured.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plan_moments_nm: Option<[f64; 2]>,
     /// What the execution found (flattened into the JSON: `min_margin_m`,
     /// `max_torque_ratio`, `torque_joint`, `touchdowns`, `violations`, `sim_s`, ...).
     #[serde(flatten)]

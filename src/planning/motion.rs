@@ -9,6 +9,7 @@ use super::stance::Foot;
 use super::PlanError;
 use crate::robot::hrp4;
 use crate::robot::model::{normalize_base_rotation, RobotError, RobotModel};
+use crate::robot::momentum::{centroidal_angular_momentum, MomentRates};
 use crate::robot::Kinematics;
 use crate::scene::SceneBox;
 use nalgebra::{Isometry3, Point3, Translation3, Vector6};
@@ -268,6 +269,23 @@ pub struct Tracking {
     /// trajectory, radians (see `IkParams::min_knee_rad`); `None` without one.
     #[serde(default)]
     pub min_loaded_knee_rad: Option<f64>,
+    /// Largest rate of change of the body's angular momentum about its CoM (over
+    /// [`crate::robot::momentum::RATE_WINDOW_S`]), about a horizontal axis, N m: the quasi-static plan
+    /// keeps the CoM over its polygon, and this much moment moves the ZMP off the CoM's
+    /// projection by its ratio to the weight.
+    #[serde(default)]
+    pub max_tipping_moment_nm: f64,
+    /// ... about the vertical, N m: the turn the support soles hold by friction.
+    #[serde(default)]
+    pub max_yaw_moment_nm: f64,
+}
+
+impl Tracking {
+    /// The largest moments the motion's change of angular momentum asks, N m: about a
+    /// horizontal axis, and about the vertical.
+    pub fn moments_nm(&self) -> [f64; 2] {
+        [self.max_tipping_moment_nm, self.max_yaw_moment_nm]
+    }
 }
 
 /// Where the body came nearest a surface the lidar saw.
@@ -769,6 +787,9 @@ pub fn track(
     let mut t0 = 0.0;
     let mut tick = 0usize;
     let mut worst_com_segment = 0;
+    // The link poses of the tick before, for the body's angular momentum over each tick.
+    let mut before = tracker.kinematics().link_poses().to_vec();
+    let mut moments = MomentRates::default();
     for (si, seg) in segments.iter().enumerate() {
         let end = t0 + seg.duration_s;
         while (tick + 1) as f64 * dt <= end + 1e-9 {
@@ -785,6 +806,9 @@ pub fn track(
             };
             tracker.tick(&targets, dt).map_err(|error| PlanError::Ik { t_s: t, segment: si, error })?;
             stats.ik_time_s += started.elapsed().as_secs_f64();
+            let poses = tracker.kinematics().link_poses();
+            moments.add(t - dt / 2.0, centroidal_angular_momentum(model, &before, poses, dt));
+            before.copy_from_slice(poses);
             tracker.note_posture(targets.loaded(), &mut stats);
             stats.ik_ticks += 1;
             tick += 1;
@@ -865,6 +889,8 @@ pub fn track(
         t0 = end;
     }
     stats.ik_interior_point_qps = tracker.qp.interior_point_qps();
+    stats.max_tipping_moment_nm = moments.max_tipping_nm;
+    stats.max_yaw_moment_nm = moments.max_yaw_nm;
     if stats.max_com_error_m > p.com_tolerance_m {
         return Err(PlanError::ComStrays {
             segment: worst_com_segment,

@@ -110,6 +110,11 @@ impl<'m> Kinematics<'m> {
         &self.poses[link]
     }
 
+    /// World pose of every link frame, by link index.
+    pub fn link_poses(&self) -> &[Isometry3<f64>] {
+        &self.poses
+    }
+
     /// World pose of frame `frame`.
     pub fn frame_pose(&self, frame: usize) -> Isometry3<f64> {
         let f = &self.model.frames()[frame];
