@@ -540,3 +540,33 @@ fn a_plan_refused_on_a_sweep_taken_walking_is_made_again_on_a_standing_look() {
         cycle_looks.clear();
     }
 }
+
+/// A plan whose trunk twists fast asks the stance sole for a moment about the vertical that
+/// friction holds only up to `mu m g r` (`r` the sole's mean radius): `wide-0031`'s fifth
+/// cycle, its view taken walking, twisted the trunk to keep the chest off unseen space and
+/// asked 21 N m of the sole's 19.5, which slid 5 mm. The planner now slows a segment that asks
+/// more than `IkParams::max_yaw_moment_share` of it: every plan stays within what the sole
+/// holds, and the climb keeps every check.
+#[test]
+fn a_trunk_twisted_fast_off_unseen_space_is_slowed_until_the_sole_holds_it() {
+    use stairbench::robot::momentum::mean_radius_m;
+    let s =
+        Scenario::load(std::path::Path::new("tests/fixtures/trunk-twisted-off-unseen-space.toml")).unwrap();
+    let mut p = ClimbParams::default();
+    p.run.sweep_while_moving = true;
+    let r = climb(&s, &p);
+    assert_climbed(&r, &s, &p.checks);
+    let model = stairbench::robot::hrp4::model().unwrap();
+    let soles = stairbench::robot::hrp4::sole_frames(&model).unwrap();
+    let [a_m, b_m] = model.sole_half_m(soles[0]).unwrap();
+    let sole = mean_radius_m(a_m, b_m);
+    let holds_nm = p.plan.step.friction * model.total_mass_kg() * stairbench::robot::GRAVITY_M_S2 * sole;
+    for c in &r.cycles {
+        let [_, yaw_nm] = c.plan_moments_nm.expect("each cycle reports its plan's moments");
+        println!(
+            "cycle {}: the plan asks {yaw_nm:.1} N m about the vertical, the sole holds {holds_nm:.1}",
+            c.cycle
+        );
+        assert!(yaw_nm < holds_nm, "cycle {}: {yaw_nm:.1} N m against the sole's {holds_nm:.1}", c.cycle);
+    }
+}

@@ -232,6 +232,12 @@ impl ClimbReport {
         self.cycles.iter().map(|c| c.execution.max_friction_ratio).fold(0.0, f64::max)
     }
 
+    /// The largest moment about the vertical a cycle's plan asked of the contacts, N m
+    /// ([`CycleReport::plan_moments_nm`]); `None` when no cycle reports one.
+    pub fn max_plan_yaw_moment_nm(&self) -> Option<f64> {
+        self.cycles.iter().filter_map(|c| c.plan_moments_nm.map(|m| m[1])).reduce(f64::max)
+    }
+
     /// The largest error of the robot's estimate of its base's position at a sweep over every
     /// cycle, metres (`None` when no cycle knew the truth beside an estimate).
     pub fn max_estimate_error_m(&self) -> Option<f64> {

@@ -118,6 +118,16 @@ pub struct IkParams {
     /// times half-sitting's, below the loaded knees of Exp. 1's, Exp. 2's and the 24 cm
     /// step's plans (32, 30 and 26 deg, `stairbench plan`).
     pub min_knee_rad: f64,
+    /// Largest share of the support soles' friction torque a plan's turn about the vertical
+    /// may ask ([`Tracking::max_yaw_moment_nm`] against `StepParams::friction` times the
+    /// weight times a sole's mean distance from its centre, the torque a sole at uniform
+    /// pressure holds before it turns): where a segment asks more, the planner slows it and
+    /// tracks again (see `plan`). Half: the friction is shared with the forces along the
+    /// tread, and the pressure under a sole is not uniform; for HRP-4 on the plan's
+    /// friction, 9.8 N m. A plan whose trunk twisted away from unseen space asked 21 N m of
+    /// the 19.5 N m, and its stance sole slid (test
+    /// `a_trunk_twisted_fast_off_unseen_space_is_slowed_until_the_sole_holds_it`).
+    pub max_yaw_moment_share: f64,
 }
 
 impl Default for IkParams {
@@ -157,6 +167,7 @@ impl IkParams {
             min_body_clearance_m: 0.02,
             leg_surface_band_m: 0.09,
             min_knee_rad: 0.2,
+            max_yaw_moment_share: 0.5,
         }
     }
 
@@ -278,6 +289,10 @@ pub struct Tracking {
     /// ... about the vertical, N m: the turn the support soles hold by friction.
     #[serde(default)]
     pub max_yaw_moment_nm: f64,
+    /// The largest moment about the vertical asked in each segment (the window ending in
+    /// it), N m.
+    #[serde(skip)]
+    pub segment_yaw_moments_nm: Vec<f64>,
 }
 
 impl Tracking {
@@ -807,7 +822,13 @@ pub fn track(
             tracker.tick(&targets, dt).map_err(|error| PlanError::Ik { t_s: t, segment: si, error })?;
             stats.ik_time_s += started.elapsed().as_secs_f64();
             let poses = tracker.kinematics().link_poses();
-            moments.add(t - dt / 2.0, centroidal_angular_momentum(model, &before, poses, dt));
+            if let Some(rate) =
+                moments.add(t - dt / 2.0, centroidal_angular_momentum(model, &before, poses, dt))
+            {
+                stats.segment_yaw_moments_nm.resize(segments.len(), 0.0);
+                let m = &mut stats.segment_yaw_moments_nm[si];
+                *m = m.max(rate.z.abs());
+            }
             before.copy_from_slice(poses);
             tracker.note_posture(targets.loaded(), &mut stats);
             stats.ik_ticks += 1;

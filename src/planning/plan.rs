@@ -10,7 +10,9 @@ use super::{reach, PlanError};
 use crate::perception::PlaneSegment;
 use crate::robot::hrp4;
 use crate::robot::model::RobotModel;
+use crate::robot::momentum::mean_radius_m;
 use crate::robot::Kinematics;
+use crate::robot::GRAVITY_M_S2;
 use crate::scene::SceneBox;
 use nalgebra::Isometry3;
 use std::sync::Arc;
@@ -28,6 +30,16 @@ const REACH_ROUNDS: usize = 3;
 /// A touchdown's leg beyond its reach by a waypoint lowering of at most this much is within
 /// it, metres.
 const REACH_TOLERANCE_M: f64 = 1e-3;
+
+/// Rounds of tracking at most, after the first, that slow the segments whose turn about the
+/// vertical asks more of the soles' friction than the plan allows
+/// ([`IkParams::max_yaw_moment_share`]); the plan the last one gives is kept, its moment
+/// in its [`Tracking`].
+const MOMENT_ROUNDS: usize = 2;
+
+/// A segment slowed for its turn is slowed this much more than the moment's square root
+/// asks: the slower motion's path is not quite the same (the IK's gains are per second).
+const SLOWING_MARGIN: f64 = 1.1;
 
 /// Every parameter of the planner.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -256,18 +268,34 @@ impl<'a> PlanRequest<'a> {
         // gait is tracked again (the hip's place moves a little with the CoM's height, hence
         // more than one round).
         let reach_m = Legs::of(&body, &p.step).reach_m;
+        let yaw_limit_nm = yaw_moment_limit_nm(model, &body, p)?;
         let mut drops_m = vec![0.0; stances.len()];
-        let (mut gait_started, mut gait_time_s, mut round) = (started, 0.0, 1);
+        // Each segment's time, as many times the gait's as its turn about the vertical asked
+        // it to be slowed ([`IkParams::max_yaw_moment_share`]).
+        let mut slowed: Vec<f64> = Vec::new();
+        let (mut gait_started, mut gait_time_s, mut round, mut moment_round) = (started, 0.0, 1, 0);
         let mut ik_spent = Tracking::default();
         loop {
-            let segs = segments(kin.com(), &start, &stances, &drops_m, &body, &p.step)?;
+            let mut segs = segments(kin.com(), &start, &stances, &drops_m, &body, &p.step)?;
+            slowed.resize(segs.len(), 1.0);
+            for (seg, k) in segs.iter_mut().zip(&slowed) {
+                seg.duration_s *= k;
+            }
             gait_time_s += gait_started.elapsed().as_secs_f64();
             let (trajectory, mut tracking) = track(model, q0, &segs, &blocks, seen.clone(), &p.ik)?;
             let more_m = reach::touchdown_drops_m(model, &segs, &trajectory, reach_m)?;
             tracking.ik_ticks += ik_spent.ik_ticks;
             tracking.ik_interior_point_qps += ik_spent.ik_interior_point_qps;
             tracking.ik_time_s += ik_spent.ik_time_s;
-            if round == REACH_ROUNDS || more_m.iter().all(|&d| d <= REACH_TOLERANCE_M) {
+            let reached = round >= REACH_ROUNDS || more_m.iter().all(|&d| d <= REACH_TOLERANCE_M);
+            // A turn the moment takes time for: the same path over k times the time asks
+            // 1 / k^2 the moment.
+            let over: Vec<(usize, f64)> = (tracking.segment_yaw_moments_nm.iter().enumerate())
+                .filter(|&(_, &m)| m > yaw_limit_nm)
+                .map(|(i, &m)| (i, (m / yaw_limit_nm).sqrt() * SLOWING_MARGIN))
+                .collect();
+            let held = over.is_empty() || moment_round == MOMENT_ROUNDS;
+            if reached && held {
                 return Ok(Some(Plan {
                     start,
                     stances,
@@ -280,10 +308,31 @@ impl<'a> PlanRequest<'a> {
                 }));
             }
             ik_spent = tracking;
-            for (d, more) in drops_m.iter_mut().zip(more_m) {
-                *d += more;
+            if !reached {
+                for (d, more) in drops_m.iter_mut().zip(more_m) {
+                    *d += more;
+                }
+                round += 1;
             }
-            (gait_started, round) = (Instant::now(), round + 1);
+            if !held {
+                for (i, k) in over {
+                    slowed[i] *= k;
+                }
+                moment_round += 1;
+            }
+            gait_started = Instant::now();
         }
     }
+}
+
+/// The largest moment about the vertical a plan may ask of the contacts, N m: the share
+/// [`IkParams::max_yaw_moment_share`] of what friction holds under the smaller sole at
+/// uniform pressure with the whole weight on it.
+fn yaw_moment_limit_nm(model: &RobotModel, body: &Body, p: &PlanParams) -> Result<f64, PlanError> {
+    let share = p.ik.max_yaw_moment_share;
+    if !(share.is_finite() && share > 0.0) {
+        return Err(PlanError::Config(format!("max_yaw_moment_share must be positive, got {share}")));
+    }
+    let lever_m = body.sole_half_m.iter().map(|[a, b]| mean_radius_m(*a, *b)).fold(f64::INFINITY, f64::min);
+    Ok(share * p.step.friction * model.total_mass_kg() * GRAVITY_M_S2 * lever_m)
 }

@@ -76,6 +76,11 @@ pub struct CaseResult {
     /// refused (`CycleReport::looked_again_standing`; 0 in results written before it).
     #[serde(default)]
     pub looked_again_standing: usize,
+    /// The largest moment about the vertical a plan of the run asked of the contacts, N m
+    /// (`ClimbReport::max_plan_yaw_moment_nm`; `None` without a plan, or in results written
+    /// before it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_plan_yaw_moment_nm: Option<f64>,
     /// Steps climbed.
     pub steps_climbed: usize,
     /// Steps of the flight.
@@ -115,6 +120,7 @@ impl CaseResult {
         self.s_per_stair = r.seconds_per_stair();
         self.s_per_stair_with_stand = r.seconds_per_stair_with_stand();
         self.looked_again_standing = r.looked_again_standing.len();
+        self.max_plan_yaw_moment_nm = r.max_plan_yaw_moment_nm();
         self.steps_climbed = r.steps_climbed;
         self.steps_total = r.steps_total;
         self.cycles = r.cycles.len();

@@ -233,6 +233,7 @@ fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
         s_per_stair: None,
         s_per_stair_with_stand: None,
         looked_again_standing: 0,
+        max_plan_yaw_moment_nm: None,
         steps_climbed: 0,
         steps_total: scenario.staircase.steps as usize - scenario.staircase.missing_steps.len(),
         cycles: 0,

@@ -15,8 +15,8 @@ use nalgebra::{Isometry3, Point3, Vector3};
 /// from the link poses `a` to `b` (world, [`Kinematics::link_poses`]) over `dt_s` seconds.
 /// Each link's velocity is its pose's change over the interval, taken at the interval's
 /// middle: `sum_i m_i (c_i - c) x v_i + R_i I_i R_i^T w_i`, the inertia term averaged over
-/// the interval's ends. Exact as `dt_s` goes to zero
-/// (test: against MuJoCo's `subtree_angmom`, in `tests/robot.rs`).
+/// the interval's ends. Exact as `dt_s` goes to zero. (Test: against MuJoCo's `subtree_angmom`,
+/// in `tests/robot.rs`.)
 pub fn centroidal_angular_momentum(
     model: &RobotModel,
     a: &[Isometry3<f64>],
@@ -36,7 +36,10 @@ pub fn centroidal_angular_momentum(
         momentum += link.mass_kg * v;
         // The turn from a to b in the world frame, R_b R_a^T, against the inertia in the world
         // frame averaged over the two ends (R I R^T w at each).
-        let w = (pb.rotation * pa.rotation.inverse()).scaled_axis() / dt_s;
+        // The turn's axis times its angle is twice the vector part of its (short way)
+        // quaternion, to within the angle squared over 6 (3e-4 for 2 rad/s over 10 ms).
+        let turn = (pb.rotation * pa.rotation.inverse()).into_inner();
+        let w = turn.imag() * (2.0_f64.copysign(turn.w) / dt_s);
         let spun = |r: &nalgebra::UnitQuaternion<f64>| r * (link.inertia * r.inverse_transform_vector(&w));
         total += (spun(&pa.rotation) + spun(&pb.rotation)) / 2.0;
     }
@@ -51,9 +54,10 @@ pub fn centroidal_angular_momentum(
 /// IK steps its joint velocities tick by tick (every 10 ms at its 100 Hz), and a change
 /// within one tick is such a step, which the servos' interpolation and the body's
 /// compliance smooth: the Exp. 1 plan's largest change over one tick is 29 N m about a
-/// horizontal axis, over 0.1 s 7 N m. What a sole must hold is the change the body keeps
-/// up: over 0.1 s, a yaw twist that slid a stance sole asked 21 N m, and no plan of a
-/// clean cycle over 6 N m (CHANGELOG, thirty-sixth session).
+/// horizontal axis, over 0.1 s 19 N m. What a sole must hold is the change the body keeps
+/// up: over 0.1 s, the plans of the two runs of `wide` whose stance soles slid asked
+/// 16.6 and 21.1 N m about the vertical, those of every other run at most 7.7 N m
+/// (CHANGELOG, thirty-sixth session).
 pub const RATE_WINDOW_S: f64 = 0.1;
 
 /// The moments a motion's angular momentum asks of the contacts, largest over a motion, each
@@ -71,26 +75,61 @@ pub struct MomentRates {
 
 impl MomentRates {
     /// The angular momentum `l` (kg m^2/s, world, z up) at time `t_s`, after those given
-    /// before (in order of time).
-    pub fn add(&mut self, t_s: f64, l: Vector3<f64>) {
+    /// before (in order of time); its rate of change over the window that ends now, N m,
+    /// once a window has passed.
+    pub fn add(&mut self, t_s: f64, l: Vector3<f64>) -> Option<Vector3<f64>> {
         // Keep the newest momentum at least a window old, and those after it.
         let since = t_s - RATE_WINDOW_S * (1.0 - 1e-9);
         while self.recent.len() > 1 && self.recent[1].0 <= since {
             self.recent.pop_front();
         }
-        if let Some(&(t0, l0)) = self.recent.front().filter(|(t0, _)| *t0 <= since) {
-            let rate = (l - l0) / (t_s - t0);
+        let rate = self.recent.front().filter(|(t0, _)| *t0 <= since).map(|&(t0, l0)| (l - l0) / (t_s - t0));
+        if let Some(rate) = rate {
             self.max_tipping_nm = self.max_tipping_nm.max(rate.xy().norm());
             self.max_yaw_nm = self.max_yaw_nm.max(rate.z.abs());
         }
         self.recent.push_back((t_s, l));
+        rate
     }
+}
+
+/// The mean distance of a rectangle's points (half sides `a_m`, `b_m`) from its centre,
+/// metres: the lever of the friction that holds a sole at uniform pressure from turning.
+pub fn mean_radius_m(a_m: f64, b_m: f64) -> f64 {
+    let d = a_m.hypot(b_m);
+    if a_m <= 0.0 || b_m <= 0.0 {
+        return d / 2.0;
+    }
+    // (1 / ab) of the integral of r over [0, a] x [0, b].
+    (2.0 * a_m * b_m * d + a_m.powi(3) * ((b_m + d) / a_m).ln() + b_m.powi(3) * ((a_m + d) / b_m).ln())
+        / (6.0 * a_m * b_m)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::robot::hrp4;
+
+    #[test]
+    fn a_soles_mean_radius_is_its_points_mean_distance_from_its_centre() {
+        for (a, b) in [(0.11, 0.065), (0.1, 0.1), (0.2, 0.01)] {
+            let n = 400;
+            let mut sum = 0.0;
+            for i in 0..n {
+                for j in 0..n {
+                    let x = a * (2.0 * (i as f64 + 0.5) / n as f64 - 1.0);
+                    let y = b * (2.0 * (j as f64 + 0.5) / n as f64 - 1.0);
+                    sum += x.hypot(y);
+                }
+            }
+            let grid = sum / (n * n) as f64;
+            assert!(
+                (mean_radius_m(a, b) - grid).abs() < 1e-5,
+                "{a} x {b}: {} against {grid}",
+                mean_radius_m(a, b)
+            );
+        }
+    }
 
     #[test]
     fn a_body_standing_still_has_no_angular_momentum() {
@@ -119,8 +158,8 @@ mod tests {
         assert!((r.max_yaw_nm - 7.0).abs() < 1e-9, "{}", r.max_yaw_nm);
         // Nothing before a whole window has passed.
         let mut short = MomentRates::default();
-        short.add(0.0, Vector3::zeros());
-        short.add(0.05, Vector3::new(1.0, 1.0, 1.0));
+        assert!(short.add(0.0, Vector3::zeros()).is_none());
+        assert!(short.add(0.05, Vector3::new(1.0, 1.0, 1.0)).is_none());
         assert_eq!((short.max_tipping_nm, short.max_yaw_nm), (0.0, 0.0));
     }
 }
