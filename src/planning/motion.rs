@@ -281,9 +281,9 @@ pub struct Tracking {
     #[serde(default)]
     pub min_loaded_knee_rad: Option<f64>,
     /// Largest rate of change of the body's angular momentum about its CoM (over
-    /// [`crate::robot::momentum::RATE_WINDOW_S`]), about a horizontal axis, N m: the quasi-static plan
-    /// keeps the CoM over its polygon, and this much moment moves the ZMP off the CoM's
-    /// projection by its ratio to the weight.
+    /// [`crate::robot::momentum::RATE_WINDOW_S`]), about a horizontal axis, N m: the
+    /// quasi-static plan keeps the CoM over its polygon, and this much moment moves the ZMP
+    /// off the CoM's projection by its ratio to the weight.
     #[serde(default)]
     pub max_tipping_moment_nm: f64,
     /// ... about the vertical, N m: the turn the support soles hold by friction.

@@ -15,8 +15,8 @@ use nalgebra::{Isometry3, Point3, Vector3};
 /// from the link poses `a` to `b` (world, [`Kinematics::link_poses`]) over `dt_s` seconds.
 /// Each link's velocity is its pose's change over the interval, taken at the interval's
 /// middle: `sum_i m_i (c_i - c) x v_i + R_i I_i R_i^T w_i`, the inertia term averaged over
-/// the interval's ends. Exact as `dt_s` goes to zero. (Test: against MuJoCo's `subtree_angmom`,
-/// in `tests/robot.rs`.)
+/// the interval's ends. Exact as `dt_s` goes to zero (test: against MuJoCo's
+/// `subtree_angmom`, in `tests/robot.rs`).
 pub fn centroidal_angular_momentum(
     model: &RobotModel,
     a: &[Isometry3<f64>],
