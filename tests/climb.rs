@@ -554,6 +554,9 @@ fn a_trunk_twisted_fast_off_unseen_space_is_slowed_until_the_sole_holds_it() {
         Scenario::load(std::path::Path::new("tests/fixtures/trunk-twisted-off-unseen-space.toml")).unwrap();
     let mut p = ClimbParams::default();
     p.run.sweep_while_moving = true;
+    // Its plan is now made again from a standing look (the next test): executed as planned
+    // from the moving pass, it shows the slowing.
+    p.run.look_standing_when_held_off_unseen = false;
     let r = climb(&s, &p);
     assert_climbed(&r, &s, &p.checks);
     let model = stairbench::robot::hrp4::model().unwrap();
@@ -568,5 +571,39 @@ fn a_trunk_twisted_fast_off_unseen_space_is_slowed_until_the_sole_holds_it() {
             c.cycle
         );
         assert!(yaw_nm < holds_nm, "cycle {}: {yaw_nm:.1} N m against the sole's {holds_nm:.1}", c.cycle);
+    }
+}
+
+/// A pass the head took moving leaves space near the body no ray crossed, and the IK keeps the
+/// upper body 3 cm off its edge: `ci-0101`'s eighth cycle, planned from such a pass, held the
+/// chest there, bowed the trunk 47 deg to do it, and brought both knees straight at the left
+/// foot's touchdown; the loaded knee's bound then yanked the landing knee back and the foot
+/// landed 22.1 mm off. A plan so held (`Plan::held_off_unseen`) is made again on a look taken
+/// standing, which fills the gap: the climb keeps every check, and no plan executed from a
+/// moving pass holds the body off such a gap.
+#[test]
+fn a_plan_bent_around_a_moving_pass_gap_is_made_again_from_a_standing_look() {
+    use stairbench::planning::plan::HELD_M;
+    let s =
+        Scenario::load(std::path::Path::new("tests/fixtures/chest-held-off-a-moving-pass-gap.toml")).unwrap();
+    let mut p = ClimbParams::default();
+    p.run.sweep_while_moving = true;
+    let r = climb(&s, &p);
+    assert_climbed(&r, &s, &p.checks);
+    let looked_again: Vec<usize> = (r.cycles.iter())
+        .filter(|c| c.looked_again_standing.as_ref().is_some_and(|f| f.kind == RefusalKind::HeldOffUnseen))
+        .map(|c| c.cycle)
+        .collect();
+    println!("made again from a standing look: cycles {looked_again:?}");
+    assert!(!looked_again.is_empty(), "the moving pass of cycle 8 leaves the gap");
+    for c in &r.cycles {
+        let held = (c.plan_nearest_surface.as_ref())
+            .is_some_and(|n| n.unseen && n.clearance_m < p.plan.ik.body_clearance_m + HELD_M);
+        assert!(
+            !held || c.cycle == 1 || c.looked_again_standing.is_some(),
+            "cycle {}: a plan from a moving pass holds the body off its gap: {:?}",
+            c.cycle,
+            c.plan_nearest_surface
+        );
     }
 }

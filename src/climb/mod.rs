@@ -77,10 +77,19 @@ pub struct RunParams {
     /// robot stands the sweep's 6 s). A plan refused on a pass the head took moving is made
     /// again once on a look taken standing where the robot is
     /// (`CycleReport::looked_again_standing`): a moving head's pass leaves space near the
-    /// body no ray crossed (its steep rows are the oldest), which the body keeps off. Not
+    /// body no ray crossed (its steep rows are the oldest), which the body keeps off; so is
+    /// one the body is held off such a gap in (`look_standing_when_held_off_unseen`). Not
     /// yet the default: some plans are still refused so, and nothing drives the real servo
     /// so (the suites' figures with it on: BENCHMARKS.md).
     pub sweep_while_moving: bool,
+    /// With `sweep_while_moving`, a plan made on a pass the head took moving that holds the
+    /// upper body at its clearance from space the pass left unseen
+    /// ([`crate::planning::Plan::held_off_unseen`]) is made again on a look taken standing,
+    /// as a refused one is. On by default: the gap is the moving head's (a standing look
+    /// fills it), and the motion bent around it twisted the trunk faster than a sole holds
+    /// and bowed the body until both knees came straight at a touchdown. Off: such plans are
+    /// executed (to see what they do).
+    pub look_standing_when_held_off_unseen: bool,
     /// Friction coefficient of the surfaces of a hardware rehearsal's world (`run
     /// --hardware`: the perceived steps rebuilt in simulation, whose true friction nobody
     /// measured; the checks judge the rehearsal against it). Default 0.7, the plan's.
@@ -97,6 +106,7 @@ impl Default for RunParams {
             still_s: 0.2,
             max_settle_s: 2.0,
             sweep_while_moving: false,
+            look_standing_when_held_off_unseen: true,
             rehearsal_friction: crate::planning::contact::DEFAULT_FRICTION,
         }
     }
@@ -229,28 +239,31 @@ pub fn run<E: Executor>(
             }
             break;
         }
-        let (planned, closer_look) =
-            match plan_next(model, &q, &next, surfaces, p.run.stances_per_scan, start_floor_z_m, p.plan) {
-                Ok(x) => x,
-                // A plan refused on a sweep the head took moving is refused for what that
-                // sweep saw: its rows crossed the space about the body from where the head
-                // was, seconds before. The robot stands and looks again (a pass cast from
-                // here, as a standing sweep is); a refusal on that view stands.
-                Err(refusal)
-                    if set_aside.is_none()
-                        && cycle < p.run.max_cycles
-                        && sweep.head_travel_m() > STILL_HEAD_M =>
-                {
-                    report.looked_again_standing.push((*refusal).clone());
-                    let plan_s = t.elapsed().as_secs_f64();
-                    set_aside = Some(SetAside { refusal: *refusal, stood_s, scan_s, perceive_s, plan_s });
-                    continue;
-                }
-                Err(refusal) => {
-                    report.stop = Some(StopReason::Refused { cycle, refusal: *refusal });
-                    break;
-                }
-            };
+        // A plan refused on a sweep the head took moving is refused for what that sweep saw:
+        // its rows crossed the space about the body from where the head was, seconds before.
+        // The robot stands and looks again (a pass cast from here, as a standing sweep is); a
+        // refusal on that view stands. So does a plan that bends the body around a gap the
+        // moving pass left (`Plan::held_off_unseen`): held at its clearance from it, the
+        // trunk twisted off it faster than a sole holds, and bowed until both knees came
+        // straight at a touchdown (tests/climb.rs
+        // `a_plan_bent_around_a_moving_pass_gap_is_made_again_from_a_standing_look`).
+        let may_look_standing =
+            set_aside.is_none() && cycle < p.run.max_cycles && sweep.head_travel_m() > STILL_HEAD_M;
+        let planned = plan_next(model, &q, &next, surfaces, p.run.stances_per_scan, start_floor_z_m, p.plan);
+        let refuse_held = may_look_standing && p.run.look_standing_when_held_off_unseen;
+        let (planned, closer_look) = match refusing_held_off_unseen(planned, &p.plan.ik, refuse_held) {
+            Ok(x) => x,
+            Err(refusal) if may_look_standing => {
+                report.looked_again_standing.push((*refusal).clone());
+                let plan_s = t.elapsed().as_secs_f64();
+                set_aside = Some(SetAside { refusal: *refusal, stood_s, scan_s, perceive_s, plan_s });
+                continue;
+            }
+            Err(refusal) => {
+                report.stop = Some(StopReason::Refused { cycle, refusal: *refusal });
+                break;
+            }
+        };
         let plan_s = t.elapsed().as_secs_f64();
         let plan_height_error_m = robot.true_configuration().map_or(0.0, |t| q[2] - t[2]);
         let t = Instant::now();
@@ -419,6 +432,19 @@ fn stop_after(ex: &Execution, cycle: usize, cancel: &Cancel) -> Option<StopReaso
     } else {
         None
     }
+}
+
+/// `planned`, or the refusal [`crate::planning::Plan::held_off_unseen`] makes of it when
+/// `refuse` (a plan made from a pass taken moving, which a look taken standing may remake).
+fn refusing_held_off_unseen(
+    planned: Result<(Plan, Option<Refusal>), Box<Refusal>>,
+    ik: &crate::planning::motion::IkParams,
+    refuse: bool,
+) -> Result<(Plan, Option<Refusal>), Box<Refusal>> {
+    planned.and_then(|(plan, closer)| match plan.held_off_unseen(ik) {
+        Some(bent) if refuse => Err(Box::new(bent.refusal())),
+        _ => Ok((plan, closer)),
+    })
 }
 
 /// The loop's next plan from configuration `q`: the first `stances` stances of the climb

@@ -250,6 +250,25 @@ pub enum PlanError {
         /// When, seconds from the plan's start.
         t_s: f64,
     },
+    /// A plan made from a pass the head took moving holds the upper body at its clearance
+    /// (`motion::IkParams::body_clearance_m`) from the edge of space that pass left unseen
+    /// ([`Plan::held_off_unseen`]): the IK bent the motion around a gap the moving head
+    /// left near the body, which a pass taken standing fills. The loop looks again standing.
+    #[error("segment {}: the plan holds {limb} at its clearance, {:.1} mm from space the pass taken moving left unseen at ({:.3}, {:.3}, {:.3}) m, at t = {t_s:.2} s: its motion is bent around a gap a pass taken standing would fill", .segment + 1, .clearance_m * 1e3, .point_m[0], .point_m[1], .point_m[2])]
+    HeldOffUnseen {
+        /// 0-based segment.
+        segment: usize,
+        /// The limb (its link's name).
+        limb: String,
+        /// The unseen voxel's centre, world frame, metres.
+        point_m: [f64; 3],
+        /// Its distance from the limb's capsule, metres.
+        clearance_m: f64,
+        /// The clearance the IK keeps, metres.
+        kept_m: f64,
+        /// When, seconds from the plan's start.
+        t_s: f64,
+    },
     /// What the lidar saw beside the flight at the body's height (handrails, walls) leaves
     /// less room across than the body's lane (twice `GaitParams::body_half_width_m`).
     #[error("the flight leaves {room_m:.2} m between what stands beside it at the body's height, less than the {needs_m:.2} m the body sweeps")]
@@ -332,6 +351,8 @@ pub enum RefusalKind {
     BodyNearSurface,
     /// [`PlanError::BodyNearSurface`] at the edge of unseen space.
     BodyNearUnseen,
+    /// [`PlanError::HeldOffUnseen`].
+    HeldOffUnseen,
     /// [`PlanError::NarrowFlight`].
     NarrowFlight,
     /// [`PlanError::FootMisses`].
@@ -453,6 +474,9 @@ impl PlanError {
             PlanError::BodyNearSurface { segment, clearance_m, min_m, unseen, .. } => {
                 let kind = if *unseen { K::BodyNearUnseen } else { K::BodyNearSurface };
                 (kind, None, None, Some(*segment), m(*clearance_m, *min_m))
+            }
+            PlanError::HeldOffUnseen { segment, clearance_m, kept_m, .. } => {
+                (K::HeldOffUnseen, None, None, Some(*segment), m(*clearance_m, *kept_m))
             }
             PlanError::FootMisses { segment, error_m, limit_m, .. } => {
                 (K::FootMisses, None, None, Some(*segment), m(*error_m, *limit_m))

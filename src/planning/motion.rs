@@ -317,6 +317,9 @@ pub struct NearestSurface {
     pub unseen: bool,
     /// The trajectory's time, seconds.
     pub t_s: f64,
+    /// The segment it was in (0-based).
+    #[serde(default)]
+    pub segment: usize,
 }
 
 /// The free foot's pose and twist at fraction `tau` of its swing; `duration_s` scales the twist.
@@ -854,6 +857,7 @@ pub fn track(
                         point_m: [at.x, at.y, at.z],
                         unseen,
                         t_s: t,
+                        segment: si,
                     });
                 }
                 if d < p.min_body_clearance_m {

@@ -105,7 +105,31 @@ impl Plan {
     pub fn min_margin_m(&self) -> f64 {
         self.segments.iter().map(|s| s.margin_m).fold(f64::INFINITY, f64::min)
     }
+
+    /// [`PlanError::HeldOffUnseen`] where the upper body came within [`HELD_M`] of the
+    /// clearance the IK keeps (`p.body_clearance_m`, the IK's `p`) from the edge of
+    /// unseen space: its clearance row held it there. Whether that is a refusal is the
+    /// caller's: from a pass taken moving it is (the gap is the moving head's, and a
+    /// standing look fills it); from one taken standing the gap is a shadow, and the plan
+    /// keeps off it as it must.
+    pub fn held_off_unseen(&self, p: &IkParams) -> Option<PlanError> {
+        let n = self.tracking.nearest_body_surface.as_ref()?;
+        (n.unseen && n.clearance_m < p.body_clearance_m + HELD_M).then(|| PlanError::HeldOffUnseen {
+            segment: n.segment,
+            limb: n.limb.clone(),
+            point_m: n.point_m,
+            clearance_m: n.clearance_m,
+            kept_m: p.body_clearance_m,
+            t_s: n.t_s,
+        })
+    }
 }
+
+/// A capsule this near the clearance its row keeps was held there by the row, metres: the
+/// row's damper lets a capsule near it only ever more slowly, so one that comes within a
+/// millimetre had the row bind (a plan's body capsules keep 34-77 mm off in most cycles,
+/// and exactly the clearance where a row binds).
+pub const HELD_M: f64 = 1e-3;
 
 /// Where the feet are in the configuration `kin` was last updated with.
 pub fn stance_of(kin: &Kinematics, soles: [usize; 2]) -> Stance {
