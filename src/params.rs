@@ -52,6 +52,34 @@ impl ClimbParams {
         }
     }
 
+    /// Checks the rules a parameters file's types do not hold (the step bound, the
+    /// stabilizer's gains).
+    pub fn validate(&self) -> Result<(), String> {
+        self.plan.step.validate()?;
+        self.stabilizer.validate()
+    }
+
+    /// These parameters with `overrides` laid over them: a parameters file's fields as a
+    /// TOML table, its tables merged key by key into these, its values replacing theirs
+    /// (a suite case's `params`). Unknown fields and broken rules are refused.
+    pub fn with_overrides(&self, overrides: &toml::Table) -> Result<ClimbParams, String> {
+        fn lay(under: &mut toml::Table, over: &toml::Table) {
+            for (k, v) in over {
+                match (under.get_mut(k), v) {
+                    (Some(toml::Value::Table(u)), toml::Value::Table(o)) => lay(u, o),
+                    _ => {
+                        under.insert(k.clone(), v.clone());
+                    }
+                }
+            }
+        }
+        let mut merged = toml::Table::try_from(self).map_err(|e| e.to_string())?;
+        lay(&mut merged, overrides);
+        let params: ClimbParams = merged.try_into().map_err(|e: toml::de::Error| e.message().to_string())?;
+        params.validate()?;
+        Ok(params)
+    }
+
     /// The parts the simulated robot uses.
     pub fn sim(&self) -> SimParams {
         SimParams {
@@ -63,5 +91,42 @@ impl ClimbParams {
             plan: self.plan.clone(),
             run: self.run.clone(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn table(text: &str) -> toml::Table {
+        toml::from_str(text).unwrap()
+    }
+
+    #[test]
+    fn overrides_replace_their_fields_and_keep_every_other() {
+        let mut base = ClimbParams::default();
+        base.run.max_cycles = 7;
+        base.plan.ik.body_clearance_m = 0.05;
+        let p = base
+            .with_overrides(&table("[run]\nsweep_while_moving = true\n[plan.ik]\nbody_clearance_m = 0.04\n"))
+            .unwrap();
+        assert!(p.run.sweep_while_moving);
+        assert_eq!(p.plan.ik.body_clearance_m, 0.04);
+        assert_eq!(p.run.max_cycles, 7, "a field the overrides leave out keeps the base's value");
+        let mut expected = base.clone();
+        expected.run.sweep_while_moving = true;
+        expected.plan.ik.body_clearance_m = 0.04;
+        assert_eq!(p, expected, "nothing else moved");
+        assert_eq!(base.with_overrides(&toml::Table::new()).unwrap(), base);
+    }
+
+    #[test]
+    fn overrides_with_unknown_fields_or_wrong_types_are_refused() {
+        let base = ClimbParams::default();
+        let e = base.with_overrides(&table("[run]\nsweep_while_movin = true\n")).unwrap_err();
+        assert!(e.contains("sweep_while_movin"), "{e}");
+        let e = base.with_overrides(&table("[run]\nsweep_while_moving = 3\n")).unwrap_err();
+        assert!(e.contains("bool") || e.contains("boolean"), "{e}");
+        assert!(base.with_overrides(&table("run = 1\n")).is_err());
     }
 }

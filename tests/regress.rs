@@ -4,7 +4,8 @@
 //! from PyPI) agrees with the JSON Lines; a run killed mid-suite resumes to every case once;
 //! a planner broken on purpose is reported as a regression with exit 1; and the shipped
 //! `smoke` suite gives every case a verdict, its files agree, every case passes, and the
-//! unclimbable cases are refused before a foot is on the stairs.
+//! unclimbable cases are refused before a foot is on the stairs; a case climbs under the
+//! climb parameters it sets, laid over the run's.
 //!
 //! The tests run the binary one at a time (each climbs on every core).
 
@@ -379,6 +380,14 @@ fn the_regressions_suite_passes_every_incident_on_its_own_seed() {
             Scenario::load(case.scenario.as_ref().expect("every incident is a scenario file")).unwrap();
         assert_eq!(r.noise_seed, file.seed, "{}: replayed on its own seed", r.id);
         println!("{} {:<40} expected {:?}: {}", r.id, case.name, r.expect, r.verdict);
+        // The incidents of passes taken walking climb so (their case's `params`): the plan
+        // their pass left a gap for is made again on a look taken standing, which only a
+        // pass taken walking leads to.
+        if ["walking-exp1-wrist-near-a-moving-pass-gap", "walking-chest-held-off-a-moving-pass-gap"]
+            .contains(&case.name.as_str())
+        {
+            assert!(r.looked_again_standing > 0, "{}: climbed on sweeps taken walking", case.name);
+        }
     }
     let failing: Vec<String> = results
         .iter()
@@ -412,4 +421,59 @@ fn a_suite_name_not_found_says_where_it_looked() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("no scenarios/suites/ in") && err.contains("project's root"), "{err}");
     assert!(!elsewhere.join("out").exists(), "nothing written before the refusal");
+}
+
+/// A case may set its own climb parameters (`params` in the suite: an incident kept with the
+/// setting it happened under). They are laid over the run's `--params`, field by field: the
+/// run climbs under them, its reproduce command names a parameters file holding them whole,
+/// and a case that sets none climbs under the run's.
+#[test]
+fn a_case_climbs_under_the_parameters_it_sets_laid_over_the_runs() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let out = dir("case-params");
+    let suite = out.join("own.toml");
+    std::fs::write(
+        &suite,
+        "name = \"own\"\nseed = 1\n[[case]]\nname = \"one-cycle\"\nsteps = 1\nrise_m = 0.12\ntread_m = 0.30\n\
+         params = { run = { max_cycles = 1 } }\n[[case]]\nname = \"listed\"\nsteps = 1\nrise_m = 0.12\n",
+    )
+    .unwrap();
+    let base = out.join("base.toml");
+    std::fs::write(&base, "[run]\nstill_s = 0.25\n").unwrap();
+    let o = stairbench(&[
+        "regress",
+        suite.to_str().unwrap(),
+        "--out",
+        out.join("run").to_str().unwrap(),
+        "--params",
+        base.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_ne!(o.status.code(), Some(2), "the runner itself did not fail");
+    let results = read(&out.join("run/results.jsonl")).unwrap();
+    let one = results.iter().find(|r| r.name.as_deref() == Some("one-cycle")).unwrap();
+    assert_eq!(one.cycles, 1, "the case's max_cycles = 1 held: {one:?}");
+    let file = out.join("run/cases/own-0000.params.toml");
+    assert!(one.reproduce.ends_with(&format!("--params {}", file.display())), "{}", one.reproduce);
+    let own: stairbench::params::ClimbParams =
+        toml::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    assert_eq!(
+        (own.run.max_cycles, own.run.still_s),
+        (1, 0.25),
+        "the case's field over the run's, the run's kept"
+    );
+    let listed = results.iter().find(|r| r.name.as_deref() == Some("listed")).unwrap();
+    assert!(listed.cycles > 1, "a case that sets nothing climbs under the run's: {listed:?}");
+    assert!(listed.reproduce.ends_with(&format!("--params {}", out.join("run/params.toml").display())));
+    assert!(!out.join("run/cases/own-0001.params.toml").exists());
+    // A case's parameters wrong for the suite's reader: refused before a run, nothing run.
+    std::fs::write(
+        &suite,
+        "name = \"own\"\n[[case]]\nname = \"x\"\nsteps = 1\nparams = { run = { max_cycle = 1 } }\n",
+    )
+    .unwrap();
+    let o = stairbench(&["regress", suite.to_str().unwrap(), "--out", out.join("bad").to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("case[0].params") && err.contains("max_cycle"), "{err}");
+    assert!(!out.join("bad/results.jsonl").exists(), "nothing run");
 }

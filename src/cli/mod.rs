@@ -51,8 +51,7 @@ pub fn climb_params(path: Option<&Path>) -> Result<stairbench::params::ClimbPara
     let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
     let params: stairbench::params::ClimbParams =
         toml::from_str(&text).with_context(|| format!("{}: not climb parameters", p.display()))?;
-    params.plan.step.validate().map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
-    params.stabilizer.validate().map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
+    params.validate().map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
     Ok(params)
 }
 

@@ -129,7 +129,7 @@ pub fn run(a: RegressArgs) -> Result<ExitCode> {
     let (all, cases) = select_cases(&a, &suite, &robot, seeds)?;
     let out = a.out.clone().unwrap_or_else(|| Path::new("out/regress").join(&suite.name));
     if a.list {
-        return list(&out, &cases);
+        return list(&out, &cases, &params);
     }
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let params_file = if a.params.is_some() || a.speedup != 1.0 {
@@ -221,8 +221,8 @@ fn select_cases(
 }
 
 /// `--list`: writes the case files and prints a line per case.
-fn list(out: &Path, cases: &[generate::Case]) -> Result<ExitCode> {
-    runner::write_cases(out, cases)?;
+fn list(out: &Path, cases: &[generate::Case], params: &ClimbParams) -> Result<ExitCode> {
+    runner::write_cases(out, cases, params)?;
     for c in cases {
         let e = c.scenario.expect.as_ref();
         println!(
@@ -295,7 +295,7 @@ impl Progress {
 fn describe(c: &generate::Case) -> String {
     let s = &c.scenario.staircase;
     format!(
-        "{} steps x {:.3} m rise x {:.3} m tread, {:.2} m wide, yaw {:.0} deg, {} boxes{}",
+        "{} steps x {:.3} m rise x {:.3} m tread, {:.2} m wide, yaw {:.0} deg, {} boxes{}{}",
         s.steps,
         s.rise_m,
         s.tread_m,
@@ -306,7 +306,8 @@ fn describe(c: &generate::Case) -> String {
             String::new()
         } else {
             format!(", step {:?} missing", s.missing_steps)
-        }
+        },
+        if c.params.is_some() { ", its own climb parameters" } else { "" }
     )
 }
 

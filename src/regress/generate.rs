@@ -37,6 +37,9 @@ pub struct Case {
     pub redraws: usize,
     /// The scenario (its seed is noise draw 0's; its expectation filled in).
     pub scenario: Scenario,
+    /// The climb parameters the suite sets for this case, laid over the run's
+    /// ([`crate::regress::suite::CaseSpec::params`]).
+    pub params: Option<toml::Table>,
 }
 
 /// Why a suite's cases could not be generated.
@@ -102,6 +105,7 @@ pub fn cases(suite: &Suite, robot: &Robot) -> Result<Vec<Case>, GenerateError> {
         fixed: c.fields.clone(),
         by_hand: c.expect.clone(),
         file: c.scenario.clone(),
+        params: c.params.clone(),
     });
     drawn
         .chain(grid)
@@ -115,13 +119,14 @@ pub fn cases(suite: &Suite, robot: &Robot) -> Result<Vec<Case>, GenerateError> {
 }
 
 /// What a case starts from: its name, the fields it fixes (or the scenario file that is
-/// the case), an expectation set by hand.
+/// the case), an expectation set by hand, the climb parameters it sets.
 #[derive(Debug, Clone, Default)]
 struct Plan {
     name: Option<String>,
     fixed: BTreeMap<String, Dist>,
     by_hand: Option<(crate::scenario::ExpectedOutcome, String)>,
     file: Option<std::path::PathBuf>,
+    params: Option<toml::Table>,
 }
 
 /// A case's description: its suite, seed and hash, its index and name, and where it came from.
@@ -169,7 +174,7 @@ fn from_file(
         ("noise_mm".to_string(), Val::Float(scenario.lidar.noise_sigma_m * 1e3)),
         ("nosing_m".to_string(), Val::Float(st.nosing_m)),
     ]);
-    Ok(Case { id, index, name: plan.name.clone(), values, redraws: 0, scenario })
+    Ok(Case { id, index, name: plan.name.clone(), values, redraws: 0, scenario, params: plan.params.clone() })
 }
 
 /// Every combination of the grid's values, the first key varying slowest.
@@ -191,7 +196,7 @@ fn grid_combinations(grid: &[(String, Vec<Val>)]) -> Vec<Vec<(String, Val)>> {
 }
 
 fn one(suite: &Suite, robot: &Robot, index: usize, plan: &Plan) -> Result<Case, GenerateError> {
-    let Plan { name, fixed, by_hand, .. } = plan;
+    let Plan { name, fixed, by_hand, params, .. } = plan;
     let id = format!("{}-{index:04}", suite.name);
     let mut rng = stream(suite.seed, index, 0);
     // The body's fields from their own stream: a suite that gains them keeps its staircases.
@@ -224,7 +229,15 @@ fn one(suite: &Suite, robot: &Robot, index: usize, plan: &Plan) -> Result<Case, 
                 scenario.expect = Some(expected);
                 scenario.description =
                     description(suite, index, name.as_deref(), &format!("drawn after {redraws} redraws"));
-                return Ok(Case { id, index, name: name.clone(), values, redraws, scenario });
+                return Ok(Case {
+                    id,
+                    index,
+                    name: name.clone(),
+                    values,
+                    redraws,
+                    scenario,
+                    params: params.clone(),
+                });
             }
             Err(why) => reason = why,
         }

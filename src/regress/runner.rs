@@ -54,6 +54,14 @@ pub enum RunError {
     /// The results already there.
     #[error(transparent)]
     Results(#[from] super::results::ResultsError),
+    /// A case's climb parameters, laid over the run's, broke a rule.
+    #[error("{id}: its params, laid over the run's: {reason}")]
+    CaseParams {
+        /// The case.
+        id: String,
+        /// Why.
+        reason: String,
+    },
 }
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> RunError + '_ {
@@ -65,19 +73,43 @@ pub fn case_file(out: &Path, id: &str) -> PathBuf {
     out.join("cases").join(format!("{id}.toml"))
 }
 
-/// Writes every case's scenario file.
-pub fn write_cases(out: &Path, cases: &[Case]) -> Result<(), RunError> {
+/// The parameters file of a case that sets its own (`params` in the suite), under `out`.
+pub fn case_params_file(out: &Path, id: &str) -> PathBuf {
+    out.join("cases").join(format!("{id}.params.toml"))
+}
+
+/// The parameters `case` climbs under: the run's, with the case's own laid over them.
+pub fn case_params(base: &ClimbParams, case: &Case) -> Result<ClimbParams, RunError> {
+    match &case.params {
+        None => Ok(base.clone()),
+        Some(t) => {
+            base.with_overrides(t).map_err(|reason| RunError::CaseParams { id: case.id.clone(), reason })
+        }
+    }
+}
+
+/// Writes every case's scenario file, and the parameters file of each that sets its own
+/// (the run's `base` with the case's laid over them, whole: `stairbench run` reproduces it).
+pub fn write_cases(out: &Path, cases: &[Case], base: &ClimbParams) -> Result<(), RunError> {
     let dir = out.join("cases");
     std::fs::create_dir_all(&dir).map_err(io(&dir))?;
+    let other = |path: &Path, e: &dyn std::fmt::Display| RunError::Io {
+        path: path.display().to_string(),
+        source: std::io::Error::other(e.to_string()),
+    };
     for c in cases {
         let path = case_file(out, &c.id);
-        let toml = c.scenario.to_toml_string().map_err(|e| RunError::Io {
-            path: path.display().to_string(),
-            source: std::io::Error::other(e.to_string()),
-        })?;
+        let toml = c.scenario.to_toml_string().map_err(|e| other(&path, &e))?;
+        let mut params = String::new();
+        if c.params.is_some() {
+            let file = case_params_file(out, &c.id);
+            let text = toml::to_string(&case_params(base, c)?).map_err(|e| other(&file, &e))?;
+            std::fs::write(&file, text).map_err(io(&file))?;
+            params = format!(" --params cases/{}.params.toml", c.id);
+        }
         let expected = c.scenario.expect.as_ref().map(|e| format!("{:?}", e.outcome)).unwrap_or_default();
         let text = format!(
-            "# {}\n# Expected: {expected}. Reproduce: stairbench run cases/{}.toml (in the suite's output folder)\n{toml}",
+            "# {}\n# Expected: {expected}. Reproduce: stairbench run cases/{}.toml{params} (in the suite's output folder)\n{toml}",
             c.scenario.description, c.id
         );
         std::fs::write(&path, text).map_err(io(&path))?;
@@ -85,9 +117,9 @@ pub fn write_cases(out: &Path, cases: &[Case]) -> Result<(), RunError> {
     Ok(())
 }
 
-/// A run to do: a case under one noise draw.
+/// A run to do: a case under one noise draw, with the parameters it climbs under.
 struct Job {
-    case: Arc<Case>,
+    case: Arc<(Case, ClimbParams)>,
     seed_index: usize,
 }
 
@@ -124,7 +156,9 @@ pub fn run(
     on_done: &(dyn Fn(&CaseResult, usize, usize) + Sync),
 ) -> Result<Ran, RunError> {
     std::fs::create_dir_all(&opt.out).map_err(io(&opt.out))?;
-    write_cases(&opt.out, cases)?;
+    write_cases(&opt.out, cases, &opt.params)?;
+    let prepared = cases.iter().map(|c| Ok(Arc::new((c.clone(), case_params(&opt.params, c)?))));
+    let prepared: Vec<Arc<(Case, ClimbParams)>> = prepared.collect::<Result<_, RunError>>()?;
     let results_path = opt.out.join("results.jsonl");
     let mut done: Vec<CaseResult> = Vec::new();
     if opt.resume && results_path.exists() {
@@ -136,13 +170,10 @@ pub fn run(
         std::fs::create_dir_all(dir).map_err(io(dir))?;
     }
     let have: BTreeSet<(String, usize)> = done.iter().map(CaseResult::key).collect();
-    let jobs: VecDeque<Job> = cases
+    let jobs: VecDeque<Job> = prepared
         .iter()
-        .flat_map(|c| {
-            let c = Arc::new(c.clone());
-            (0..opt.seeds).map(move |k| Job { case: c.clone(), seed_index: k })
-        })
-        .filter(|j| !have.contains(&(j.case.id.clone(), j.seed_index)))
+        .flat_map(|c| (0..opt.seeds).map(move |k| Job { case: c.clone(), seed_index: k }))
+        .filter(|j| !have.contains(&(j.case.0.id.clone(), j.seed_index)))
         .collect();
     let total = jobs.len();
     let queue = Mutex::new(jobs);
@@ -188,7 +219,9 @@ fn reproduce(opt: &Options, case: &Case, seed_index: usize, seed: u64) -> String
     if seed_index > 0 {
         cmd += &format!(" --seed {seed}");
     }
-    if let Some(p) = &opt.params_file {
+    if case.params.is_some() {
+        cmd += &format!(" --params {}", case_params_file(&opt.out, &case.id).display());
+    } else if let Some(p) = &opt.params_file {
         cmd += &format!(" --params {}", p.display());
     }
     cmd
@@ -196,7 +229,7 @@ fn reproduce(opt: &Options, case: &Case, seed_index: usize, seed: u64) -> String
 
 /// One run: the climb under its time limit, its verdict, its recording kept if it failed.
 fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
-    let case = &job.case;
+    let (case, params) = &*job.case;
     // Draw 0 is the case's own seed (a generated case's is noise_seed(.., 0); a scenario
     // file's, its own), the others drawn.
     let seed = match job.seed_index {
@@ -259,7 +292,7 @@ fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
             }
         });
         let climb = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            climb(&scenario, opt, &recording, &cancel)
+            climb(&scenario, params, &recording, &cancel)
         }));
         drop(stop_timer);
         climb
@@ -305,7 +338,7 @@ fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
 /// The climb of `scenario`, recorded to `recording` when given.
 fn climb(
     scenario: &crate::scenario::Scenario,
-    opt: &Options,
+    params: &ClimbParams,
     recording: &Option<PathBuf>,
     cancel: &Cancel,
 ) -> Result<crate::climb::ClimbReport, String> {
@@ -326,7 +359,7 @@ fn climb(
             r.attach(
                 "params.toml",
                 "application/toml",
-                toml::to_string(&opt.params).unwrap_or_default().as_bytes(),
+                toml::to_string(params).unwrap_or_default().as_bytes(),
             );
             Some(r)
         }
@@ -336,9 +369,8 @@ fn climb(
         Some(r) => r,
         None => &mut Nobody,
     };
-    let report =
-        crate::sim::climb_scenario(scenario, opt.params.loop_params(), &opt.params.sim(), observer, cancel)
-            .map_err(|e| e.to_string());
+    let report = crate::sim::climb_scenario(scenario, params.loop_params(), &params.sim(), observer, cancel)
+        .map_err(|e| e.to_string());
     if let Some(r) = recorder {
         r.finish().map_err(|e| e.to_string())?;
     }

@@ -196,6 +196,10 @@ pub struct CaseSpec {
     /// A scenario file that is the case whole, its noise seed included (a regression kept
     /// as it happened), instead of fields; relative to the suite file's folder.
     pub scenario: Option<std::path::PathBuf>,
+    /// Climb parameters this case runs under, laid over the run's (`regress --params`) as
+    /// [`crate::params::ClimbParams::with_overrides`] lays them: an incident that happened
+    /// with a setting kept with it (`params = { run = { sweep_while_moving = true } }`).
+    pub params: Option<toml::Table>,
 }
 
 /// A parsed, checked suite.
@@ -484,6 +488,7 @@ impl Parser<'_> {
         let mut expect = None;
         let mut reason = String::new();
         let mut scenario = None;
+        let mut params = None;
         let mut rest = toml_edit::Table::new();
         for (k, v) in t.iter() {
             match k {
@@ -498,6 +503,7 @@ impl Parser<'_> {
                     expect = Some(outcome);
                 }
                 "expect_reason" => reason = self.string(&format!("{at}.expect_reason"), v)?,
+                "params" => params = Some(self.params(&format!("{at}.params"), v)?),
                 _ => {
                     rest.insert(k, v.clone());
                 }
@@ -509,14 +515,38 @@ impl Parser<'_> {
                 &format!("{at}.scenario"),
                 span.clone(),
                 format!(
-                    "a case from a scenario file takes name, expect and expect_reason only, not {}",
+                    "a case from a scenario file takes name, expect, expect_reason and params only, not {}",
                     keys.join(", ")
                 ),
             ));
         }
         let fields = self.fields(&at, &Item::Table(rest))?;
         let scenario = scenario.map(|(path, _)| std::path::PathBuf::from(path));
-        Ok(CaseSpec { name, fields, expect: expect.map(|e| (e, reason)), scenario })
+        Ok(CaseSpec { name, fields, expect: expect.map(|e| (e, reason)), scenario, params })
+    }
+
+    /// A case's climb parameters: a table of a parameters file's fields, checked against
+    /// the defaults (an unknown field or a broken rule is refused here, before any run).
+    fn params(&self, field: &str, item: &Item) -> Result<toml::Table, SuiteError> {
+        let mut doc = toml_edit::DocumentMut::new();
+        let inline = item.as_value().and_then(toml_edit::Value::as_inline_table);
+        if item.as_table().is_none() && inline.is_none() {
+            return Err(self.error(
+                field,
+                item.span(),
+                "must be a table of climb parameters, as a --params file holds",
+            ));
+        }
+        doc.insert("p", item.clone());
+        let parsed: Result<toml::Table, _> = toml::from_str(&doc.to_string());
+        let table = match parsed.ok().and_then(|mut t| t.remove("p")) {
+            Some(toml::Value::Table(t)) => t,
+            _ => return Err(self.error(field, item.span(), "must be a table of climb parameters")),
+        };
+        crate::params::ClimbParams::default()
+            .with_overrides(&table)
+            .map_err(|e| self.error(field, item.span(), format!("not climb parameters: {e}")))?;
+        Ok(table)
     }
 }
 
@@ -570,6 +600,32 @@ mod tests {
             .unwrap();
         assert_eq!(s.explicit[0].scenario.as_deref(), Some(Path::new("a.toml")));
         assert!(err("cases = [").contains("s.toml:1"));
+    }
+
+    #[test]
+    fn a_case_keeps_the_climb_parameters_it_sets_and_a_wrong_one_is_refused_at_its_line() {
+        let inline = "[[case]]\nname = \"w\"\nscenario = \"a.toml\"\nparams = { run = { sweep_while_moving = true } }\n";
+        let tables = "[[case]]\nname = \"w\"\nrise_m = 0.2\n[case.params.run]\nsweep_while_moving = true\n\
+                      [case.params.plan.ik]\nbody_clearance_m = 0.04\n[[case]]\nname = \"plain\"\nrise_m = 0.2\n";
+        let s = parse(inline, "s.toml", "s").unwrap();
+        let p = s.explicit[0].params.as_ref().expect("kept");
+        assert_eq!(p["run"]["sweep_while_moving"].as_bool(), Some(true));
+        let s = parse(tables, "s.toml", "s").unwrap();
+        let p = s.explicit[0].params.as_ref().expect("kept");
+        assert_eq!(p["run"]["sweep_while_moving"].as_bool(), Some(true));
+        assert_eq!(p["plan"]["ik"]["body_clearance_m"].as_float(), Some(0.04));
+        assert_eq!(s.explicit[1].params, None, "the next case sets none");
+        // Refused before any run: an unknown field, a wrong type, not a table.
+        let e =
+            err("[[case]]\nname = \"w\"\nrise_m = 0.2\nparams = { run = { sweep_while_movin = true } }\n");
+        assert!(
+            e.contains("s.toml:4") && e.contains("case[0].params") && e.contains("sweep_while_movin"),
+            "{e}"
+        );
+        let e = err("[[case]]\nname = \"w\"\nrise_m = 0.2\n[case.params.run]\nmax_cycles = \"many\"\n");
+        assert!(e.contains("case[0].params") && e.contains("not climb parameters"), "{e}");
+        let e = err("[[case]]\nname = \"w\"\nrise_m = 0.2\nparams = 3\n");
+        assert!(e.contains("s.toml:4") && e.contains("must be a table"), "{e}");
     }
 
     #[test]
