@@ -406,7 +406,8 @@ fn a_flight_climbed_faster_keeps_its_standing_height() {
 /// stood, each row from where the head was at its instant and assembled where the robot's own
 /// estimate had it then, the servo's pass ending at the look level last. Exp. 1 is climbed
 /// clean on them with unseen space kept off (the default), the head rising along the rows of
-/// each sweep after a step-up, and every step they show within 2 cm of its true height. Run
+/// each sweep after a step-up, and every step they show within 2 cm of its true height (a
+/// plan made again on a look taken standing has that look's head still). Run
 /// from level down (the rows just ahead of the head cast first, from farther back), the
 /// space the chest walks into was never crossed and the climb was refused at its fourth
 /// cycle; the space a few centimetres beside the body, which only the oldest rows looked at,
@@ -452,8 +453,19 @@ fn exp1_is_climbed_on_sweeps_taken_as_the_robot_moves() {
         climb_scenario(&s, p.loop_params(), &p.sim(), &mut seen, &Cancel::never()).expect("the world runs");
     println!("sweeps (moving, head's rise m): {:?}", seen.moving);
     assert_climbed(&r, &s, &p.checks);
-    assert!(r.looked_again_standing.is_empty(), "one look a cycle (the sweeps below are read so)");
     assert!(seen.moving.len() >= 5 && seen.moving.iter().all(|m| m.0), "{:?}", seen.moving);
+    // One look a cycle: the look after cycle `n` is sweep `n` (0-based). A cycle whose plan
+    // was made again on a look taken standing had that look after the set-aside cycle
+    // before it: the head did not rise along its rows.
+    assert_eq!(seen.moving.len(), r.cycles.last().map_or(0, |c| c.cycle) + 1, "one look a cycle");
+    for c in r.cycles.iter().filter(|c| c.looked_again_standing.is_some()) {
+        let (_, rise_m) = seen.moving[c.cycle - 1];
+        assert!(
+            rise_m.abs() < 0.01,
+            "cycle {}: its look was taken standing, the head rose {rise_m} m",
+            c.cycle
+        );
+    }
     assert!(seen.moving[0].1.abs() < 0.01, "the first pass is taken standing: nothing moved before it");
     // One pass per look, ending at it (at its last row's instant), and the servo's return
     // between two: the looks are at least a return and a pass's rows apart (a look sooner
@@ -466,7 +478,7 @@ fn exp1_is_climbed_on_sweeps_taken_as_the_robot_moves() {
     }
     // The sweeps after the three step-ups (cycles 3 to 5 end on steps 1 to 3): the head rose
     // with the body along their rows.
-    let ups = r.cycles.iter().enumerate().filter(|(_, c)| c.to != Footing::Floor).map(|(i, _)| i + 1);
+    let ups = r.cycles.iter().filter(|c| c.to != Footing::Floor).map(|c| c.cycle);
     for sweep in ups {
         assert!(seen.moving[sweep].1 > 0.1, "sweep {}: the head rose {} m", sweep + 1, seen.moving[sweep].1);
     }
