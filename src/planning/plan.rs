@@ -127,8 +127,7 @@ impl Plan {
 
 /// A capsule this near the clearance its row keeps was held there by the row, metres: the
 /// row's damper lets a capsule near it only ever more slowly, so one that comes within a
-/// millimetre had the row bind (a plan's body capsules keep 34-77 mm off in most cycles,
-/// and exactly the clearance where a row binds).
+/// millimetre had the row bind.
 pub const HELD_M: f64 = 1e-3;
 
 /// Where the feet are in the configuration `kin` was last updated with.
