@@ -52,11 +52,14 @@ impl ClimbParams {
         }
     }
 
-    /// Checks the rules a parameters file's types do not hold (the step bound, the
-    /// stabilizer's gains).
+    /// Checks the rules a parameters file's types do not hold (perception's, the step
+    /// bound, the stabilizer's gains, the sensors' noise, the estimate's), naming the field.
     pub fn validate(&self) -> Result<(), String> {
+        self.perception.validate().map_err(|e| e.to_string())?;
         self.plan.step.validate()?;
-        self.stabilizer.validate()
+        self.stabilizer.validate()?;
+        self.sensors.validate()?;
+        self.estimate.validate()
     }
 
     /// These parameters with `overrides` laid over them: a parameters file's fields as a
@@ -75,7 +78,8 @@ impl ClimbParams {
         }
         let mut merged = toml::Table::try_from(self).map_err(|e| e.to_string())?;
         lay(&mut merged, overrides);
-        let params: ClimbParams = merged.try_into().map_err(|e: toml::de::Error| e.message().to_string())?;
+        let params: ClimbParams =
+            merged.try_into().map_err(|e: toml::de::Error| e.to_string().trim().replace('\n', " "))?;
         params.validate()?;
         Ok(params)
     }
@@ -128,5 +132,20 @@ mod tests {
         let e = base.with_overrides(&table("[run]\nsweep_while_moving = 3\n")).unwrap_err();
         assert!(e.contains("bool") || e.contains("boolean"), "{e}");
         assert!(base.with_overrides(&table("run = 1\n")).is_err());
+        let e = base.with_overrides(&table("[plan.ik]\nbody_clearance = 0.04\n")).unwrap_err();
+        assert!(e.contains("plan.ik"), "the error names the table: {e}");
+    }
+
+    #[test]
+    fn overrides_that_break_a_rule_of_any_part_are_refused() {
+        let base = ClimbParams::default();
+        for (text, field) in [
+            ("[estimate]\nswitch_load_fraction = 0.2\n", "switch_load_fraction"),
+            ("[sensors]\ngyro_bias_rad_s = [nan, 0.0, 0.0]\n", "gyro_bias_rad_s"),
+            ("[perception]\nvoxel_resolution_m = -0.01\n", "voxel_resolution_m"),
+        ] {
+            let e = base.with_overrides(&table(text)).expect_err(text);
+            assert!(e.contains(field), "{text}: {e}");
+        }
     }
 }

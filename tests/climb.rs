@@ -608,14 +608,24 @@ fn a_plan_bent_around_a_moving_pass_gap_is_made_again_from_a_standing_look() {
         .collect();
     println!("made again from a standing look: cycles {looked_again:?}");
     assert!(!looked_again.is_empty(), "the moving pass of cycle 8 leaves the gap");
+    // The look again costs one sweep taken standing: the robot settled for the look set
+    // aside (its pass was whole by then), stands on until still, and the servo sweeps at
+    // once from where its pass ended (level), with no return to the pass's start and no
+    // second settle.
+    let sweep_s = stairbench::sensor::TiltSweep::from_spec(&s.lidar).duration_s();
+    for c in r.cycles.iter().filter(|c| looked_again.contains(&c.cycle)) {
+        let most_s = p.run.settle_s + 2.0 * p.run.still_s + sweep_s + s.lidar.row_period_s;
+        println!("cycle {}: stood {:.2} s, at most {most_s:.2} s", c.cycle, c.stood_s);
+        assert!(c.stood_s <= most_s, "cycle {}: stood {:.2} s to look again", c.cycle, c.stood_s);
+    }
     for c in &r.cycles {
-        let held = (c.plan_nearest_surface.as_ref())
+        let held = (c.plan_nearest_unseen.as_ref())
             .is_some_and(|n| n.unseen && n.clearance_m < p.plan.ik.body_clearance_m + HELD_M);
         assert!(
             !held || c.cycle == 1 || c.looked_again_standing.is_some(),
             "cycle {}: a plan from a moving pass holds the body off its gap: {:?}",
             c.cycle,
-            c.plan_nearest_surface
+            c.plan_nearest_unseen
         );
     }
 }

@@ -86,9 +86,8 @@ pub struct RunParams {
     /// upper body at its clearance from space the pass left unseen
     /// ([`crate::planning::Plan::held_off_unseen`]) is made again on a look taken standing,
     /// as a refused one is. On by default: the gap is the moving head's (a standing look
-    /// fills it), and the motion bent around it twisted the trunk faster than a sole holds
-    /// and bowed the body until both knees came straight at a touchdown. Off: such plans are
-    /// executed (to see what they do).
+    /// fills it), and a motion bent around it bows and twists the trunk to keep off it.
+    /// Off: such plans are executed (to see what they do).
     pub look_standing_when_held_off_unseen: bool,
     /// Friction coefficient of the surfaces of a hardware rehearsal's world (`run
     /// --hardware`: the perceived steps rebuilt in simulation, whose true friction nobody
@@ -184,18 +183,9 @@ pub fn run<E: Executor>(
     for cycle in 1..=p.run.max_cycles {
         last_cycle = cycle;
         let stand_from_s = robot.now_s();
-        if let Some(stop) = standing_stop(robot.settle(p.run.settle_s).map_err(failed)?, cycle) {
+        if let Some(stop) = stand_to_look(robot, source, p.run, set_aside.is_some(), cycle).map_err(failed)? {
             report.stop = Some(stop);
             break;
-        }
-        // A head sweeping as the robot moves looks when its pass is whole: the robot stands
-        // on while the servo returns from the last pass or the pass under way ends.
-        let wait_s = source.whole_in_s();
-        if wait_s > 0.0 {
-            if let Some(stop) = standing_stop(robot.settle(wait_s).map_err(failed)?, cycle) {
-                report.stop = Some(stop);
-                break;
-            }
         }
         let mut q = robot.configuration();
         let start_floor_z_m = *start_floor.get_or_insert_with(|| feet_height_m(model, &q));
@@ -242,10 +232,9 @@ pub fn run<E: Executor>(
         // A plan refused on a sweep the head took moving is refused for what that sweep saw:
         // its rows crossed the space about the body from where the head was, seconds before.
         // The robot stands and looks again (a pass cast from here, as a standing sweep is); a
-        // refusal on that view stands. So does a plan that bends the body around a gap the
-        // moving pass left (`Plan::held_off_unseen`): held at its clearance from it, the
-        // trunk twisted off it faster than a sole holds, and bowed until both knees came
-        // straight at a touchdown (tests/climb.rs
+        // refusal on that view stands. A plan that holds the body at its clearance from a gap
+        // the moving pass left (`Plan::held_off_unseen`) is made again so too: its motion is
+        // bent around space a standing look fills (tests/climb.rs
         // `a_plan_bent_around_a_moving_pass_gap_is_made_again_from_a_standing_look`).
         let may_look_standing =
             set_aside.is_none() && cycle < p.run.max_cycles && sweep.head_travel_m() > STILL_HEAD_M;
@@ -297,6 +286,7 @@ pub fn run<E: Executor>(
             correction_m,
             correction_yaw_rad,
             plan_nearest_surface: planned.tracking.nearest_body_surface.clone(),
+            plan_nearest_unseen: planned.tracking.nearest_unseen_surface.clone(),
             plan_moments_nm: Some(planned.tracking.moments_nm()),
             execution,
         };
@@ -412,6 +402,35 @@ fn look(
 }
 
 /// Why the loop stops after the robot stood before `cycle`'s sweep, if it does.
+/// The robot stands for a look: it settles (`run.settle_s`, then until still); a head that
+/// sweeps as the robot moves looks when its pass is whole, and the robot stands on while
+/// the servo returns from the last pass or the pass under way ends. A look again standing
+/// (`again`) comes where the robot settled for the look set aside: it stands on only until
+/// still, and the servo sweeps at once from where its pass ended (level, where a sweep
+/// taken standing starts). The stop when the robot fell or slid standing.
+fn stand_to_look<E: Executor>(
+    robot: &mut E,
+    source: &mut dyn Source,
+    run: &RunParams,
+    again: bool,
+    cycle: usize,
+) -> Result<Option<StopReason>, E::Error> {
+    let settle_s = if again { 0.0 } else { run.settle_s };
+    if let Some(stop) = standing_stop(robot.settle(settle_s)?, cycle) {
+        return Ok(Some(stop));
+    }
+    let wait_s = if again {
+        source.sweep_standing_next();
+        0.0
+    } else {
+        source.whole_in_s()
+    };
+    if wait_s > 0.0 {
+        return Ok(standing_stop(robot.settle(wait_s)?, cycle));
+    }
+    Ok(None)
+}
+
 fn standing_stop(standing: Standing, cycle: usize) -> Option<StopReason> {
     match standing {
         Standing::Upright => None,

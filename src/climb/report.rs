@@ -91,6 +91,11 @@ pub struct CycleReport {
     /// IK's clearance range.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub plan_nearest_surface: Option<NearestSurface>,
+    /// Where the plan brought the body nearest the edge of space the lidar left unseen
+    /// (`Tracking::nearest_unseen_surface`), in the same frame; absent when none came
+    /// within the IK's clearance range.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plan_nearest_unseen: Option<NearestSurface>,
     /// The largest moments the plan's change of angular momentum asked of the contacts, N m:
     /// about a horizontal axis, and about the vertical (`Tracking::max_tipping_moment_nm`,
     /// `max_yaw_moment_nm`); absent in reports written before it was measured.

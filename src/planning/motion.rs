@@ -263,6 +263,12 @@ pub struct Tracking {
     /// `None` when none came within `clearance_range_m`.
     #[serde(default)]
     pub nearest_body_surface: Option<NearestSurface>,
+    /// Least distance between the rest of the body and the edge of space the lidar left
+    /// unseen, and where (each capsule's clearance row keeps it off its nearest point, seen
+    /// or unseen: a nearer seen surface elsewhere does not hide a capsule held off unseen
+    /// space); `None` when none came within `clearance_range_m`.
+    #[serde(default)]
+    pub nearest_unseen_surface: Option<NearestSurface>,
     /// QPs solved (over every round of tracking the plan took, see [`super::reach`]).
     pub ik_ticks: usize,
     /// Of them, the QPs the active sets did not solve and clarabel did (all of them with
@@ -392,7 +398,7 @@ pub fn upper_body_mask(model: &RobotModel, feet: &[usize]) -> Vec<bool> {
 /// capsule with an obstacle in range only (the rest of the body, rarely near anything: a
 /// row of zeros per arm, trunk and head shape made every open-flight IK tick 23 % dearer).
 /// Returns the least clearance and which capsule (index in `limbs`) and obstacle it is
-/// between.
+/// between, and the same of the obstacles `marked` only.
 #[allow(clippy::too_many_arguments)]
 fn clearance_rows(
     kin: &Kinematics,
@@ -403,7 +409,8 @@ fn clearance_rows(
     gain_per_s: f64,
     g: &mut ik::Inequality,
     fixed: bool,
-) -> Option<(f64, usize, usize)> {
+    marked: impl Fn(usize) -> bool,
+) -> [Option<(f64, usize, usize)>; 2] {
     let near: Vec<(usize, Option<Nearest>)> = limbs
         .iter()
         .enumerate()
@@ -416,15 +423,17 @@ fn clearance_rows(
             bound: nalgebra::DVector::zeros(near.len()),
         };
     }
-    let mut least: Option<(f64, usize, usize)> = None;
+    let mut least: [Option<(f64, usize, usize)>; 2] = [None, None];
     for (r, (i, near)) in near.into_iter().enumerate() {
         g.jacobian.row_mut(r).fill(0.0);
         g.bound[r] = 1.0;
         if let Some(near) = near {
             g.bound[r] =
                 ik::clearance(kin, jac, limbs[i].link, &near, min_m, gain_per_s, g.jacobian.row_mut(r));
-            if least.is_none_or(|(d, _, _)| near.clearance_m < d) {
-                least = Some((near.clearance_m, i, near.block));
+            for (k, kept) in [true, marked(near.block)].into_iter().enumerate() {
+                if kept && least[k].is_none_or(|(d, _, _)| near.clearance_m < d) {
+                    least[k] = Some((near.clearance_m, i, near.block));
+                }
             }
         }
     }
@@ -499,6 +508,7 @@ pub struct Tracker<'m> {
     clear: [ik::Inequality; 3],
     least: Option<(f64, usize, usize)>,
     least_body: Option<(f64, usize, usize)>,
+    least_unseen: Option<(f64, usize, usize)>,
     least_leg_surface: Option<(f64, usize, usize)>,
 }
 
@@ -567,6 +577,7 @@ impl<'m> Tracker<'m> {
             clear: [legs, body, legs_off_seen],
             least: None,
             least_body: None,
+            least_unseen: None,
             least_leg_surface: None,
         };
         t.update_clearances();
@@ -586,8 +597,9 @@ impl<'m> Tracker<'m> {
             p.clearance_gain_per_s,
             &mut self.clear[0],
             true,
-        );
-        self.least_body = clearance_rows(
+            |_| false,
+        )[0];
+        [self.least_body, self.least_unseen] = clearance_rows(
             kin,
             &mut self.frame_jac,
             &self.upper_limbs,
@@ -596,6 +608,7 @@ impl<'m> Tracker<'m> {
             p.clearance_gain_per_s,
             &mut self.clear[1],
             false,
+            |point| self.seen.point(point).is_some_and(|(_, unseen)| unseen),
         );
         self.least_leg_surface = clearance_rows(
             kin,
@@ -606,7 +619,8 @@ impl<'m> Tracker<'m> {
             p.clearance_gain_per_s,
             &mut self.clear[2],
             false,
-        );
+            |_| false,
+        )[0];
     }
 
     /// The configuration reached.
@@ -652,6 +666,12 @@ impl<'m> Tracker<'m> {
     /// the capsule's index (see [`Tracker::upper_limb_name`]) and the point's (in `seen`).
     pub fn least_body_clearance(&self) -> Option<(f64, usize, usize)> {
         self.least_body
+    }
+
+    /// The same, of the edge of the unseen space only (a capsule's nearest point, the one its
+    /// row keeps it off, when that is unseen).
+    pub fn least_unseen_clearance(&self) -> Option<(f64, usize, usize)> {
+        self.least_unseen
     }
 
     /// The upper body's capsules' names, by index.
@@ -777,6 +797,30 @@ pub fn com_target(seg: &Segment, tau: f64) -> (Point3<f64>, nalgebra::Vector3<f6
     (seg.com_start + (seg.com_end - seg.com_start) * s, (seg.com_end - seg.com_start) * ds / seg.duration_s)
 }
 
+/// `nearest` becomes the upper body's clearance `least` (its value, capsule and point, in
+/// `tracker`) at time `t_s` of segment `segment` when it is nearer.
+fn note_nearest(
+    nearest: &mut Option<NearestSurface>,
+    tracker: &Tracker,
+    least: (f64, usize, usize),
+    t_s: f64,
+    segment: usize,
+) {
+    let (d, limb, point) = least;
+    if nearest.as_ref().is_some_and(|n| d >= n.clearance_m) {
+        return;
+    }
+    let (at, unseen) = tracker.seen().point(point).unwrap_or((Point3::origin(), false));
+    *nearest = Some(NearestSurface {
+        clearance_m: d,
+        limb: tracker.upper_limb_name(limb).to_string(),
+        point_m: [at.x, at.y, at.z],
+        unseen,
+        t_s,
+        segment,
+    });
+}
+
 /// Tracks `segments` from configuration `q0`: one QP per sample at `p.rate_hz`, keeping the
 /// legs `p.leg_clearance_m` off the `blocks` (the steps, see [`clearance::step_blocks`]) and
 /// the whole body `p.body_clearance_m` off the `seen` surfaces (the legs off those off the
@@ -848,18 +892,12 @@ pub fn track(
                     });
                 }
             }
+            if let Some((d, limb, point)) = tracker.least_unseen_clearance() {
+                note_nearest(&mut stats.nearest_unseen_surface, &tracker, (d, limb, point), t, si);
+            }
             if let Some((d, limb, point)) = tracker.least_body_clearance() {
                 let (at, unseen) = tracker.seen().point(point).unwrap_or((Point3::origin(), false));
-                if stats.nearest_body_surface.as_ref().is_none_or(|n| d < n.clearance_m) {
-                    stats.nearest_body_surface = Some(NearestSurface {
-                        clearance_m: d,
-                        limb: tracker.upper_limb_name(limb).to_string(),
-                        point_m: [at.x, at.y, at.z],
-                        unseen,
-                        t_s: t,
-                        segment: si,
-                    });
-                }
+                note_nearest(&mut stats.nearest_body_surface, &tracker, (d, limb, point), t, si);
                 if d < p.min_body_clearance_m {
                     return Err(PlanError::BodyNearSurface {
                         segment: si,

@@ -106,15 +106,16 @@ impl Plan {
         self.segments.iter().map(|s| s.margin_m).fold(f64::INFINITY, f64::min)
     }
 
-    /// [`PlanError::HeldOffUnseen`] where the upper body came within [`HELD_M`] of the
-    /// clearance the IK keeps (`p.body_clearance_m`, the IK's `p`) from the edge of
-    /// unseen space: its clearance row held it there. Whether that is a refusal is the
+    /// [`PlanError::HeldOffUnseen`] where the upper body came nearer the edge of unseen
+    /// space than the clearance the IK keeps from it (`p.body_clearance_m`, the IK's `p`)
+    /// and [`HELD_M`] (`Tracking::nearest_unseen_surface`): a capsule's clearance row held
+    /// it there. Whether that is a refusal is the
     /// caller's: from a pass taken moving it is (the gap is the moving head's, and a
     /// standing look fills it); from one taken standing the gap is a shadow, and the plan
     /// keeps off it as it must.
     pub fn held_off_unseen(&self, p: &IkParams) -> Option<PlanError> {
-        let n = self.tracking.nearest_body_surface.as_ref()?;
-        (n.unseen && n.clearance_m < p.body_clearance_m + HELD_M).then(|| PlanError::HeldOffUnseen {
+        let n = self.tracking.nearest_unseen_surface.as_ref()?;
+        (n.clearance_m < p.body_clearance_m + HELD_M).then(|| PlanError::HeldOffUnseen {
             segment: n.segment,
             limb: n.limb.clone(),
             point_m: n.point_m,

@@ -520,6 +520,18 @@ impl Parser<'_> {
                 ),
             ));
         }
+        let gait = |p: &toml::Table| {
+            p.get("plan").and_then(toml::Value::as_table).is_some_and(|plan| plan.contains_key("gait"))
+        };
+        if let (Some(p), None) = (&params, &expect) {
+            if gait(p) {
+                return Err(self.error(
+                    &format!("{at}.params"),
+                    t.get("params").and_then(Item::span),
+                    "a case that sets its own plan.gait states its expect (the outcome is otherwise drawn from the run's gait limits, not the case's)",
+                ));
+            }
+        }
         let fields = self.fields(&at, &Item::Table(rest))?;
         let scenario = scenario.map(|(path, _)| std::path::PathBuf::from(path));
         Ok(CaseSpec { name, fields, expect: expect.map(|e| (e, reason)), scenario, params })
@@ -539,9 +551,17 @@ impl Parser<'_> {
         }
         doc.insert("p", item.clone());
         let parsed: Result<toml::Table, _> = toml::from_str(&doc.to_string());
-        let table = match parsed.ok().and_then(|mut t| t.remove("p")) {
-            Some(toml::Value::Table(t)) => t,
-            _ => return Err(self.error(field, item.span(), "must be a table of climb parameters")),
+        let table = match parsed.map(|mut t| t.remove("p")) {
+            Ok(Some(toml::Value::Table(t))) => t,
+            Ok(_) => return Err(self.error(field, item.span(), "must be a table of climb parameters")),
+            Err(e) => {
+                let e = e.to_string().trim().replace('\n', " ");
+                return Err(self.error(
+                    field,
+                    item.span(),
+                    format!("must be a table of climb parameters: {e}"),
+                ));
+            }
         };
         crate::params::ClimbParams::default()
             .with_overrides(&table)
@@ -626,6 +646,15 @@ mod tests {
         assert!(e.contains("case[0].params") && e.contains("not climb parameters"), "{e}");
         let e = err("[[case]]\nname = \"w\"\nrise_m = 0.2\nparams = 3\n");
         assert!(e.contains("s.toml:4") && e.contains("must be a table"), "{e}");
+        // A case's own gait limits would not be the ones its outcome is drawn against: it
+        // states its expect, or is refused.
+        let gait =
+            "[[case]]\nname = \"g\"\nrise_m = 0.2\nparams = { plan = { gait = { max_rise_m = 0.15 } } }\n";
+        let e = err(gait);
+        assert!(e.contains("s.toml:4") && e.contains("plan.gait") && e.contains("expect"), "{e}");
+        let stated =
+            gait.replace("rise_m = 0.2\n", "rise_m = 0.2\nexpect = \"refuse\"\nexpect_reason = \"x\"\n");
+        assert!(parse(&stated, "s.toml", "s").is_ok(), "with its expect stated it is kept");
     }
 
     #[test]

@@ -195,6 +195,7 @@ mod tests {
                     correction_m: None,
                     correction_yaw_rad: None,
                     plan_nearest_surface: None,
+                    plan_nearest_unseen: None,
                     plan_moments_nm: None,
                     execution,
                 }

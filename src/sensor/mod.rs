@@ -40,6 +40,11 @@ pub trait Source {
     fn whole_in_s(&self) -> f64 {
         0.0
     }
+
+    /// The pass under way is dropped: the next [`Source::sweep`] is taken standing, from
+    /// where the head is, at once (the loop looks again standing at a plan a moving pass
+    /// could not settle). Nothing to do for a source that sweeps standing when asked.
+    fn sweep_standing_next(&mut self) {}
 }
 
 /// One row of the lidar: one mirror revolution, `beams` ranges in a plane.

@@ -64,7 +64,14 @@ impl TiltSweep {
     /// Time the servo takes back from the sweep's end to its start, between two passes,
     /// seconds.
     pub fn return_s(&self) -> f64 {
-        (self.end_rad - self.start_rad).abs() / self.return_speed_radps
+        self.to_start_of_s(self)
+    }
+
+    /// Time the servo takes at its return speed from this sweep's end to where `next`
+    /// starts, seconds: a sweep taken standing from level down ends where a pass run level
+    /// last ([`TiltSweep::level_last`]) starts, and none is needed.
+    pub fn to_start_of_s(&self, next: &TiltSweep) -> f64 {
+        (next.start_rad - self.end_rad).abs() / self.return_speed_radps
     }
 
     /// The true (continuous) tilt at time `t_s` after the start, radians.
@@ -119,5 +126,12 @@ mod tests {
         // 60 degrees back at 40 degrees a second, whichever way the sweep runs.
         assert!((TiltSweep::from_spec(&spec).return_s() - 1.5).abs() < 1e-12);
         assert!((TiltSweep::from_spec(&spec).level_last().return_s() - 1.5).abs() < 1e-12);
+        // From a standing sweep's end (steep) a pass run level last starts where it is; from
+        // that pass's end (level) a standing sweep starts where it is too.
+        let standing = TiltSweep::from_spec(&spec);
+        let walking = standing.clone().level_last();
+        assert_eq!(standing.to_start_of_s(&walking), 0.0);
+        assert_eq!(walking.to_start_of_s(&standing), 0.0);
+        assert!((walking.to_start_of_s(&walking) - 1.5).abs() < 1e-12);
     }
 }

@@ -5,6 +5,8 @@
 //! gyro ([`crate::estimate::path`]). The servo runs one pass per look, ending at the look,
 //! then swings back to the sweep's start: the next pass's rows begin after that return, and
 //! a look that comes before a whole pass waits for it standing ([`HeadTrack::whole_at_s`]).
+//! A sweep taken standing instead (the first look, a look again standing) runs from level
+//! down and ends where the next pass starts ([`HeadTrack::swept_standing`]).
 
 use crate::estimate::path::{smoothed_heads, Belief, GyroTurn};
 use crate::scenario::LidarSpec;
@@ -21,6 +23,9 @@ pub struct HeadTrack {
     rows: usize,
     /// The servo's way back to the sweep's start after a pass, seconds.
     return_s: f64,
+    /// The servo's way from the end of a sweep taken standing to the start of a pass,
+    /// seconds (0 for the paper's sweep, which runs from level down).
+    after_standing_s: f64,
     /// When the next sample is due, on the world's clock, seconds.
     next_s: f64,
     /// (true head pose, the robot's belief), oldest first.
@@ -37,6 +42,7 @@ impl HeadTrack {
             period_s: spec.row_period_s,
             rows: sweep.rows(),
             return_s: sweep.return_s(),
+            after_standing_s: sweep.to_start_of_s(&sweep.clone().level_last()),
             next_s: f64::NEG_INFINITY,
             samples: VecDeque::new(),
             gyro: None,
@@ -101,6 +107,20 @@ impl HeadTrack {
         self.samples.clear();
         self.next_s = now_s + self.return_s;
         heads
+    }
+
+    /// The pass under way is dropped: the next look is a sweep taken standing
+    /// ([`HeadTrack::swept_standing`]), not one along the head's path.
+    pub fn drop_pass(&mut self) {
+        self.samples.clear();
+    }
+
+    /// A sweep was taken standing at `now_s` (instead of a pass along the head's path): the
+    /// servo goes on from its end to the start of the next pass, whose rows are due from then
+    /// on.
+    pub fn swept_standing(&mut self, now_s: f64) {
+        self.samples.clear();
+        self.next_s = now_s + self.after_standing_s;
     }
 
     /// The last sweep's worth of heads, oldest first, when the track holds that many: each
@@ -206,5 +226,14 @@ mod tests {
         let now = run_to(&mut track, now + 1.0);
         assert!(track.take(now).is_none());
         assert!(!track.due(now + sweep.return_s() - 2.0 * dt, dt));
+        // A sweep taken standing instead ends where the next pass starts: no return.
+        track.swept_standing(now);
+        assert!(track.due(now, dt));
+        let whole_at = track.whole_at_s(now);
+        assert!((whole_at - (now + (sweep.rows() - 1) as f64 * spec.row_period_s)).abs() < 1e-9);
+        // A dropped pass is not whole however far it had come.
+        let now = run_to(&mut track, whole_at - 1.0);
+        track.drop_pass();
+        assert!(track.take(now).is_none());
     }
 }

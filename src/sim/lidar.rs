@@ -65,7 +65,16 @@ impl Source for SimSource<'_> {
             return lidar.sweep_rows(cancel, on_rows);
         }
         let head = world.site_pose(self.head_site);
+        if let Some(track) = self.track {
+            track.borrow_mut().swept_standing(world.data().time());
+        }
         SimLidar::new(&*world, &self.spec, &head, seed).sweep_rows(cancel, on_rows)
+    }
+
+    fn sweep_standing_next(&mut self) {
+        if let Some(track) = self.track {
+            track.borrow_mut().drop_pass();
+        }
     }
 
     fn whole_in_s(&self) -> f64 {
