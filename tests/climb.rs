@@ -453,27 +453,34 @@ fn exp1_is_climbed_on_sweeps_taken_as_the_robot_moves() {
         climb_scenario(&s, p.loop_params(), &p.sim(), &mut seen, &Cancel::never()).expect("the world runs");
     println!("sweeps (moving, head's rise m): {:?}", seen.moving);
     assert_climbed(&r, &s, &p.checks);
-    assert!(seen.moving.len() >= 5 && seen.moving.iter().all(|m| m.0), "{:?}", seen.moving);
     // One look a cycle: the look after cycle `n` is sweep `n` (0-based). A cycle whose plan
     // was made again on a look taken standing had that look after the set-aside cycle
-    // before it: the head did not rise along its rows.
+    // before it: a sweep taken standing (no rows along a moving head). Every other is a
+    // pass along the head's path.
     assert_eq!(seen.moving.len(), r.cycles.last().map_or(0, |c| c.cycle) + 1, "one look a cycle");
-    for c in r.cycles.iter().filter(|c| c.looked_again_standing.is_some()) {
-        let (_, rise_m) = seen.moving[c.cycle - 1];
-        assert!(
-            rise_m.abs() < 0.01,
-            "cycle {}: its look was taken standing, the head rose {rise_m} m",
-            c.cycle
-        );
+    let again: Vec<usize> =
+        r.cycles.iter().filter(|c| c.looked_again_standing.is_some()).map(|c| c.cycle - 1).collect();
+    for (i, (moving, rise_m)) in seen.moving.iter().enumerate() {
+        assert_eq!(*moving, !again.contains(&i), "sweep {}: {:?}", i + 1, seen.moving);
+        if again.contains(&i) {
+            assert!(rise_m.abs() < 0.01, "sweep {}: taken standing, the head rose {rise_m} m", i + 1);
+        }
     }
+    assert!(seen.moving.len() >= 5);
     assert!(seen.moving[0].1.abs() < 0.01, "the first pass is taken standing: nothing moved before it");
     // One pass per look, ending at it (at its last row's instant), and the servo's return
     // between two: the looks are at least a return and a pass's rows apart (a look sooner
-    // stands until its pass is whole).
+    // stands until its pass is whole). A look again standing sweeps at once, from where the
+    // pass ended, and the pass after it starts where that sweep ends: no return.
     let servo = stairbench::sensor::TiltSweep::from_spec(&s.lidar);
-    let least_s = servo.return_s() + (servo.rows() - 1) as f64 * s.lidar.row_period_s;
-    for w in seen.looked_s.windows(2) {
+    let rows_s = (servo.rows() - 1) as f64 * s.lidar.row_period_s;
+    for (i, w) in seen.looked_s.windows(2).enumerate() {
         let apart_s = w[1] - w[0];
+        let least_s = match (again.contains(&i), again.contains(&(i + 1))) {
+            (_, true) => 0.0,
+            (true, false) => rows_s,
+            (false, false) => servo.return_s() + rows_s,
+        };
         assert!(apart_s >= least_s - 1e-3, "looks {apart_s:.3} s apart, less than {least_s:.3} s");
     }
     // The sweeps after the three step-ups (cycles 3 to 5 end on steps 1 to 3): the head rose
@@ -495,22 +502,27 @@ fn exp1_is_climbed_on_sweeps_taken_as_the_robot_moves() {
 /// Exp. 1 at noise seed 1 on sweeps taken as the robot moves: the plan made from the pass the
 /// head took stepping up onto step 1 brings the right wrist within 19 mm of space beside the
 /// arm that pass's rows never crossed (cast seconds before, from lower and farther back), and
-/// was refused there. The robot stands and looks again from where it is, a pass cast from
-/// there as a standing sweep is, and climbs on that view; the stand is counted.
+/// was refused there. The robot stands and looks again from where it is, a sweep taken
+/// standing, and climbs on that view; the stand is counted.
 #[test]
 fn a_plan_refused_on_a_sweep_taken_walking_is_made_again_on_a_standing_look() {
-    /// The looks (when, how far the head went during the sweep, metres) and the cycles'
-    /// ends (when, the seconds the cycle says it stood), in the order they came.
+    /// The looks (when, how far the head went during the sweep, metres, and the seconds a
+    /// sweep taken standing takes, cast in no simulated time) and the cycles' ends (when, the
+    /// seconds the cycle says it stood), in the order they came.
     #[derive(Default)]
-    struct Looks(Vec<(bool, f64, f64)>);
+    struct Looks(Vec<(bool, f64, f64, f64)>);
     impl stairbench::climb::Observer for Looks {
         fn event(&mut self, event: &stairbench::climb::Event) {
             match event {
                 stairbench::climb::Event::Sweep { sweep, stamp_s } => {
-                    self.0.push((true, *stamp_s, sweep.head_travel_m()))
+                    let standing_s = match sweep.moving() {
+                        true => 0.0,
+                        false => sweep.rows.len() as f64 * sweep.lidar.row_period_s(),
+                    };
+                    self.0.push((true, *stamp_s, sweep.head_travel_m(), standing_s))
                 }
                 stairbench::climb::Event::Cycle { stamp_s, report } => {
-                    self.0.push((false, *stamp_s, report.stood_s))
+                    self.0.push((false, *stamp_s, report.stood_s, 0.0))
                 }
                 _ => {}
             }
@@ -528,25 +540,27 @@ fn a_plan_refused_on_a_sweep_taken_walking_is_made_again_on_a_standing_look() {
     assert_eq!(again, r.looked_again_standing.len(), "each set aside refusal carried by the cycle after it");
     // Every second of the climb's stands is counted: a cycle stood from the end of the one
     // before to its last look (its sweeps taken walking cost no stand of their own), the
-    // set-aside look's stand included. A second look is cast standing.
+    // set-aside look's stand included, and the sweep of a look taken standing. A second look
+    // is a sweep taken standing.
     let mut cycle_end_s: Option<f64> = None;
-    let mut cycle_looks: Vec<(f64, f64)> = Vec::new();
-    for &(is_look, stamp_s, x) in &looks.0 {
+    let mut cycle_looks: Vec<(f64, f64, f64)> = Vec::new();
+    for &(is_look, stamp_s, x, standing_s) in &looks.0 {
         if is_look {
-            cycle_looks.push((stamp_s, x));
+            cycle_looks.push((stamp_s, x, standing_s));
             continue;
         }
-        let (looked_s, _) = *cycle_looks.last().expect("a look before each cycle");
+        let (looked_s, _, sweep_s) = *cycle_looks.last().expect("a look before each cycle");
         if let Some(from_s) = cycle_end_s {
             assert!(
-                (x - (looked_s - from_s)).abs() < 1e-6,
-                "stood {x:.3} s, {:.3} s from the last cycle to its look",
+                (x - (looked_s - from_s + sweep_s)).abs() < 1e-6,
+                "stood {x:.3} s, {:.3} s from the last cycle to its look and {sweep_s:.3} s of standing sweep",
                 looked_s - from_s
             );
         }
         if cycle_looks.len() > 1 {
-            let (_, travel_m) = cycle_looks[cycle_looks.len() - 1];
+            let (_, travel_m, sweep_s) = cycle_looks[cycle_looks.len() - 1];
             assert!(travel_m < 0.02, "the second look's head went {travel_m:.3} m");
+            assert!(sweep_s > 0.0, "the second look is a sweep taken standing");
         }
         cycle_end_s = Some(stamp_s);
         cycle_looks.clear();

@@ -447,7 +447,10 @@ const LEAST_WALK_BACK_M: f64 = 0.05;
 /// floor (behind the feet it sees nothing) and never into or against a perceived step. The
 /// front as perceived moves toward the robot as nearer parts of the tread come into view,
 /// never past the riser, so walks back from it stop. Empty when the feet are that far back
-/// already (within `LEAST_WALK_BACK_M`), or there are no steps.
+/// already (within `LEAST_WALK_BACK_M`), or there are no steps. Empty too when the feet
+/// stand past the lowest step's front (their middle): the view puts the step where the robot
+/// stands on the floor, so it is wrong (a lone step seen with its axes swapped), and a walk back from it
+/// goes backward, where the lidar never looked, as far as that wrong front asks.
 pub fn retreat(start: &Stance, rects: &[PlaneSegment], seen: &[Point3<f64>], p: &GaitParams) -> Vec<Stance> {
     if rects.is_empty() {
         return Vec::new();
@@ -456,7 +459,7 @@ pub fn retreat(start: &Stance, rects: &[PlaneSegment], seen: &[Point3<f64>], p: 
     let lay = Layout::new(start, &steps, seen, p);
     let (front, _, _) = lay.foothold_along(&steps, 0, p);
     let back_to = front - p.approach_blind_m;
-    if lay.start_along - back_to < LEAST_WALK_BACK_M {
+    if lay.start_along - back_to < LEAST_WALK_BACK_M || lay.start_along > front {
         return Vec::new();
     }
     let free = |f: &Isometry3<f64>| on_seen_floor(f, seen, lay.floor_z, 0, p) && clear_of_steps(f, &steps, p);
@@ -1488,6 +1491,12 @@ mod tests {
         assert!((from - (0.341 - p.approach_blind_m)).abs() < 1e-9, "ends at {from:.3}");
         // From there (within millimetres), nothing more is walked back.
         assert!(retreat(&stance_at(from + 0.004), &rects, &[], &p).is_empty());
+        // Feet whose middle stands past the front stand where the view puts the step: nothing
+        // is walked back, however far the front asks (`real-0073`: a lone step seen turned
+        // walked the robot back into a wall no view had seen). With the middle before it (the
+        // toes over it, as a front seen centimetres off allows) the walk back stands.
+        assert!(retreat(&stance_at(0.35), &rects, &[], &p).is_empty());
+        assert!(!retreat(&stance_at(0.33), &rects, &[], &p).is_empty());
         // A box seen where the feet would go: no stance there.
         let boxed: Vec<Point3<f64>> = (0..10)
             .flat_map(|i| {
