@@ -477,7 +477,7 @@ fn exp1_is_climbed_on_sweeps_taken_as_the_robot_moves() {
     for (i, w) in seen.looked_s.windows(2).enumerate() {
         let apart_s = w[1] - w[0];
         let least_s = match (again.contains(&i), again.contains(&(i + 1))) {
-            (_, true) => 0.0,
+            (_, true) => p.run.still_s,
             (true, false) => rows_s,
             (false, false) => servo.return_s() + rows_s,
         };

@@ -231,7 +231,7 @@ pub fn run<E: Executor>(
         }
         // A plan refused on a sweep the head took moving is refused for what that sweep saw:
         // its rows crossed the space about the body from where the head was, seconds before.
-        // The robot stands and looks again (a pass cast from here, as a standing sweep is); a
+        // The robot stands and looks again (a sweep taken standing, from here); a
         // refusal on that view stands. A plan that holds the body at its clearance from a gap
         // the moving pass left (`Plan::held_off_unseen`) is made again so too: its motion is
         // bent around space a standing look fills (tests/climb.rs
@@ -401,13 +401,13 @@ fn look(
     Ok(View { sweep, cloud, seen, nothing, scan_s, perceive_s })
 }
 
-/// Why the loop stops after the robot stood before `cycle`'s sweep, if it does.
 /// The robot stands for a look: it settles (`run.settle_s`, then until still); a head that
 /// sweeps as the robot moves looks when its pass is whole, and the robot stands on while
 /// the servo returns from the last pass or the pass under way ends. A look again standing
 /// (`again`) comes where the robot settled for the look set aside: it stands on only until
-/// still, and the servo sweeps at once from where its pass ended (level, where a sweep
-/// taken standing starts). The stop when the robot fell or slid standing.
+/// still and while the servo goes from where its pass ended to where a sweep taken standing
+/// starts (no time for the paper's sweep: a pass ends level, where that sweep starts). The
+/// stop when the robot fell or slid standing.
 fn stand_to_look<E: Executor>(
     robot: &mut E,
     source: &mut dyn Source,
@@ -419,18 +419,14 @@ fn stand_to_look<E: Executor>(
     if let Some(stop) = standing_stop(robot.settle(settle_s)?, cycle) {
         return Ok(Some(stop));
     }
-    let wait_s = if again {
-        source.sweep_standing_next();
-        0.0
-    } else {
-        source.whole_in_s()
-    };
+    let wait_s = if again { source.sweep_standing_next() } else { source.whole_in_s() };
     if wait_s > 0.0 {
         return Ok(standing_stop(robot.settle(wait_s)?, cycle));
     }
     Ok(None)
 }
 
+/// Why the loop stops after the robot stood before `cycle`'s sweep, if it does.
 fn standing_stop(standing: Standing, cycle: usize) -> Option<StopReason> {
     match standing {
         Standing::Upright => None,

@@ -159,6 +159,10 @@ fn from_file(
             ..by_hand_spec(hand)
         },
         (None, Some(own)) => own,
+        (None, None) if plan.params.as_ref().is_some_and(super::suite::sets_gait) => {
+            let error = "its params set plan.gait and neither the suite nor the file states its expect (the outcome is otherwise drawn from the run's gait limits, not the case's)";
+            return Err(GenerateError::Scenario { id, error: error.to_string() });
+        }
         (None, None) => expect(&scenario, &robot.gait, robot.feet_half_spacing_m),
     };
     scenario.expect = Some(expected);
@@ -628,6 +632,33 @@ mod tests {
         let e = c.expect("drawn")[0].scenario.expect.clone().expect("an expectation");
         assert_eq!((e.outcome, e.max_estimate_error_m), (ExpectedOutcome::Climb, Some(0.025)));
         assert!(e.reason.contains("the suite's"), "{}", e.reason);
+    }
+
+    /// A scenario file's case that sets its own gait limits is judged by the expect the file
+    /// or the suite states; with neither it is refused (the run's limits are not the case's).
+    #[test]
+    fn a_files_case_with_its_own_gait_needs_an_expect_stated() {
+        use crate::scenario::{ExpectSpec, ExpectedOutcome, Scenario};
+        let dir = std::env::temp_dir();
+        let bare = dir.join(format!("stairbench-gait-bare-{}.toml", std::process::id()));
+        let stated = dir.join(format!("stairbench-gait-stated-{}.toml", std::process::id()));
+        std::fs::write(&bare, Scenario::default().to_toml_string().expect("toml")).expect("written");
+        let own = ExpectSpec::new(ExpectedOutcome::Refuse, "the file's".into());
+        let with = Scenario { expect: Some(own), ..Scenario::default() };
+        std::fs::write(&stated, with.to_toml_string().expect("toml")).expect("written");
+        let case = |f: &std::path::Path| {
+            let text = format!(
+                "[[case]]\nname = \"g\"\nscenario = {:?}\nparams = {{ plan = {{ gait = {{ max_rise_m = 0.15 }} }} }}\n",
+                f.display().to_string()
+            );
+            cases(&parse(&text, "s", "x").expect("valid"), &robot())
+        };
+        let (refused, kept) = (case(&bare), case(&stated));
+        let _ = (std::fs::remove_file(&bare), std::fs::remove_file(&stated));
+        let e = refused.expect_err("no expect stated").to_string();
+        assert!(e.contains("x-0000") && e.contains("plan.gait"), "{e}");
+        let e = kept.expect("the file states its expect")[0].scenario.expect.clone().expect("kept");
+        assert_eq!(e.outcome, ExpectedOutcome::Refuse);
     }
 
     #[test]

@@ -520,11 +520,10 @@ impl Parser<'_> {
                 ),
             ));
         }
-        let gait = |p: &toml::Table| {
-            p.get("plan").and_then(toml::Value::as_table).is_some_and(|plan| plan.contains_key("gait"))
-        };
-        if let (Some(p), None) = (&params, &expect) {
-            if gait(p) {
+        // A scenario file may state its own expect: judged when the file is read
+        // (`generate::from_file`).
+        if let (Some(p), None, None) = (&params, &expect, &scenario) {
+            if sets_gait(p) {
                 return Err(self.error(
                     &format!("{at}.params"),
                     t.get("params").and_then(Item::span),
@@ -568,6 +567,11 @@ impl Parser<'_> {
             .map_err(|e| self.error(field, item.span(), format!("not climb parameters: {e}")))?;
         Ok(table)
     }
+}
+
+/// Whether a case's climb parameters set the planner's gait limits (`plan.gait`).
+pub fn sets_gait(params: &toml::Table) -> bool {
+    params.get("plan").and_then(toml::Value::as_table).is_some_and(|plan| plan.contains_key("gait"))
 }
 
 #[cfg(test)]

@@ -42,9 +42,13 @@ pub trait Source {
     }
 
     /// The pass under way is dropped: the next [`Source::sweep`] is taken standing, from
-    /// where the head is, at once (the loop looks again standing at a plan a moving pass
-    /// could not settle). Nothing to do for a source that sweeps standing when asked.
-    fn sweep_standing_next(&mut self) {}
+    /// where the head is (the loop looks again standing at a plan a moving pass could not
+    /// settle). Returns the seconds the servo needs first, from where its pass ended to
+    /// where a standing sweep starts (0 for the paper's sweep: a pass ends level, where a
+    /// standing sweep starts). 0 for a source that sweeps standing when asked.
+    fn sweep_standing_next(&mut self) -> f64 {
+        0.0
+    }
 }
 
 /// One row of the lidar: one mirror revolution, `beams` ranges in a plane.

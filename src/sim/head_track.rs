@@ -5,8 +5,10 @@
 //! gyro ([`crate::estimate::path`]). The servo runs one pass per look, ending at the look,
 //! then swings back to the sweep's start: the next pass's rows begin after that return, and
 //! a look that comes before a whole pass waits for it standing ([`HeadTrack::whole_at_s`]).
-//! A sweep taken standing instead (the first look, a look again standing) runs from level
-//! down and ends where the next pass starts ([`HeadTrack::swept_standing`]).
+//! A sweep taken standing instead (a look again standing, a look that did not wait for a
+//! whole pass) is the lidar spec's own; the paper's runs from level down, so it starts where
+//! a pass ends and ends where the next starts ([`HeadTrack::drop_pass`],
+//! [`HeadTrack::swept_standing`]).
 
 use crate::estimate::path::{smoothed_heads, Belief, GyroTurn};
 use crate::scenario::LidarSpec;
@@ -26,6 +28,9 @@ pub struct HeadTrack {
     /// The servo's way from the end of a sweep taken standing to the start of a pass,
     /// seconds (0 for the paper's sweep, which runs from level down).
     after_standing_s: f64,
+    /// The servo's way from the end of a pass to the start of a sweep taken standing,
+    /// seconds (0 for the paper's sweep: a pass ends level, where it starts).
+    before_standing_s: f64,
     /// When the next sample is due, on the world's clock, seconds.
     next_s: f64,
     /// (true head pose, the robot's belief), oldest first.
@@ -43,6 +48,7 @@ impl HeadTrack {
             rows: sweep.rows(),
             return_s: sweep.return_s(),
             after_standing_s: sweep.to_start_of_s(&sweep.clone().level_last()),
+            before_standing_s: sweep.clone().level_last().to_start_of_s(&sweep),
             next_s: f64::NEG_INFINITY,
             samples: VecDeque::new(),
             gyro: None,
@@ -99,9 +105,9 @@ impl HeadTrack {
     }
 
     /// The pass that ends at `now_s` ([`HeadTrack::sweep`]; `None` when the track holds less
-    /// than a whole one, and the head sweeps standing instead). Either way the servo then
-    /// swings back to the sweep's start: the next pass's rows are due from `now_s` plus the
-    /// return on.
+    /// than a whole one, and the head sweeps standing instead, [`HeadTrack::swept_standing`]).
+    /// The servo then swings back to the sweep's start: the next pass's rows are due from
+    /// `now_s` plus the return on.
     pub fn take(&mut self, now_s: f64) -> Option<Vec<(Isometry3<f64>, Isometry3<f64>)>> {
         let heads = self.sweep();
         self.samples.clear();
@@ -110,9 +116,11 @@ impl HeadTrack {
     }
 
     /// The pass under way is dropped: the next look is a sweep taken standing
-    /// ([`HeadTrack::swept_standing`]), not one along the head's path.
-    pub fn drop_pass(&mut self) {
+    /// ([`HeadTrack::swept_standing`]), not one along the head's path. Returns the seconds
+    /// the servo takes from the pass's end to that sweep's start.
+    pub fn drop_pass(&mut self) -> f64 {
         self.samples.clear();
+        self.before_standing_s
     }
 
     /// A sweep was taken standing at `now_s` (instead of a pass along the head's path): the
@@ -233,7 +241,14 @@ mod tests {
         assert!((whole_at - (now + (sweep.rows() - 1) as f64 * spec.row_period_s)).abs() < 1e-9);
         // A dropped pass is not whole however far it had come.
         let now = run_to(&mut track, whole_at - 1.0);
-        track.drop_pass();
+        assert_eq!(track.drop_pass(), 0.0, "the pass ended level, where a standing sweep starts");
         assert!(track.take(now).is_none());
+        // A lidar whose standing sweep runs from steep to level, as its passes do: the servo
+        // goes back to the steep end before a standing sweep, and again after one.
+        let steep_first = LidarSpec { tilt_start_deg: 70.0, tilt_end_deg: 10.0, ..spec.clone() };
+        let mut other = HeadTrack::new(&steep_first);
+        assert!((other.drop_pass() - sweep.return_s()).abs() < 1e-12);
+        other.swept_standing(now);
+        assert!(!other.due(now + sweep.return_s() - 2.0 * dt, dt) && other.due(now + sweep.return_s(), dt));
     }
 }

@@ -32,7 +32,8 @@ impl<'a> SimSource<'a> {
     /// The lidar sweeping as the head moves: a sweep is cast along the pass `track` holds
     /// (the rows' true poses, the robot's beliefs carried by the rows; the servo then swings
     /// back, [`HeadTrack::take`]), or, while the track holds less than a pass (a look that
-    /// did not wait [`Source::whole_in_s`]), from where the head stands.
+    /// did not wait [`Source::whole_in_s`], a look again standing after
+    /// [`Source::sweep_standing_next`]), from where the head stands.
     pub fn with_track(mut self, track: &'a RefCell<HeadTrack>) -> Self {
         self.track = Some(track);
         self
@@ -71,10 +72,8 @@ impl Source for SimSource<'_> {
         SimLidar::new(&*world, &self.spec, &head, seed).sweep_rows(cancel, on_rows)
     }
 
-    fn sweep_standing_next(&mut self) {
-        if let Some(track) = self.track {
-            track.borrow_mut().drop_pass();
-        }
+    fn sweep_standing_next(&mut self) -> f64 {
+        self.track.map_or(0.0, |track| track.borrow_mut().drop_pass())
     }
 
     fn whole_in_s(&self) -> f64 {
