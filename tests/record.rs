@@ -248,3 +248,52 @@ fn replay_of_a_run_that_left_a_partly_seen_top_step_for_later_is_equal() {
     assert!(text.contains("left for a closer look"), "the recording holds the case");
     assert!(out.status.success() && text.contains("replay equals the recording"));
 }
+
+/// Issue 42, `real` case 70 with sweeps taken as the robot moves: after three cycles the plan
+/// made on a pass taken walking is held off the pass's gap, and the loop sets that look aside
+/// and looks again standing. The loop took the set-aside view into the surroundings too (the
+/// body at the look's configuration left out); `replay`, with no plan after that sweep to
+/// give it a configuration, took it into the step map only, planned the next cycle among
+/// other surroundings, and reported a difference the loop never had. The recording now holds
+/// each view's configuration (`/run/view`), and the replay equals the recording; with that
+/// configuration dropped (a recording made before it), the replay differs, as it did.
+#[test]
+fn replay_of_a_look_set_aside_to_look_again_standing_is_equal() {
+    let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("set_aside_look.mcap");
+    let mut p = ClimbParams::default();
+    p.run.sweep_while_moving = true;
+    p.run.max_cycles = 5;
+    let s = Scenario::load(Path::new("tests/fixtures/eight-steps-between-handrails.toml")).unwrap();
+    let model = hrp4::model().unwrap();
+    let mut rec = Recorder::create(&path, &model).unwrap();
+    rec.attach("params.toml", "application/toml", toml::to_string(&p).unwrap().as_bytes());
+    let r = climb_scenario(&s, p.loop_params(), &p.sim(), &mut rec, &Cancel::never()).unwrap();
+    rec.finish().unwrap();
+    assert!(
+        r.cycles.iter().any(|c| c.looked_again_standing.is_some()),
+        "the recording holds a look set aside"
+    );
+    let recording = read(&path).unwrap();
+    let set_aside: Vec<_> = recording.sweeps.iter().filter(|s| s.plan.is_none()).collect();
+    assert!(!set_aside.is_empty(), "a sweep no plan followed");
+    assert!(recording.sweeps.iter().all(|s| s.view_q.as_ref().is_some_and(|q| q.len() == model.nq())));
+    let out = Command::new(env!("CARGO_BIN_EXE_stairbench"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .arg("replay")
+        .arg(&path)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    println!("{text}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success() && text.contains("replay equals the recording"));
+    // Without the views' configurations, the set-aside view is missing from the surroundings.
+    let mut old = recording;
+    old.sweeps.iter_mut().for_each(|s| s.view_q = None);
+    let replayed = stairbench::record::compare::replay(&old, &p, &model).unwrap();
+    assert!(
+        replayed
+            .iter()
+            .any(|r| r.plan.as_ref().is_some_and(stairbench::record::compare::PlanVerdict::differs)),
+        "the set-aside view made no difference to the plans: the test no longer holds its case"
+    );
+}

@@ -56,6 +56,16 @@ pub enum Event<'a> {
         /// The cloud.
         cloud: &'a PointCloud,
     },
+    /// The view of that sweep taken into the step map and the surroundings, from the
+    /// configuration `q` the robot believed it had (after a registration's correction): the
+    /// body at `q` is left out of the surroundings. Every view is taken so, the ones no plan
+    /// followed too (a look set aside to look again standing, the top, a refusal).
+    View {
+        /// When (the sweep's stamp).
+        stamp_s: f64,
+        /// The configuration (MuJoCo's qpos layout).
+        q: &'a [f64],
+    },
     /// Perception's result on that cloud.
     Perception {
         /// When.

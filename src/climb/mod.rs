@@ -219,6 +219,7 @@ pub fn run<E: Executor>(
             _ => seen,
         };
         let t = Instant::now();
+        observer.event(&Event::View { stamp_s, q: &q });
         let ViewInput { next, surfaces } = take_view(&mut map, &mut around, seen, &cloud, model, &q, p);
         let ahead = &next.ahead;
         if ahead.is_empty() {

@@ -143,7 +143,7 @@ pub fn replay(
         .find_map(|s| s.plan.as_ref())
         .map_or(f64::NAN, |first| feet_height_m(model, &first.q0));
     let mut out = Vec::with_capacity(rec.sweeps.len());
-    for RecordedSweep { stamp_s, sweep, perception, plan: planned, trajectory, .. } in &rec.sweeps {
+    for RecordedSweep { stamp_s, sweep, perception, view_q, plan: planned, trajectory, .. } in &rec.sweeps {
         let mut cloud = sweep.assemble(&AssembleParams::default())?;
         let now = perceive(&cloud, &params.perception);
         let found: Vec<[[f64; 3]; 4]> =
@@ -195,8 +195,16 @@ pub fn replay(
             }
         }
         let Some(then) = planned else {
-            // No plan followed this sweep (the top, or a refusal): the view still enters the map.
-            map.update(seen, &params.step_map);
+            // No plan followed this sweep (the top, a refusal, a look set aside to look again
+            // standing): the loop still took its view, into the surroundings too, from the
+            // configuration recorded with it. A recording without one (made before `/run/view`
+            // was recorded) gives the map the view alone.
+            match view_q.as_deref().filter(|q| q.len() == model.nq()) {
+                Some(q) => {
+                    take_view(&mut map, &mut around, seen, &cloud, model, q, params.loop_params());
+                }
+                None => map.update(seen, &params.step_map),
+            }
             out.push(replayed);
             continue;
         };

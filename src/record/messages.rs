@@ -301,6 +301,16 @@ impl TrajectoryMsg {
     }
 }
 
+/// `/run/view`: the configuration a sweep's view was taken into the step map and the
+/// surroundings from ([`crate::climb::Event::View`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ViewMsg {
+    /// The sweep's stamp, seconds.
+    pub stamp_s: f64,
+    /// The configuration (qpos: base position, quaternion w x y z, joints).
+    pub q: Vec<f64>,
+}
+
 /// `/robot/joints`: the robot at an instant (100 Hz).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JointStateMsg {

@@ -22,6 +22,7 @@
 //! | `/tf` | `foxglove.FrameTransform` | 100 Hz: world to the robot's base |
 //! | `/checks` | `stairbench.Violation` | violation ([`crate::climb::Violation`]): `t_s` (plan clock), `cycle`, `check` (its kind), the check's figures, `detail` |
 //! | `/run/cycle` | `stairbench.Cycle` | cycle of `run`: its report (as `run --json` writes it) |
+//! | `/run/view` | `stairbench.View` | view ([`messages::ViewMsg`]): `stamp_s`, `q` (qpos), the configuration the sweep's view was taken into the step map and the surroundings from (after a registration's correction); `replay` takes a view no plan followed from it |
 //!
 //! Metadata record `stairbench` holds the command, the version and the scenario's name; the
 //! scenario and the parameters are attached as TOML (`scenario.toml`, `params.toml`).
@@ -45,7 +46,7 @@ use crate::scene::{Scene, SurfaceRole};
 use crate::sensor::{ScanRow, Sweep};
 use foxglove::{CubePrimitive, FrameTransform, LaserScan, LinePrimitive, SceneEntity, SceneUpdate, Time};
 use mcap::records::MessageHeader;
-use messages::{JointStateMsg, PerceptionMsg, PlanMsg, SweepMsg, TrajectoryMsg};
+use messages::{JointStateMsg, PerceptionMsg, PlanMsg, SweepMsg, TrajectoryMsg, ViewMsg};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
@@ -140,6 +141,7 @@ fn topics() -> Vec<(&'static str, String, String)> {
             ),
         ),
         ("/run/cycle", own("stairbench.Cycle", "One scan-plan-execute cycle's report")),
+        ("/run/view", own("stairbench.View", "The configuration a view was taken into the map from")),
     ];
     list.into_iter().map(|(t, (n, s))| (t, n, s)).collect()
 }
@@ -418,6 +420,7 @@ impl Observer for Recorder {
             Event::Scene(scene) => self.scene(scene),
             Event::Sweep { stamp_s, sweep } => self.sweep(stamp_s, sweep),
             Event::Cloud { stamp_s, cloud } => self.cloud(stamp_s, cloud),
+            Event::View { stamp_s, q } => self.log("/run/view", stamp_s, &ViewMsg { stamp_s, q: q.to_vec() }),
             Event::Perception { stamp_s, result } => self.perception(stamp_s, result),
             Event::PerceptionFailed { stamp_s, error } => self.perception_failed(stamp_s, error),
             Event::Plan { stamp_s, steps, plan } => self.plan(stamp_s, steps, plan),

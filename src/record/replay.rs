@@ -5,7 +5,7 @@
 //! file gives every complete record before the damage, and says where it stopped.
 
 use super::foxglove::{LaserScan, PointCloud};
-use super::messages::{PerceptionMsg, PlanMsg, SweepMsg, TrajectoryMsg};
+use super::messages::{PerceptionMsg, PlanMsg, SweepMsg, TrajectoryMsg, ViewMsg};
 use crate::cancel::Cancel;
 use crate::sensor::{LidarModel, ScanRow, SensorError, Source, Sweep};
 use mcap::records::Record;
@@ -24,6 +24,9 @@ pub struct RecordedSweep {
     pub perception: Option<PerceptionMsg>,
     /// The cloud assembled at the time (`/cloud`), if recorded.
     pub cloud: Option<Vec<nalgebra::Point3<f32>>>,
+    /// The configuration its view was taken into the step map and the surroundings from
+    /// (`/run/view`), if recorded.
+    pub view_q: Option<Vec<f64>>,
     /// The plan made after this sweep (`/plan`), if recorded.
     pub plan: Option<PlanMsg>,
     /// Its planned q(t) (`/plan/trajectory`), if recorded.
@@ -232,6 +235,11 @@ fn take(
                 s.perception = Some(parse(topic, data)?);
             }
         }
+        "/run/view" => {
+            if let Some((s, _)) = open.as_mut() {
+                s.view_q = Some(parse::<ViewMsg>(topic, data)?.q);
+            }
+        }
         "/plan" => {
             if let Some((s, _)) = open.as_mut() {
                 s.plan = Some(parse(topic, data)?);
@@ -260,7 +268,15 @@ fn sweep_of(m: SweepMsg, stamp_s: f64) -> Result<(RecordedSweep, usize), String>
     let mount_to_world = m.mount_to_world.isometry().map_err(|e| format!("bad /lidar/sweep message: {e}"))?;
     let sweep =
         Sweep { rows: Vec::with_capacity(m.rows), lidar: LidarModel::from_spec(&m.lidar), mount_to_world };
-    let s = RecordedSweep { stamp_s, sweep, perception: None, cloud: None, plan: None, trajectory: None };
+    let s = RecordedSweep {
+        stamp_s,
+        sweep,
+        perception: None,
+        cloud: None,
+        view_q: None,
+        plan: None,
+        trajectory: None,
+    };
     Ok((s, m.rows))
 }
 

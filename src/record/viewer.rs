@@ -299,7 +299,7 @@ impl Observer for RerunLogger<'_> {
             Event::State { stamp_s, state } => self.state(stamp_s, state),
             Event::Violation { stamp_s, violation } => self.violation(stamp_s, violation),
             Event::Control { stamp_s, tick } => self.control(stamp_s, tick),
-            Event::Cycle { .. } => {}
+            Event::View { .. } | Event::Cycle { .. } => {}
         }
     }
 }
