@@ -263,7 +263,10 @@ fn replay_of_a_look_set_aside_to_look_again_standing_is_equal() {
     let mut p = ClimbParams::default();
     p.run.sweep_while_moving = true;
     p.run.max_cycles = 5;
-    let s = Scenario::load(Path::new("tests/fixtures/eight-steps-between-handrails.toml")).unwrap();
+    let s = Scenario::load(Path::new(
+        "scenarios/suites/regressions/walking-handrail-end-read-as-a-step-at-the-top.toml",
+    ))
+    .unwrap();
     let model = hrp4::model().unwrap();
     let mut rec = Recorder::create(&path, &model).unwrap();
     rec.attach("params.toml", "application/toml", toml::to_string(&p).unwrap().as_bytes());
@@ -276,7 +279,7 @@ fn replay_of_a_look_set_aside_to_look_again_standing_is_equal() {
     let recording = read(&path).unwrap();
     let set_aside: Vec<_> = recording.sweeps.iter().filter(|s| s.plan.is_none()).collect();
     assert!(!set_aside.is_empty(), "a sweep no plan followed");
-    assert!(recording.sweeps.iter().all(|s| s.view_q.as_ref().is_some_and(|q| q.len() == model.nq())));
+    assert!(recording.sweeps.iter().all(|s| s.view.as_ref().is_some_and(|v| v.q.len() == model.nq())));
     let out = Command::new(env!("CARGO_BIN_EXE_stairbench"))
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .arg("replay")
@@ -288,7 +291,7 @@ fn replay_of_a_look_set_aside_to_look_again_standing_is_equal() {
     assert!(out.status.success() && text.contains("replay equals the recording"));
     // Without the views' configurations, the set-aside view is missing from the surroundings.
     let mut old = recording;
-    old.sweeps.iter_mut().for_each(|s| s.view_q = None);
+    old.sweeps.iter_mut().for_each(|s| s.view = None);
     let replayed = stairbench::record::compare::replay(&old, &p, &model).unwrap();
     assert!(
         replayed

@@ -59,12 +59,15 @@ pub enum Event<'a> {
     /// The view of that sweep taken into the step map and the surroundings, from the
     /// configuration `q` the robot believed it had (after a registration's correction): the
     /// body at `q` is left out of the surroundings. Every view is taken so, the ones no plan
-    /// followed too (a look set aside to look again standing, the top, a refusal).
+    /// followed too (the top, a refusal, a look set aside).
     View {
         /// When (the sweep's stamp).
         stamp_s: f64,
         /// The configuration (MuJoCo's qpos layout).
         q: &'a [f64],
+        /// The look was set aside to look again standing: its steps left the step map again
+        /// (the look taken standing replaces them); its returns stayed in the surroundings.
+        set_aside: bool,
     },
     /// Perception's result on that cloud.
     Perception {

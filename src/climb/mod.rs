@@ -219,10 +219,15 @@ pub fn run<E: Executor>(
             _ => seen,
         };
         let t = Instant::now();
-        observer.event(&Event::View { stamp_s, q: &q });
+        // The steps known before this view: a look set aside gives them back (below).
+        let known_before = map.clone();
         let ViewInput { next, surfaces } = take_view(&mut map, &mut around, seen, &cloud, model, &q, p);
+        let view = |observer: &mut dyn Observer, set_aside: bool| {
+            observer.event(&Event::View { stamp_s, q: &q, set_aside });
+        };
         let ahead = &next.ahead;
         if ahead.is_empty() {
+            view(observer, false);
             // The stop's reason is the report's: judged on the true pose where it is known.
             let true_q = robot.true_configuration().unwrap_or_else(|| q.clone());
             if climbed(truth, model, &true_q) < truth.steps().len() {
@@ -237,6 +242,11 @@ pub fn run<E: Executor>(
         // the moving pass left (`Plan::held_off_unseen`) is made again so too: its motion is
         // bent around space a standing look fills (tests/climb.rs
         // `a_plan_bent_around_a_moving_pass_gap_is_made_again_from_a_standing_look`).
+        // The look taken standing replaces the one set aside: the steps that look saw leave the
+        // map again (its returns and the space its rays crossed stay in the surroundings). A
+        // step the moving pass misread (rows from a head in motion, a rail's end and a wall
+        // met at one height) would otherwise outlive the look that does not see it: test
+        // `a_step_only_a_look_set_aside_saw_is_not_kept` (tests/climb.rs).
         let may_look_standing =
             set_aside.is_none() && cycle < p.run.max_cycles && sweep.head_travel_m() > STILL_HEAD_M;
         let planned = plan_next(model, &q, &next, surfaces, p.run.stances_per_scan, start_floor_z_m, p.plan);
@@ -245,15 +255,19 @@ pub fn run<E: Executor>(
             Ok(x) => x,
             Err(refusal) if may_look_standing => {
                 report.looked_again_standing.push((*refusal).clone());
+                map = known_before;
+                view(observer, true);
                 let plan_s = t.elapsed().as_secs_f64();
                 set_aside = Some(SetAside { refusal: *refusal, stood_s, scan_s, perceive_s, plan_s });
                 continue;
             }
             Err(refusal) => {
+                view(observer, false);
                 report.stop = Some(StopReason::Refused { cycle, refusal: *refusal });
                 break;
             }
         };
+        view(observer, false);
         let plan_s = t.elapsed().as_secs_f64();
         let plan_height_error_m = robot.true_configuration().map_or(0.0, |t| q[2] - t[2]);
         let t = Instant::now();

@@ -5,7 +5,7 @@
 
 use super::messages::PlanMsg;
 use super::replay::{RecordedSweep, Recording};
-use crate::climb::{feet_height_m, moved_view, plan_next, take_view, ViewInput};
+use crate::climb::{add_view, feet_height_m, moved_view, plan_next, take_view, ViewInput};
 use crate::params::ClimbParams;
 use crate::perception::step_map::StepMap;
 use crate::perception::surroundings::Surroundings;
@@ -143,7 +143,7 @@ pub fn replay(
         .find_map(|s| s.plan.as_ref())
         .map_or(f64::NAN, |first| feet_height_m(model, &first.q0));
     let mut out = Vec::with_capacity(rec.sweeps.len());
-    for RecordedSweep { stamp_s, sweep, perception, view_q, plan: planned, trajectory, .. } in &rec.sweeps {
+    for RecordedSweep { stamp_s, sweep, perception, view, plan: planned, trajectory, .. } in &rec.sweeps {
         let mut cloud = sweep.assemble(&AssembleParams::default())?;
         let now = perceive(&cloud, &params.perception);
         let found: Vec<[[f64; 3]; 4]> =
@@ -197,11 +197,13 @@ pub fn replay(
         let Some(then) = planned else {
             // No plan followed this sweep (the top, a refusal, a look set aside to look again
             // standing): the loop still took its view, into the surroundings too, from the
-            // configuration recorded with it. A recording without one (made before `/run/view`
-            // was recorded) gives the map the view alone.
-            match view_q.as_deref().filter(|q| q.len() == model.nq()) {
-                Some(q) => {
-                    take_view(&mut map, &mut around, seen, &cloud, model, q, params.loop_params());
+            // configuration recorded with it; the steps of a look set aside left the map again.
+            // A recording without it (made before `/run/view` was recorded) gives the map the
+            // view alone.
+            match view.as_ref().filter(|v| v.q.len() == model.nq()) {
+                Some(v) if v.set_aside => add_view(&mut around, &cloud, model, &v.q, &params.surroundings),
+                Some(v) => {
+                    take_view(&mut map, &mut around, seen, &cloud, model, &v.q, params.loop_params());
                 }
                 None => map.update(seen, &params.step_map),
             }

@@ -309,6 +309,9 @@ pub struct ViewMsg {
     pub stamp_s: f64,
     /// The configuration (qpos: base position, quaternion w x y z, joints).
     pub q: Vec<f64>,
+    /// The look was set aside to look again standing: its steps left the step map again.
+    #[serde(default)]
+    pub set_aside: bool,
 }
 
 /// `/robot/joints`: the robot at an instant (100 Hz).

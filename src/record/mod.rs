@@ -22,7 +22,7 @@
 //! | `/tf` | `foxglove.FrameTransform` | 100 Hz: world to the robot's base |
 //! | `/checks` | `stairbench.Violation` | violation ([`crate::climb::Violation`]): `t_s` (plan clock), `cycle`, `check` (its kind), the check's figures, `detail` |
 //! | `/run/cycle` | `stairbench.Cycle` | cycle of `run`: its report (as `run --json` writes it) |
-//! | `/run/view` | `stairbench.View` | view ([`messages::ViewMsg`]): `stamp_s`, `q` (qpos), the configuration the sweep's view was taken into the step map and the surroundings from (after a registration's correction); `replay` takes a view no plan followed from it |
+//! | `/run/view` | `stairbench.View` | view ([`messages::ViewMsg`]): `stamp_s`, `q` (qpos), the configuration the sweep's view was taken into the step map and the surroundings from (after a registration's correction); `set_aside` (the look set aside to look again standing: its steps left the map again); `replay` takes a view no plan followed from them |
 //!
 //! Metadata record `stairbench` holds the command, the version and the scenario's name; the
 //! scenario and the parameters are attached as TOML (`scenario.toml`, `params.toml`).
@@ -420,7 +420,9 @@ impl Observer for Recorder {
             Event::Scene(scene) => self.scene(scene),
             Event::Sweep { stamp_s, sweep } => self.sweep(stamp_s, sweep),
             Event::Cloud { stamp_s, cloud } => self.cloud(stamp_s, cloud),
-            Event::View { stamp_s, q } => self.log("/run/view", stamp_s, &ViewMsg { stamp_s, q: q.to_vec() }),
+            Event::View { stamp_s, q, set_aside } => {
+                self.log("/run/view", stamp_s, &ViewMsg { stamp_s, q: q.to_vec(), set_aside });
+            }
             Event::Perception { stamp_s, result } => self.perception(stamp_s, result),
             Event::PerceptionFailed { stamp_s, error } => self.perception_failed(stamp_s, error),
             Event::Plan { stamp_s, steps, plan } => self.plan(stamp_s, steps, plan),

@@ -24,9 +24,9 @@ pub struct RecordedSweep {
     pub perception: Option<PerceptionMsg>,
     /// The cloud assembled at the time (`/cloud`), if recorded.
     pub cloud: Option<Vec<nalgebra::Point3<f32>>>,
-    /// The configuration its view was taken into the step map and the surroundings from
-    /// (`/run/view`), if recorded.
-    pub view_q: Option<Vec<f64>>,
+    /// How its view was taken into the step map and the surroundings (`/run/view`), if
+    /// recorded.
+    pub view: Option<ViewMsg>,
     /// The plan made after this sweep (`/plan`), if recorded.
     pub plan: Option<PlanMsg>,
     /// Its planned q(t) (`/plan/trajectory`), if recorded.
@@ -237,7 +237,7 @@ fn take(
         }
         "/run/view" => {
             if let Some((s, _)) = open.as_mut() {
-                s.view_q = Some(parse::<ViewMsg>(topic, data)?.q);
+                s.view = Some(parse(topic, data)?);
             }
         }
         "/plan" => {
@@ -273,7 +273,7 @@ fn sweep_of(m: SweepMsg, stamp_s: f64) -> Result<(RecordedSweep, usize), String>
         sweep,
         perception: None,
         cloud: None,
-        view_q: None,
+        view: None,
         plan: None,
         trajectory: None,
     };
