@@ -394,6 +394,10 @@ fn a_step_only_a_look_set_aside_saw_is_not_kept() {
     });
     let r = climb::run(bench, p.loop_params(), &mut watch, &Cancel::never()).unwrap();
     println!("{:?}; set aside: {:?}; seen {seen:?}", r.stop, r.looked_again_standing);
+    let misread_m = top.height_m + 0.29;
+    let sees = |heights: &Vec<f64>| heights.iter().any(|h| (h - misread_m).abs() < 0.02);
+    assert!(sees(&seen[0]), "the pass taken walking sees the slab");
+    assert!(!seen[1..].iter().any(sees), "no look taken standing sees it");
     assert_eq!(r.looked_again_standing.len(), 1, "the pass taken walking was set aside");
     assert_eq!(
         r.looked_again_standing[0].kind,

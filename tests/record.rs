@@ -138,6 +138,7 @@ fn a_recorded_run_replays_equal_and_reads_in_the_independent_reader() {
         ("/tf", "foxglove.FrameTransform"),
         ("/checks", "stairbench.Violation"),
         ("/run/cycle", "stairbench.Cycle"),
+        ("/run/view", "stairbench.View"),
     ];
     for (topic, schema) in expect {
         let t = &topics[topic];
@@ -249,14 +250,14 @@ fn replay_of_a_run_that_left_a_partly_seen_top_step_for_later_is_equal() {
     assert!(out.status.success() && text.contains("replay equals the recording"));
 }
 
-/// Issue 42, `real` case 70 with sweeps taken as the robot moves: after three cycles the plan
-/// made on a pass taken walking is held off the pass's gap, and the loop sets that look aside
-/// and looks again standing. The loop took the set-aside view into the surroundings too (the
-/// body at the look's configuration left out); `replay`, with no plan after that sweep to
-/// give it a configuration, took it into the step map only, planned the next cycle among
-/// other surroundings, and reported a difference the loop never had. The recording now holds
-/// each view's configuration (`/run/view`), and the replay equals the recording; with that
-/// configuration dropped (a recording made before it), the replay differs, as it did.
+/// Issue 42, `real` case 70 with sweeps taken as the robot moves, five cycles: after three the
+/// plan made on a pass taken walking is held off the pass's gap, and the loop sets that look
+/// aside and looks again standing. The set-aside look has no plan after it to give its
+/// configuration: the recording holds each view's configuration and whether its look was set
+/// aside (`/run/view`), and `replay` takes each view as the loop did (a look set aside into
+/// the surroundings only, with the body at its configuration left out). The replay equals
+/// the recording. Without `/run/view` (a recording made before it), the set-aside view is
+/// missing from the surroundings and enters the step map, and the replay differs.
 #[test]
 fn replay_of_a_look_set_aside_to_look_again_standing_is_equal() {
     let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("set_aside_look.mcap");
@@ -277,9 +278,15 @@ fn replay_of_a_look_set_aside_to_look_again_standing_is_equal() {
         "the recording holds a look set aside"
     );
     let recording = read(&path).unwrap();
-    let set_aside: Vec<_> = recording.sweeps.iter().filter(|s| s.plan.is_none()).collect();
-    assert!(!set_aside.is_empty(), "a sweep no plan followed");
-    assert!(recording.sweeps.iter().all(|s| s.view.as_ref().is_some_and(|v| v.q.len() == model.nq())));
+    let last = recording.sweeps.len() - 1;
+    for (i, s) in recording.sweeps.iter().enumerate() {
+        let view = s.view.as_ref().expect("every view's configuration is recorded");
+        assert_eq!(view.q.len(), model.nq());
+        // The loop goes on after a view with no plan only when it set that look aside.
+        let set_aside = s.plan.is_none() && i < last;
+        assert_eq!(view.set_aside, set_aside, "sweep {}: set aside {set_aside}", i + 1);
+    }
+    assert!(recording.sweeps.iter().any(|s| s.view.as_ref().is_some_and(|v| v.set_aside)));
     let out = Command::new(env!("CARGO_BIN_EXE_stairbench"))
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .arg("replay")

@@ -56,10 +56,11 @@ pub enum Event<'a> {
         /// The cloud.
         cloud: &'a PointCloud,
     },
-    /// The view of that sweep taken into the step map and the surroundings, from the
-    /// configuration `q` the robot believed it had (after a registration's correction): the
-    /// body at `q` is left out of the surroundings. Every view is taken so, the ones no plan
-    /// followed too (the top, a refusal, a look set aside).
+    /// The view of that sweep taken, once the loop knows what came of it: into the
+    /// surroundings from the configuration `q` the robot believed it had (after a
+    /// registration's correction; the body at `q` is left out), and into the step map unless
+    /// its look was set aside. Sent for every view taken, the ones no plan followed too (the
+    /// top, a refusal, a look set aside).
     View {
         /// When (the sweep's stamp).
         stamp_s: f64,

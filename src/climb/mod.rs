@@ -246,7 +246,7 @@ pub fn run<E: Executor>(
         // map again (its returns and the space its rays crossed stay in the surroundings). A
         // step the moving pass misread (rows from a head in motion, a rail's end and a wall
         // met at one height) would otherwise outlive the look that does not see it: test
-        // `a_step_only_a_look_set_aside_saw_is_not_kept` (tests/climb.rs).
+        // `a_step_only_a_look_set_aside_saw_is_not_kept` (tests/loop.rs).
         let may_look_standing =
             set_aside.is_none() && cycle < p.run.max_cycles && sweep.head_travel_m() > STILL_HEAD_M;
         let planned = plan_next(model, &q, &next, surfaces, p.run.stances_per_scan, start_floor_z_m, p.plan);

@@ -141,7 +141,7 @@ fn topics() -> Vec<(&'static str, String, String)> {
             ),
         ),
         ("/run/cycle", own("stairbench.Cycle", "One scan-plan-execute cycle's report")),
-        ("/run/view", own("stairbench.View", "The configuration a view was taken into the map from")),
+        ("/run/view", own("stairbench.View", "The configuration a view was taken from, and whether its look was set aside")),
     ];
     list.into_iter().map(|(t, (n, s))| (t, n, s)).collect()
 }
