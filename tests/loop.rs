@@ -96,13 +96,20 @@ fn fixture(scene: &Scene, scenario: &Scenario, model: &RobotModel, q0: &[f64]) -
         .expect("a sweep")
 }
 
-#[test]
-fn a_cast_source_and_a_fake_robot_drive_the_loop_to_the_top() {
+/// Exp. 1 without noise: its scenario, its world, the robot, and the robot's configuration at
+/// the start (to share between a [`Live`] source and a [`Follow`] robot).
+fn exp1_noise_free() -> (Scenario, Scene, RobotModel, Rc<RefCell<Vec<f64>>>) {
     let mut scenario = Scenario::default();
     scenario.lidar.noise_sigma_m = 0.0;
     let scene = common::scene_of(&scenario);
     let model = hrp4::model().unwrap();
     let q = Rc::new(RefCell::new(hrp4::half_sitting_at(&model, &scene.robot_start()).unwrap()));
+    (scenario, scene, model, q)
+}
+
+#[test]
+fn a_cast_source_and_a_fake_robot_drive_the_loop_to_the_top() {
+    let (scenario, scene, model, q) = exp1_noise_free();
     let mut source = Live { scene: &scene, scenario: &scenario, model: &model, q: q.clone(), given: 0 };
     let mut robot = Follow { q, t_s: 0.0 };
     let p = ClimbParams::default();
@@ -359,17 +366,15 @@ impl Source for MisreadOnce<'_> {
 
 /// A pass taken walking that sees a "step" no standing look sees (a misread: a rail's end and
 /// a wall met at one height, rows from a head in motion; here a slab of a tread's size behind
-/// Exp. 1's top step, 0.29 m above it, 1 cm more than the legs climb) is refused and set aside, and the robot looks again standing. That look replaces
-/// the one set aside: its steps leave the step map, and the climb goes to the top. Kept (as
-/// they were), the misread step outlived the look that does not see it, and the climb was
-/// refused on it (`real-0070`, walking: at the top, after all eight steps).
+/// Exp. 1's top step, 0.29 m above it, 1 cm more than the legs climb) is refused and set
+/// aside, and the robot looks again standing. That look replaces the one set aside: its
+/// steps leave the step map, and the climb goes to the top. Kept (as they were), the misread
+/// step outlived the look that does not see it, and the climb was refused on it (`real-0070`,
+/// walking: at the top, after all eight steps).
 #[test]
 fn a_step_only_a_look_set_aside_saw_is_not_kept() {
     use stairbench::scene::{SceneBox, SurfaceRole};
-    let mut scenario = Scenario::default();
-    scenario.lidar.noise_sigma_m = 0.0;
-    let scene = common::scene_of(&scenario);
-    let model = hrp4::model().unwrap();
+    let (scenario, scene, model, q) = exp1_noise_free();
     let top = scene.steps().last().unwrap().clone();
     let slab = SceneBox::new(
         "misread",
@@ -379,7 +384,6 @@ fn a_step_only_a_look_set_aside_saw_is_not_kept() {
         0.0,
         0.8,
     );
-    let q = Rc::new(RefCell::new(hrp4::half_sitting_at(&model, &scene.robot_start()).unwrap()));
     let live = Live { scene: &scene, scenario: &scenario, model: &model, q: q.clone(), given: 0 };
     let misread = [slab];
     let mut source = MisreadOnce { live, misread: &misread };

@@ -8,7 +8,7 @@
 
 use serde_json::Value;
 use stairbench::cancel::Cancel;
-use stairbench::climb::feet_height_m;
+use stairbench::climb::{feet_height_m, ClimbReport};
 use stairbench::params::ClimbParams;
 use stairbench::perception::perceive;
 use stairbench::perception::step_map::StepMap;
@@ -32,16 +32,34 @@ fn record_one_cycle(name: &str) -> (PathBuf, u64) {
 
 /// A run of Exp. 1 under `p` recorded to `name` under the target folder; the messages written.
 fn record_run(name: &str, p: &ClimbParams) -> (PathBuf, u64) {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"));
-    let path = dir.join(name);
+    let (path, r, n) = record_scenario(name, &Scenario::default(), p);
+    assert_eq!(r.cycles.len(), p.run.max_cycles);
+    (path, n)
+}
+
+/// A run of `s` under `p` recorded to `name` under the target folder: its report, and the
+/// messages written.
+fn record_scenario(name: &str, s: &Scenario, p: &ClimbParams) -> (PathBuf, ClimbReport, u64) {
+    let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
     let model = hrp4::model().unwrap();
     let mut rec = Recorder::create(&path, &model).unwrap();
     rec.attach("params.toml", "application/toml", toml::to_string(&p).unwrap().as_bytes());
-    let r =
-        climb_scenario(&Scenario::default(), p.loop_params(), &p.sim(), &mut rec, &Cancel::never()).unwrap();
-    assert_eq!(r.cycles.len(), p.run.max_cycles);
+    let r = climb_scenario(s, p.loop_params(), &p.sim(), &mut rec, &Cancel::never()).unwrap();
     let n = rec.finish().unwrap();
-    (path, n)
+    (path, r, n)
+}
+
+/// `stairbench replay` on the recording at `path`: whether it exited 0, and what it printed.
+fn replay_cli(path: &Path) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_stairbench"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .arg("replay")
+        .arg(path)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    println!("{text}{}", String::from_utf8_lossy(&out.stderr));
+    (out.status.success(), text.into_owned())
 }
 
 /// A sweep the lidar took as the robot moved (`[run] sweep_while_moving`) reads back with
@@ -227,27 +245,15 @@ fn ctrl_c_ends_a_recorded_run_with_a_complete_file() {
 /// it.)
 #[test]
 fn replay_of_a_run_that_left_a_partly_seen_top_step_for_later_is_equal() {
-    let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("exp2_seed0_five_cycles.mcap");
     let mut p =
         ClimbParams { plan: stairbench::planning::PlanParams::quasi_static(), ..ClimbParams::default() };
     p.run.max_cycles = 5;
     let s = Scenario { seed: 0, ..Scenario::load(Path::new("scenarios/exp2.toml")).unwrap() };
-    let model = hrp4::model().unwrap();
-    let mut rec = Recorder::create(&path, &model).unwrap();
-    rec.attach("params.toml", "application/toml", toml::to_string(&p).unwrap().as_bytes());
-    let r = climb_scenario(&s, p.loop_params(), &p.sim(), &mut rec, &Cancel::never()).unwrap();
-    rec.finish().unwrap();
+    let (path, r, _) = record_scenario("exp2_seed0_five_cycles.mcap", &s, &p);
     assert_eq!(r.cycles.len(), 5, "{:?}", r.stop);
-    let out = Command::new(env!("CARGO_BIN_EXE_stairbench"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .arg("replay")
-        .arg(&path)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    println!("{text}{}", String::from_utf8_lossy(&out.stderr));
+    let (ok, text) = replay_cli(&path);
     assert!(text.contains("left for a closer look"), "the recording holds the case");
-    assert!(out.status.success() && text.contains("replay equals the recording"));
+    assert!(ok && text.contains("replay equals the recording"));
 }
 
 /// Issue 42, `real` case 70 with sweeps taken as the robot moves, five cycles: after three the
@@ -260,7 +266,6 @@ fn replay_of_a_run_that_left_a_partly_seen_top_step_for_later_is_equal() {
 /// missing from the surroundings and enters the step map, and the replay differs.
 #[test]
 fn replay_of_a_look_set_aside_to_look_again_standing_is_equal() {
-    let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("set_aside_look.mcap");
     let mut p = ClimbParams::default();
     p.run.sweep_while_moving = true;
     p.run.max_cycles = 5;
@@ -269,10 +274,7 @@ fn replay_of_a_look_set_aside_to_look_again_standing_is_equal() {
     ))
     .unwrap();
     let model = hrp4::model().unwrap();
-    let mut rec = Recorder::create(&path, &model).unwrap();
-    rec.attach("params.toml", "application/toml", toml::to_string(&p).unwrap().as_bytes());
-    let r = climb_scenario(&s, p.loop_params(), &p.sim(), &mut rec, &Cancel::never()).unwrap();
-    rec.finish().unwrap();
+    let (path, r, _) = record_scenario("set_aside_look.mcap", &s, &p);
     assert!(
         r.cycles.iter().any(|c| c.looked_again_standing.is_some()),
         "the recording holds a look set aside"
@@ -287,15 +289,8 @@ fn replay_of_a_look_set_aside_to_look_again_standing_is_equal() {
         assert_eq!(view.set_aside, set_aside, "sweep {}: set aside {set_aside}", i + 1);
     }
     assert!(recording.sweeps.iter().any(|s| s.view.as_ref().is_some_and(|v| v.set_aside)));
-    let out = Command::new(env!("CARGO_BIN_EXE_stairbench"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .arg("replay")
-        .arg(&path)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    println!("{text}{}", String::from_utf8_lossy(&out.stderr));
-    assert!(out.status.success() && text.contains("replay equals the recording"));
+    let (ok, text) = replay_cli(&path);
+    assert!(ok && text.contains("replay equals the recording"));
     // Without the views' configurations, the set-aside view is missing from the surroundings.
     let mut old = recording;
     old.sweeps.iter_mut().for_each(|s| s.view = None);
