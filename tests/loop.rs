@@ -17,7 +17,7 @@ use stairbench::cancel::Cancel;
 use stairbench::climb::{self, Bench, Event, Execution, Executor, Footing, Observer, Standing, StopReason};
 use stairbench::params::ClimbParams;
 use stairbench::planning::Plan;
-use stairbench::robot::{hrp4, Kinematics, RobotModel};
+use stairbench::robot::{hrp4, RobotModel};
 use stairbench::scenario::Scenario;
 use stairbench::scene::Scene;
 use stairbench::sensor::{RayCaster, RayHit, SensorError, SimLidar, Source, Sweep};
@@ -87,9 +87,7 @@ impl Executor for Teleport {
 
 /// Exp. 1 without noise, swept by the analytic caster from the head of configuration `q0`.
 fn fixture(scene: &Scene, scenario: &Scenario, model: &RobotModel, q0: &[f64]) -> Sweep {
-    let mut kin = Kinematics::new(model);
-    kin.update(q0).expect("a valid configuration");
-    let head = kin.frame_pose(model.frame_id(hrp4::LIDAR_MOUNT).expect("the lidar mount"));
+    let head = climb::head_pose(model, q0).expect("a valid configuration");
     let caster = Boxes(scene);
     SimLidar::new(&caster, &scenario.lidar, &head, 1)
         .sweep_rows(&Cancel::never(), &mut |_, _| {})
@@ -346,9 +344,7 @@ impl Source for MisreadOnce<'_> {
             return self.live.sweep(cancel, on_rows);
         }
         self.live.given += 1;
-        let mut kin = Kinematics::new(self.live.model);
-        kin.update(&self.live.q.borrow()).unwrap();
-        let head = kin.frame_pose(self.live.model.frame_id(hrp4::LIDAR_MOUNT).unwrap());
+        let head = climb::head_pose(self.live.model, &self.live.q.borrow()).expect("a valid configuration");
         let rows = stairbench::sensor::TiltSweep::from_spec(&self.live.scenario.lidar).rows();
         let heads: Vec<_> = (0..rows)
             .map(|k| {

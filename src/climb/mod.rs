@@ -219,8 +219,17 @@ pub fn run<E: Executor>(
             _ => seen,
         };
         let t = Instant::now();
-        // The steps known before this view: a look set aside gives them back (below).
-        let known_before = map.clone();
+        // A plan refused on a sweep the head took moving is refused for what that sweep saw:
+        // its rows crossed the space about the body from where the head was, seconds before.
+        // The robot stands and looks again (a sweep taken standing, from here); a refusal on
+        // that view stands. So is a plan held at its clearance from a gap the moving pass left
+        // (`Plan::held_off_unseen`; tests/climb.rs `a_plan_bent_around_a_moving_pass_gap...`).
+        // The look taken standing replaces the one set aside: that look's steps leave the map
+        // (kept, a step it misread outlives the look that does not see it: tests/loop.rs
+        // `a_step_only_a_look_set_aside_saw_is_not_kept`); its returns stay in the surroundings.
+        let may_look_standing =
+            set_aside.is_none() && cycle < p.run.max_cycles && sweep.head_travel_m() > STILL_HEAD_M;
+        let known_before = may_look_standing.then(|| map.clone());
         let ViewInput { next, surfaces } = take_view(&mut map, &mut around, seen, &cloud, model, &q, p);
         let view = |observer: &mut dyn Observer, set_aside: bool| {
             observer.event(&Event::View { stamp_s, q: &q, set_aside });
@@ -235,27 +244,13 @@ pub fn run<E: Executor>(
             }
             break;
         }
-        // A plan refused on a sweep the head took moving is refused for what that sweep saw:
-        // its rows crossed the space about the body from where the head was, seconds before.
-        // The robot stands and looks again (a sweep taken standing, from here); a
-        // refusal on that view stands. A plan that holds the body at its clearance from a gap
-        // the moving pass left (`Plan::held_off_unseen`) is made again so too: its motion is
-        // bent around space a standing look fills (tests/climb.rs
-        // `a_plan_bent_around_a_moving_pass_gap_is_made_again_from_a_standing_look`).
-        // The look taken standing replaces the one set aside: the steps that look saw leave the
-        // map again (its returns and the space its rays crossed stay in the surroundings). A
-        // step the moving pass misread (rows from a head in motion, a rail's end and a wall
-        // met at one height) would otherwise outlive the look that does not see it: test
-        // `a_step_only_a_look_set_aside_saw_is_not_kept` (tests/loop.rs).
-        let may_look_standing =
-            set_aside.is_none() && cycle < p.run.max_cycles && sweep.head_travel_m() > STILL_HEAD_M;
         let planned = plan_next(model, &q, &next, surfaces, p.run.stances_per_scan, start_floor_z_m, p.plan);
         let refuse_held = may_look_standing && p.run.look_standing_when_held_off_unseen;
         let (planned, closer_look) = match refusing_held_off_unseen(planned, &p.plan.ik, refuse_held) {
             Ok(x) => x,
             Err(refusal) if may_look_standing => {
                 report.looked_again_standing.push((*refusal).clone());
-                map = known_before;
+                map = known_before.unwrap_or(map);
                 view(observer, true);
                 let plan_s = t.elapsed().as_secs_f64();
                 set_aside = Some(SetAside { refusal: *refusal, stood_s, scan_s, perceive_s, plan_s });

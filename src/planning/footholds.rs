@@ -449,8 +449,8 @@ const LEAST_WALK_BACK_M: f64 = 0.05;
 /// never past the riser, so walks back from it stop. Empty when the feet are that far back
 /// already (within `LEAST_WALK_BACK_M`), or there are no steps. Empty too when the feet
 /// stand past the lowest step's front (their middle): the view puts the step where the robot
-/// stands on the floor, so it is wrong (a lone step seen with its axes swapped), and a walk back from it
-/// goes backward, where the lidar never looked, as far as that wrong front asks.
+/// stands on the floor, so it is wrong (a lone step seen with its axes swapped), and a walk
+/// back from it goes backward, where the lidar never looked, as far as that wrong front asks.
 pub fn retreat(start: &Stance, rects: &[PlaneSegment], seen: &[Point3<f64>], p: &GaitParams) -> Vec<Stance> {
     if rects.is_empty() {
         return Vec::new();
