@@ -10,19 +10,16 @@
 //! behind its field of view) is not judged: the body goes there unseen, as it must (the
 //! head rises above where its scan plane was).
 
+use super::ray_walk::{self, chunk_of, voxel, Chunks, Walker, CHUNK_WORDS};
 use crate::cloud::PointCloud;
 use crate::geom3d::{capsules_box, Capsule};
 use nalgebra::{Point3, Unit, Vector3};
-use rustc_hash::FxHashMap;
 
 /// Coordinates farther than this from the origin are not traced, metres: a pose or a
 /// return there is garbage, and its voxel indices would near the integers' ends.
 const FAR_M: f64 = 1e4;
 /// Most voxels the unseen edge is looked for in (the defaults' box: about 10^5).
 const MAX_EDGE_VOXELS: f64 = 1e7;
-/// Edge of a chunk of voxels, in voxels (a chunk's bits fill `CHUNK_WORDS` words).
-const CHUNK: i32 = 16;
-const CHUNK_WORDS: usize = (CHUNK * CHUNK * CHUNK / 64) as usize;
 /// Bins of the directions a sweep looked in, per degree of azimuth and of elevation.
 const BINS_PER_DEG: f64 = 1.0;
 const AZIMUTH_BINS: usize = (360.0 * BINS_PER_DEG) as usize;
@@ -107,25 +104,6 @@ impl Regard {
     }
 }
 
-/// Chunks of voxel bits by their chunk coordinates.
-type Chunks = FxHashMap<[i32; 3], Box<[u64; CHUNK_WORDS]>>;
-
-/// `from`'s bits added to `into`'s.
-fn merge(into: &mut Chunks, from: Chunks) {
-    for (key, words) in from {
-        match into.entry(key) {
-            std::collections::hash_map::Entry::Occupied(mut e) => {
-                for (a, b) in e.get_mut().iter_mut().zip(words.iter()) {
-                    *a |= b;
-                }
-            }
-            std::collections::hash_map::Entry::Vacant(e) => {
-                e.insert(words);
-            }
-        }
-    }
-}
-
 /// The voxels rays crossed (or the body filled) over every sweep, and where the last sweep
 /// looked.
 #[derive(Debug, Clone, Default)]
@@ -135,79 +113,15 @@ pub struct FreeSpace {
     body: Vec<Capsule>,
 }
 
-/// Rays a thread walks at a time.
-const RAYS_PER_TASK: usize = 4096;
-
-/// Marks in `chunks` the voxels the segment from `from` toward `to` crosses, up to a voxel's
-/// edge short of `to` along it, never `to`'s own voxel, and no farther than `p.reach_m`
-/// (Amanatides and Woo's walk).
-fn trace(chunks: &mut Chunks, from: &Point3<f64>, to: &Point3<f64>, p: &FreeSpaceParams) {
-    let hit = FreeSpace::voxel(to, p.voxel_m);
-    let d = to - from;
-    let length = d.norm();
-    let end = (length - p.voxel_m).min(p.reach_m);
-    if end <= 0.0 {
-        return;
-    }
-    let dir = d / length;
-    let mut v = FreeSpace::voxel(from, p.voxel_m);
-    let mut step = [0i32; 3];
-    let mut t_next = [f64::INFINITY; 3];
-    let mut t_delta = [f64::INFINITY; 3];
-    for i in 0..3 {
-        if dir[i] > 0.0 {
-            step[i] = 1;
-            t_next[i] = ((v[i] + 1) as f64 * p.voxel_m - from[i]) / dir[i];
-            t_delta[i] = p.voxel_m / dir[i];
-        } else if dir[i] < 0.0 {
-            step[i] = -1;
-            t_next[i] = (v[i] as f64 * p.voxel_m - from[i]) / dir[i];
-            t_delta[i] = -p.voxel_m / dir[i];
-        }
-    }
-    // The voxel's chunk and its place in it are stepped with the voxel: the chunk is looked
-    // up only when the walk leaves it.
-    let (mut key, _) = chunk_of(v);
-    let mut local = v.map(|c| c.rem_euclid(CHUNK));
-    let mut words = chunks.entry(key).or_insert_with(|| Box::new([0; CHUNK_WORDS]));
-    let mut t = 0.0;
-    while t < end && v != hit {
-        let bit = (local[0] + (local[1] + local[2] * CHUNK) * CHUNK) as usize;
-        words[bit / 64] |= 1 << (bit % 64);
-        // The axis whose boundary comes first (the first of equals).
-        let i = if t_next[0] <= t_next[1] && t_next[0] <= t_next[2] {
-            0
-        } else if t_next[1] <= t_next[2] {
-            1
-        } else {
-            2
-        };
-        t = t_next[i];
-        t_next[i] += t_delta[i];
-        v[i] += step[i];
-        local[i] += step[i];
-        if !(0..CHUNK).contains(&local[i]) {
-            local[i] -= step[i] * CHUNK;
-            key[i] += step[i];
-            words = chunks.entry(key).or_insert_with(|| Box::new([0; CHUNK_WORDS]));
-        }
-    }
-}
-
-fn chunk_of(v: [i32; 3]) -> ([i32; 3], usize) {
-    let key = v.map(|c| c.div_euclid(CHUNK));
-    let [x, y, z] = v.map(|c| c.rem_euclid(CHUNK) as usize);
-    (key, x + (y + z * CHUNK as usize) * CHUNK as usize)
-}
-
 impl FreeSpace {
-    fn voxel(p: &Point3<f64>, voxel_m: f64) -> [i32; 3] {
-        [0, 1, 2].map(|i| (p[i] / voxel_m).floor() as i32)
-    }
-
     fn set(&mut self, v: [i32; 3]) {
         let (key, bit) = chunk_of(v);
         self.chunks.entry(key).or_insert_with(|| Box::new([0; CHUNK_WORDS]))[bit / 64] |= 1 << (bit % 64);
+    }
+
+    /// How many voxels rays crossed or the body filled.
+    pub fn crossed_voxels(&self) -> usize {
+        self.chunks.values().map(|c| c.iter().map(|w| w.count_ones() as usize).sum::<usize>()).sum()
     }
 
     /// Whether a ray crossed voxel `v` (or the body filled it).
@@ -221,6 +135,11 @@ impl FreeSpace {
     /// robot's `body` fills (it stands there), and the directions it looked in (those
     /// where a ray met the body apart).
     pub fn add(&mut self, cloud: &PointCloud, body: &[Capsule], p: &FreeSpaceParams) {
+        self.add_walked(cloud, body, p, Walker::Block);
+    }
+
+    /// [`FreeSpace::add`] with the rays walked by `walker` (the same voxels either way).
+    pub fn add_walked(&mut self, cloud: &PointCloud, body: &[Capsule], p: &FreeSpaceParams, walker: Walker) {
         if !(p.voxel_m >= 1e-3 && p.voxel_m.is_finite() && p.reach_m.is_finite()) {
             return; // a parameters file gives neither (`SurroundingsParams`); only code could
         }
@@ -257,23 +176,8 @@ impl FreeSpace {
             let on_body = in_box && body.iter().any(|c| c.distance_m(to) < p.self_margin_m);
             regard.mark(&(to - from), on_body);
         }
-        // Each thread walks its share of the rays into chunks of its own, merged after: the
-        // set of crossed voxels is the same on any number of threads.
-        use rayon::prelude::*;
-        let crossed = rays
-            .par_chunks(RAYS_PER_TASK)
-            .map(|share| {
-                let mut chunks = Chunks::default();
-                for (from, to) in share.iter().filter(sane) {
-                    trace(&mut chunks, from, to, p);
-                }
-                chunks
-            })
-            .reduce(Chunks::default, |mut a, b| {
-                merge(&mut a, b);
-                a
-            });
-        merge(&mut self.chunks, crossed);
+        let rays: Vec<_> = rays.iter().filter(sane).copied().collect();
+        ray_walk::merge(&mut self.chunks, ray_walk::walk(&rays, p.voxel_m, p.reach_m, walker));
         for c in body {
             self.fill(c, p.voxel_m);
         }
@@ -284,8 +188,8 @@ impl FreeSpace {
     /// Marks the voxels whose centres lie in capsule `c`.
     fn fill(&mut self, c: &Capsule, voxel_m: f64) {
         let r = Vector3::repeat(c.radius_m);
-        let lo = Self::voxel(&Point3::from(c.a.coords.inf(&c.b.coords) - r), voxel_m);
-        let hi = Self::voxel(&Point3::from(c.a.coords.sup(&c.b.coords) + r), voxel_m);
+        let lo = voxel(&Point3::from(c.a.coords.inf(&c.b.coords) - r), voxel_m);
+        let hi = voxel(&Point3::from(c.a.coords.sup(&c.b.coords) + r), voxel_m);
         for x in lo[0]..=hi[0] {
             for y in lo[1]..=hi[1] {
                 for z in lo[2]..=hi[2] {
@@ -315,7 +219,7 @@ impl FreeSpace {
         if self.body.is_empty() || !sane || !(p.voxel_m >= 1e-3 && voxels <= MAX_EDGE_VOXELS) {
             return Vec::new();
         }
-        let (lo, hi) = (Self::voxel(&lo, p.voxel_m), Self::voxel(&hi, p.voxel_m));
+        let (lo, hi) = (voxel(&lo, p.voxel_m), voxel(&hi, p.voxel_m));
         let mut out = Vec::new();
         for x in lo[0]..=hi[0] {
             for y in lo[1]..=hi[1] {
@@ -463,12 +367,12 @@ mod tests {
         s.add(&cloud, &[], &p);
         for x in [0.01, 1.01] {
             for z in [0.12, 0.5, 0.9] {
-                assert!(s.crossed(FreeSpace::voxel(&Point3::new(x, 0.01, z), p.voxel_m)), "({x}, {z})");
+                assert!(s.crossed(voxel(&Point3::new(x, 0.01, z), p.voxel_m)), "({x}, {z})");
             }
         }
-        assert!(!s.crossed(FreeSpace::voxel(&Point3::new(0.51, 0.01, 0.5), p.voxel_m)));
+        assert!(!s.crossed(voxel(&Point3::new(0.51, 0.01, 0.5), p.voxel_m)));
         // The returns' own voxels are not crossed.
-        assert!(!s.crossed(FreeSpace::voxel(&Point3::new(0.01, 0.01, 0.01), p.voxel_m)));
+        assert!(!s.crossed(voxel(&Point3::new(0.01, 0.01, 0.01), p.voxel_m)));
     }
 
     /// Space no ray crossed a few centimetres from the body is where a return would have been

@@ -13,6 +13,7 @@ pub mod metrics;
 pub mod noise;
 pub mod normals;
 pub mod ransac;
+pub mod ray_walk;
 pub mod riser;
 pub mod staircase;
 pub mod step_map;

@@ -152,8 +152,11 @@ struct QpTimes {
 /// The Exp. 1 sweep (simulated, from the robot's start) taken into the surroundings and made
 /// the plan's `SeenPoints`, as the loop takes a view: the returns' voxels alone (the
 /// baseline, `unseen_kept_off = false`) against them with the crossed space and its unseen
-/// edge (the default), median seconds each, and the edge's points.
-fn surroundings(repeat: usize) -> Result<(f64, f64, usize, usize)> {
+/// edge (the default), median seconds each, and the edge's points; and the rays' walk alone,
+/// each thread into chunks of its own (the baseline) against one dense block.
+fn surroundings(repeat: usize) -> Result<(f64, f64, usize, usize, WalkTimes)> {
+    use stairbench::perception::free_space::FreeSpace;
+    use stairbench::perception::ray_walk::Walker;
     use stairbench::perception::surroundings::{Surroundings, SurroundingsParams};
     let scenario = crate::cli::load_scenario(Some(std::path::Path::new("exp1")))?;
     let scene = Scene::from_scenario(&scenario)?;
@@ -172,7 +175,27 @@ fn surroundings(repeat: usize) -> Result<(f64, f64, usize, usize)> {
     };
     let baseline_s = time(&SurroundingsParams { unseen_kept_off: false, ..Default::default() });
     let with_s = time(&SurroundingsParams::default());
-    Ok((baseline_s, with_s, unseen, cloud.len()))
+    let fs = SurroundingsParams::default().free_space();
+    let mut voxels = [0; 2];
+    let [chunks_s, block_s] = [Walker::Chunks, Walker::Block].map(|walker| {
+        median_s(repeat, || {
+            let mut space = FreeSpace::default();
+            space.add_walked(&cloud, &[], &fs, walker);
+            voxels[(walker == Walker::Block) as usize] = space.crossed_voxels();
+        })
+    });
+    let walk = WalkTimes { chunks_s, block_s, voxels };
+    Ok((baseline_s, with_s, unseen, cloud.len(), walk))
+}
+
+/// Seconds of the rays' walk into the crossed space, and the voxels crossed, by each walker.
+struct WalkTimes {
+    /// Each thread into chunks of its own, merged after (the baseline).
+    chunks_s: f64,
+    /// One dense block spanning the rays (the default).
+    block_s: f64,
+    /// Voxels crossed, by the chunks and by the block.
+    voxels: [usize; 2],
 }
 
 /// Returns the Markdown table.
@@ -238,12 +261,20 @@ pub fn run(repeat: usize) -> Result<String> {
         q.active_diff_rad_s,
         q.by_clarabel
     );
-    let (baseline_s, with_s, unseen, returns) = surroundings(repeat)?;
+    let (baseline_s, with_s, unseen, returns, walk) = surroundings(repeat)?;
     t += &format!(
         "\nThe Exp. 1 sweep ({returns} returns, from the robot's start) into the surroundings and the plan's seen points, same process: the returns' voxels alone (baseline, `[surroundings] unseen_kept_off = false`) {:.1} ms, with the space the rays crossed (every second beam and row, 5 cm voxels, out to 2.5 m) and its unseen edge near the body (the default) {:.1} ms, ratio {:.2}; {unseen} unseen-edge points.\n",
         baseline_s * 1e3,
         with_s * 1e3,
         with_s / baseline_s
+    );
+    t += &format!(
+        "\nThe rays' walk alone (the same sweep, same process): each thread into chunks of its own, merged after (baseline) {:.1} ms, into one dense block spanning the rays (the default) {:.1} ms, ratio {:.2}; {} and {} voxels crossed.\n",
+        walk.chunks_s * 1e3,
+        walk.block_s * 1e3,
+        walk.chunks_s / walk.block_s,
+        walk.voxels[0],
+        walk.voxels[1]
     );
     t += "\nOne IK tick = the kinematics update, the task Jacobians, building the QP (40 velocities, contact equalities, one leg-clearance row per thigh and shank, 68 joint bounds) and its solve. The plan's wall time is nearly all IK ticks.\n";
     Ok(t)
