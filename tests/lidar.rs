@@ -11,7 +11,7 @@ use stairbench::cloud::PointCloud;
 use stairbench::scenario::Scenario;
 use stairbench::scene::mjcf::ROBOT_GEOM_GROUP;
 use stairbench::scene::{Scene, SurfaceRole};
-use stairbench::sensor::{AssembleParams, SimLidar, Sweep};
+use stairbench::sensor::{AssembleParams, RayCaster, SimLidar, Sweep};
 use stairbench::sim::lidar::head_lidar;
 use stairbench::sim::World;
 
@@ -189,4 +189,79 @@ fn tilt_is_quantized_and_moves_during_each_row() {
         held_err * 1e3
     );
     assert!(fit_err < 1e-3, "fitted tilt error {:.2} mm", fit_err * 1e3);
+}
+
+/// The world's own fast caster (`BoxRays`, the static boxes culled by their bounding spheres)
+/// gives `mj_ray`'s answers bit for bit, geom and distance: on the lidar's own beams, on rays
+/// from anywhere in the room in any direction, and on rays aimed at every box's corners and
+/// edges' midpoints (where a box meets the next and the nearer geom id must win the tie), in
+/// worlds with nosings, handrails, walls and objects on the treads.
+#[test]
+fn the_worlds_box_caster_answers_as_mj_ray() {
+    use rand::{Rng, SeedableRng};
+    let files = [
+        "scenarios/exp1.toml",
+        "scenarios/suites/regressions/exp1-nosing-25mm.toml",
+        "scenarios/suites/regressions/chest-between-two-rails.toml",
+        "scenarios/suites/regressions/parcel-in-a-lane-on-step-2.toml",
+        "scenarios/suites/regressions/stairwell-shoulder-met-the-wall.toml",
+        "scenarios/suites/regressions/walking-handrail-end-read-as-a-step-at-the-top.toml",
+    ];
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(42);
+    for file in files {
+        let s = Scenario::load(std::path::Path::new(file)).unwrap();
+        let scene = common::scene_of(&s);
+        let world = World::for_scene(&scene).unwrap();
+        assert!(world.casts_by_boxes(), "{file}: the world is static boxes");
+        let mut rays: Vec<(Point3<f64>, Vector3<f64>)> = Vec::new();
+        let lidar = head_lidar(&world, &s.lidar, s.seed).unwrap();
+        let (mount, model) = (lidar.mount_to_world(), lidar.lidar());
+        for k in (0..lidar.sweep().rows()).step_by(11) {
+            let stamp_s = lidar.sweep().row_stamp_s(k);
+            for i in (0..model.beams()).step_by(5) {
+                let scanner = mount
+                    * model.scanner_in_mount(lidar.sweep().tilt_at(stamp_s + model.beam_time_offset_s(i)));
+                rays.push((scanner.translation.vector.into(), scanner.rotation * model.beam_direction(i)));
+            }
+        }
+        let head: Point3<f64> = mount.translation.vector.into();
+        for b in scene.boxes() {
+            let h = b.half_extents_m();
+            for c in 0..27 {
+                // Corners, edges' midpoints, faces' centres and the centre of each box.
+                let at = Vector3::new(
+                    h.x * ((c % 3) as f64 - 1.0),
+                    h.y * ((c / 3 % 3) as f64 - 1.0),
+                    h.z * ((c / 9) as f64 - 1.0),
+                );
+                let target = b.pose() * Point3::from(at);
+                if let Some(d) = (target - head).try_normalize(1e-9) {
+                    rays.push((head, d));
+                }
+            }
+        }
+        for _ in 0..20_000 {
+            let o = Point3::new(
+                rng.random_range(-2.0..6.0),
+                rng.random_range(-3.0..3.0),
+                rng.random_range(0.05..2.5),
+            );
+            let d = Vector3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            if let Some(d) = d.try_normalize(1e-6) {
+                rays.push((o, d));
+            }
+        }
+        let mut hits = 0;
+        for (o, d) in &rays {
+            let (fast, mujoco) = (world.ray(o, d), world.ray_by_mujoco(o, d));
+            let key = |h: Option<stairbench::sensor::RayHit>| h.map(|h| (h.distance_m.to_bits(), h.geom));
+            assert_eq!(key(fast), key(mujoco), "{file}: from {o} along {d}");
+            hits += fast.is_some() as usize;
+        }
+        assert!(hits > rays.len() / 2, "{file}: {hits} of {} rays met a box", rays.len());
+    }
 }

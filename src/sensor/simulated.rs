@@ -34,6 +34,8 @@ pub trait RayCaster: Sync {
 pub struct SimLidar<'w, C: RayCaster> {
     world: &'w C,
     lidar: LidarModel,
+    /// Each beam's direction in the scanner frame ([`LidarModel::beam_direction`]).
+    directions: Vec<Vector3<f64>>,
     sweep: TiltSweep,
     mount_to_world: Isometry3<f64>,
     motion: Option<Motion>,
@@ -53,7 +55,16 @@ impl<'w, C: RayCaster> SimLidar<'w, C> {
     pub fn new(world: &'w C, spec: &LidarSpec, head_to_world: &Isometry3<f64>, seed: u64) -> Self {
         let lidar = LidarModel::from_spec(spec);
         let mount_to_world = head_to_world * lidar.mount_in_head;
-        Self { world, sweep: TiltSweep::from_spec(spec), lidar, mount_to_world, motion: None, seed }
+        let directions = (0..lidar.beams()).map(|i| lidar.beam_direction(i)).collect();
+        Self {
+            world,
+            sweep: TiltSweep::from_spec(spec),
+            lidar,
+            directions,
+            mount_to_world,
+            motion: None,
+            seed,
+        }
     }
 
     /// The lidar of `spec` on a head that moves during the sweep (a robot walking): row `k`
@@ -126,7 +137,7 @@ impl<'w, C: RayCaster> SimLidar<'w, C> {
         (0..self.lidar.beams())
             .map(|i| {
                 let scanner = self.mount_to_world * self.lidar.scanner_in_mount(tilt_of(i));
-                let dir = scanner.rotation * self.lidar.beam_direction(i);
+                let dir = scanner.rotation * self.directions[i];
                 self.world.ray(&scanner.translation.vector.into(), &dir)
             })
             .collect()
@@ -145,7 +156,7 @@ impl<'w, C: RayCaster> SimLidar<'w, C> {
             let tilt = self.sweep.tilt_at(stamp_s + self.lidar.beam_time_offset_s(i));
             let scanner = mount_to_world * self.lidar.scanner_in_mount(tilt);
             let origin = scanner.translation.vector.into();
-            let dir = scanner.rotation * self.lidar.beam_direction(i);
+            let dir = scanner.rotation * self.directions[i];
             let hit = self.world.ray(&origin, &dir);
             let mut range = hit.map_or(0.0, |h| h.distance_m);
             if let Some(n) = &noise {

@@ -4,6 +4,7 @@
 //! the scenario's `[plant]` ([`plant`]), and the two together on a scenario
 //! ([`climb_scenario`], [`scan_scenario`]); a rehearsal on perceived steps ([`rehearsal`]).
 
+pub mod box_rays;
 pub mod checks;
 pub mod emulator;
 pub mod execute;

@@ -3,6 +3,7 @@
 //! joints read by their MuJoCo addresses (a body with ankle bushes has more joints than its
 //! model), and the servos' set points sent through the body's [`Actuation`] at every step.
 
+use super::box_rays::BoxRays;
 use super::plant::{Plant, ServoLine};
 use crate::robot::model::{Q_JOINTS, V_JOINTS};
 use crate::robot::{self, hrp4};
@@ -55,6 +56,9 @@ pub struct World {
     data: MjData<Arc<MjModel>>,
     xml: String,
     lidar_groups: [u8; mjNGROUP as usize],
+    /// The static boxes the lidar's rays meet, when those are all it can meet (else `mj_ray`
+    /// casts them).
+    box_rays: Option<BoxRays>,
     /// Each actuated joint's qpos and qvel address (the actuators are in the model's joint
     /// order), and whether they are the model's own order after the free joint.
     qpos_adr: Vec<usize>,
@@ -121,7 +125,8 @@ impl World {
         let dof_adr: Vec<usize> = joints.iter().map(|&j| model.jnt_dofadr()[j] as usize).collect();
         let model_order = qpos_adr.iter().enumerate().all(|(a, &q)| q == Q_JOINTS + a)
             && dof_adr.iter().enumerate().all(|(a, &v)| v == V_JOINTS + a);
-        Ok(Self { model, data, xml, lidar_groups, qpos_adr, dof_adr, model_order, line: None })
+        let box_rays = BoxRays::of(&model, &data, &lidar_groups);
+        Ok(Self { model, data, xml, lidar_groups, box_rays, qpos_adr, dof_adr, model_order, line: None })
     }
 
     /// Actuated joint `a`'s angle, rad.
@@ -246,6 +251,11 @@ impl World {
         ((0..nu).map(|a| gp[a][0]).collect(), (0..nu).map(|a| -bp[a][2]).collect())
     }
 
+    /// Whether the lidar's rays are cast by [`BoxRays`] (the world is static boxes).
+    pub fn casts_by_boxes(&self) -> bool {
+        self.box_rays.is_some()
+    }
+
     /// Geom group of geom `id`.
     pub fn geom_group(&self, id: usize) -> usize {
         self.model.geom_group()[id] as usize
@@ -259,8 +269,21 @@ impl World {
 
 impl RayCaster for World {
     /// Casts one ray from `origin` along the unit vector `dir` against every geom except the
-    /// robot's, as of the last forward kinematics. Thread-safe: reads the state only.
+    /// robot's, as of the last forward kinematics: `mj_ray`'s answer (by [`BoxRays`] where the
+    /// world is static boxes). Thread-safe: reads the state only.
     fn ray(&self, origin: &Point3<f64>, dir: &Vector3<f64>) -> Option<RayHit> {
+        match &self.box_rays {
+            Some(boxes) => boxes
+                .ray(&[origin.x, origin.y, origin.z], &[dir.x, dir.y, dir.z])
+                .map(|(distance_m, geom)| RayHit { distance_m, geom }),
+            None => self.ray_by_mujoco(origin, dir),
+        }
+    }
+}
+
+impl World {
+    /// [`RayCaster::ray`] by MuJoCo's `mj_ray` over every geom, whatever the world holds.
+    pub fn ray_by_mujoco(&self, origin: &Point3<f64>, dir: &Vector3<f64>) -> Option<RayHit> {
         let pnt = [origin.x, origin.y, origin.z];
         let vec = [dir.x, dir.y, dir.z];
         let mut geom = -1i32;
