@@ -287,7 +287,13 @@ fn replay_of_a_look_set_aside_to_look_again_standing_is_equal() {
         // The loop goes on after a view with no plan only when it set that look aside.
         let set_aside = s.plan.is_none() && i < last;
         assert_eq!(view.set_aside, set_aside, "sweep {}: set aside {set_aside}", i + 1);
+        // A plan starts where its view was taken: `replay` plans a view that a plan followed
+        // from the plan's own start, which must be the view's configuration.
+        if let Some(plan) = &s.plan {
+            assert_eq!(plan.q0, view.q, "sweep {}: the plan starts where its view was taken", i + 1);
+        }
     }
+    assert!(recording.sweeps.iter().any(|s| s.plan.is_some()));
     assert!(recording.sweeps.iter().any(|s| s.view.as_ref().is_some_and(|v| v.set_aside)));
     let (ok, text) = replay_cli(&path);
     assert!(ok && text.contains("replay equals the recording"));
