@@ -200,24 +200,10 @@ pub fn run<E: Executor>(
                 }
             };
         let stood_s = stood_s(&sweep, stand_from_s, stamp_s, robot.now_s());
-        // A view under the estimate's drift is moved onto the known steps, and the estimate
-        // with it (the robot's own; a robot that keeps none is not moved, nor is its view).
-        let (mut correction_m, mut correction_yaw_rad) = (None, None);
-        let viewpoint = nalgebra::Point3::from(sweep.mount_to_world.translation.vector);
-        let seen = match map.register(&seen, &viewpoint, p.step_map) {
-            Some(offset) if robot.correct(&offset) => {
-                let before = q[..3].to_vec();
-                q = robot.configuration();
-                correction_m = Some([q[0] - before[0], q[1] - before[1], q[2] - before[2]]);
-                correction_yaw_rad = Some(offset.rotation.euler_angles().2);
-                let (moved, moved_cloud) = moved_view(&offset, seen, &mut sweep);
-                if let Some(c) = moved_cloud {
-                    cloud = c;
-                }
-                moved
-            }
-            _ => seen,
-        };
+        // A look set aside before this one moved the estimate too: the cycle reports both moves.
+        let mut correction = set_aside.as_ref().map_or((None, None), |f| f.correction);
+        let seen = register(robot, &map, seen, (&mut q, &mut sweep, &mut cloud), p.step_map, &mut correction);
+        let (correction_m, correction_yaw_rad) = correction;
         let t = Instant::now();
         // A plan refused on a sweep the head took moving is refused for what that sweep saw:
         // its rows crossed the space about the body from where the head was, seconds before.
@@ -253,7 +239,9 @@ pub fn run<E: Executor>(
                 map = known_before.unwrap_or(map);
                 view(observer, true);
                 let plan_s = t.elapsed().as_secs_f64();
-                set_aside = Some(SetAside { refusal: *refusal, stood_s, scan_s, perceive_s, plan_s });
+                let correction = (correction_m, correction_yaw_rad);
+                set_aside =
+                    Some(SetAside { refusal: *refusal, stood_s, scan_s, perceive_s, plan_s, correction });
                 continue;
             }
             Err(refusal) => {
@@ -326,6 +314,40 @@ pub fn run<E: Executor>(
     Ok(report)
 }
 
+/// How a registration moved the robot's estimate: metres (x, y, z), and about the vertical,
+/// radians; `None` where it did not.
+type Correction = (Option<[f64; 3]>, Option<f64>);
+
+/// A view under the estimate's drift registered on the known steps and moved onto them, and
+/// the estimate with it (the robot's own; a robot that keeps none is not moved, nor is its
+/// view): its steps, with the view's configuration `q`, sweep and cloud moved, and the move
+/// added to `correction`.
+fn register<E: Executor>(
+    robot: &mut E,
+    map: &StepMap,
+    seen: Vec<PlaneSegment>,
+    (q, sweep, cloud): (&mut Vec<f64>, &mut crate::sensor::Sweep, &mut crate::cloud::PointCloud),
+    p: &StepMapParams,
+    correction: &mut Correction,
+) -> Vec<PlaneSegment> {
+    let viewpoint = nalgebra::Point3::from(sweep.mount_to_world.translation.vector);
+    match map.register(&seen, &viewpoint, p) {
+        Some(offset) if robot.correct(&offset) => {
+            let before = q[..3].to_vec();
+            *q = robot.configuration();
+            let earlier = correction.0.unwrap_or([0.0; 3]);
+            correction.0 = Some([0, 1, 2].map(|i| earlier[i] + q[i] - before[i]));
+            correction.1 = Some(correction.1.unwrap_or(0.0) + offset.rotation.euler_angles().2);
+            let (moved, moved_cloud) = moved_view(&offset, seen, sweep);
+            if let Some(c) = moved_cloud {
+                *cloud = c;
+            }
+            moved
+        }
+        _ => seen,
+    }
+}
+
 /// One view from where the robot stands: its sweep, put together where the robot believes its
 /// head is (at configuration `q`, levelled by the gravity its rows measured), and what
 /// perception found in it.
@@ -347,6 +369,8 @@ struct SetAside {
     scan_s: f64,
     perceive_s: f64,
     plan_s: f64,
+    /// How its view's registration moved the estimate: the robot stays moved.
+    correction: Correction,
 }
 
 /// A head that went no farther during a sweep, metres, saw as a standing one does (a

@@ -79,10 +79,11 @@ pub struct CycleReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub estimate_error: Option<EstimateError>,
     /// The offset the step map's registration moved the robot's estimate by this cycle,
-    /// metres (x, y, z), when it did.
+    /// metres (x, y, z), when it did: on this cycle's view, and on a look set aside before it
+    /// (`looked_again_standing`), summed.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub correction_m: Option<[f64; 3]>,
-    /// And turned it by about the vertical, radians.
+    /// And turned it by about the vertical, radians (summed likewise).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub correction_yaw_rad: Option<f64>,
     /// Where the plan brought the body (arms, trunk, head) nearest a surface the lidar saw

@@ -260,7 +260,7 @@ fn handrail_near_the_body(s: &Scenario, lanes: [f64; 2], gait: &GaitParams) -> O
         let room_m = rail.abs() - RAIL_M / 2.0;
         (room_m < gait.body_half_width_m + SIDE_TOLERANCE_M).then(|| {
             format!(
-                "the {} handrail stands {room_m:.2} m from the robot's middle line, within the body's {:.2} m",
+                "the {} handrail stands {room_m:.2} m from the robot's middle line, within the body's {:.2} m half width and perception's {SIDE_TOLERANCE_M:.2} m tolerance",
                 if side > 0.0 { "left" } else { "right" },
                 gait.body_half_width_m
             )
