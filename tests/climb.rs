@@ -311,7 +311,8 @@ fn exp1_is_climbed_on_the_robots_own_estimate_and_a_slip_is_registered_away() {
 struct Corrected<'a> {
     robot: stairbench::sim::SimRobot<'a>,
     executions: usize,
-    moves: Vec<(usize, [f64; 3])>,
+    /// Each move: the executions before it, the robot's clock then (s), and the move (m).
+    moves: Vec<(usize, f64, [f64; 3])>,
     slip: (usize, nalgebra::Isometry3<f64>),
 }
 
@@ -335,7 +336,8 @@ impl stairbench::climb::Executor for Corrected<'_> {
         let moved = self.robot.correct(offset);
         if moved {
             let after = self.robot.configuration();
-            self.moves.push((self.executions, [0, 1, 2].map(|i| after[i] - before[i])));
+            let moved_m = [0, 1, 2].map(|i| after[i] - before[i]);
+            self.moves.push((self.executions, self.robot.now_s(), moved_m));
         }
         moved
     }
@@ -362,7 +364,8 @@ impl stairbench::climb::Executor for Corrected<'_> {
 /// Every move a registration made of the robot's estimate is in the cycles' reports: the
 /// moves made on a look set aside to look again standing too (summed into the next cycle's
 /// `correction_m`), which the reports left out before. A walking climb of `CASE`, its
-/// estimate made to slip before a look that is set aside.
+/// estimate made to slip after the fourth execution, before a look that is set aside. (A
+/// look after which the climb stops, the top's or a refusal's, is followed by no cycle.)
 #[test]
 fn every_move_of_the_estimate_is_reported_a_look_set_asides_too() {
     use stairbench::climb::{self, Bench};
@@ -378,13 +381,20 @@ fn every_move_of_the_estimate_is_reported_a_look_set_asides_too() {
     let track = std::cell::RefCell::new(stairbench::sim::head_track::HeadTrack::new(&s.lidar));
     let mut source = stairbench::sim::SimSource::new(&world, &s.lidar, s.seed).unwrap().with_track(&track);
     let robot = stairbench::sim::SimRobot::new(&world, &model, &scene, &p.sim()).unwrap().with_track(&track);
-    // The estimate slips 5 cm up the flight before the fourth look, which is set aside.
+    // The estimate slips 5 cm up the flight after the fourth execution.
     let slip = (4, nalgebra::Isometry3::translation(0.05, 0.0, 0.0));
     let mut robot = Corrected { robot, executions: 0, moves: Vec::new(), slip };
     let bench = Bench { source: &mut source, robot: &mut robot, model: &model, truth: &scene };
-    let r = climb::run(bench, p.loop_params(), &mut Nobody, &Cancel::never()).unwrap();
+    // Each look's stamp, and whether it was set aside.
+    let mut views: Vec<(f64, bool)> = Vec::new();
+    let mut watch = climb::Watch(|e: &stairbench::climb::Event| {
+        if let stairbench::climb::Event::View { stamp_s, set_aside, .. } = e {
+            views.push((*stamp_s, *set_aside));
+        }
+    });
+    let r = climb::run(bench, p.loop_params(), &mut watch, &Cancel::never()).unwrap();
     // A look after the last execution (the top's) is followed by no cycle to report it.
-    let moves: Vec<_> = robot.moves.iter().filter(|(e, _)| *e < robot.executions).copied().collect();
+    let moves: Vec<_> = robot.moves.iter().filter(|(e, ..)| *e < robot.executions).copied().collect();
     println!("moves {moves:?}");
     for c in &r.cycles {
         println!(
@@ -394,15 +404,15 @@ fn every_move_of_the_estimate_is_reported_a_look_set_asides_too() {
             c.correction_m
         );
     }
-    // A move between the executions about a look set aside (the reported cycles before it
-    // are the executions before it).
-    let about_set_aside = |e: usize| r.cycles.get(e).is_some_and(|c| c.looked_again_standing.is_some());
+    // A move made on a look set aside: at that look's stamp (the registration follows the
+    // look at once, in no simulated time).
+    let set_aside_at = |t_s: f64| views.iter().any(|&(at_s, aside)| aside && (at_s - t_s).abs() < 1e-9);
     assert!(
-        moves.iter().any(|(e, _)| about_set_aside(*e)),
-        "no move of the estimate about a look set aside: the test no longer holds its case"
+        moves.iter().any(|&(_, t_s, _)| set_aside_at(t_s)),
+        "no look set aside moved the estimate: the test no longer holds its case"
     );
     let sum = |v: &mut dyn Iterator<Item = [f64; 3]>| v.fold([0.0; 3], |a, m| [0, 1, 2].map(|i| a[i] + m[i]));
-    let moved = sum(&mut moves.iter().map(|(_, m)| *m));
+    let moved = sum(&mut moves.iter().map(|(.., m)| *m));
     let reported = sum(&mut r.cycles.iter().filter_map(|c| c.correction_m));
     for i in 0..3 {
         assert!((moved[i] - reported[i]).abs() < 1e-9, "moved {moved:?}, reported {reported:?}");

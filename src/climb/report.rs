@@ -80,7 +80,8 @@ pub struct CycleReport {
     pub estimate_error: Option<EstimateError>,
     /// The offset the step map's registration moved the robot's estimate by this cycle,
     /// metres (x, y, z), when it did: on this cycle's view, and on a look set aside before it
-    /// (`looked_again_standing`), summed.
+    /// (`looked_again_standing`), summed. A look after which the climb stopped (the top's, a
+    /// refusal's, even one taken again after a look set aside) is in no cycle.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub correction_m: Option<[f64; 3]>,
     /// And turned it by about the vertical, radians (summed likewise).

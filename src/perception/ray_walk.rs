@@ -64,9 +64,9 @@ pub fn merge(into: &mut Chunks, from: Chunks) {
 struct Walk {
     start: [i32; 3],
     step: [i32; 3],
-    t_next: [f64; 3],
-    t_delta: [f64; 3],
-    end: f64,
+    t_next_m: [f64; 3],
+    t_delta_m: [f64; 3],
+    end_m: f64,
     hit: [i32; 3],
     /// The voxel where the walk ends.
     far: [i32; 3],
@@ -79,50 +79,51 @@ impl Walk {
         let d = to - from;
         let length = d.norm();
         let end = (length - voxel_m).min(reach_m);
-        if end.is_nan() || end <= 0.0 {
+        // A ray with no finite length goes nowhere (`min` would take the reach for it).
+        if !length.is_finite() || end.is_nan() || end <= 0.0 {
             return None;
         }
         let dir = d / length;
         let start = voxel(from, voxel_m);
-        let (mut step, mut t_next, mut t_delta) = ([0i32; 3], [f64::INFINITY; 3], [f64::INFINITY; 3]);
+        let (mut step, mut t_next_m, mut t_delta_m) = ([0i32; 3], [f64::INFINITY; 3], [f64::INFINITY; 3]);
         for i in 0..3 {
             if dir[i] > 0.0 {
                 step[i] = 1;
-                t_next[i] = ((start[i] + 1) as f64 * voxel_m - from[i]) / dir[i];
-                t_delta[i] = voxel_m / dir[i];
+                t_next_m[i] = ((start[i] + 1) as f64 * voxel_m - from[i]) / dir[i];
+                t_delta_m[i] = voxel_m / dir[i];
             } else if dir[i] < 0.0 {
                 step[i] = -1;
-                t_next[i] = (start[i] as f64 * voxel_m - from[i]) / dir[i];
-                t_delta[i] = -voxel_m / dir[i];
+                t_next_m[i] = (start[i] as f64 * voxel_m - from[i]) / dir[i];
+                t_delta_m[i] = -voxel_m / dir[i];
             }
         }
         let far = voxel(&(from + dir * end), voxel_m);
-        Some(Self { start, step, t_next, t_delta, end, hit: voxel(to, voxel_m), far })
+        Some(Self { start, step, t_next_m, t_delta_m, end_m: end, hit: voxel(to, voxel_m), far })
     }
 }
 
 /// Marks in `chunks` the voxels of `w` (the baseline walk).
 fn trace_chunks(chunks: &mut Chunks, w: &Walk) {
-    let (mut v, mut t_next) = (w.start, w.t_next);
+    let (mut v, mut t_next_m) = (w.start, w.t_next_m);
     // The voxel's chunk and its place in it are stepped with the voxel: the chunk is looked
     // up only when the walk leaves it.
     let (mut key, _) = chunk_of(v);
     let mut local = v.map(|c| c.rem_euclid(CHUNK));
     let mut words = chunks.entry(key).or_insert_with(|| Box::new([0; CHUNK_WORDS]));
     let mut t = 0.0;
-    while t < w.end && v != w.hit {
+    while t < w.end_m && v != w.hit {
         let bit = (local[0] + (local[1] + local[2] * CHUNK) * CHUNK) as usize;
         words[bit / 64] |= 1 << (bit % 64);
         // The axis whose boundary comes first (the first of equals).
-        let i = if t_next[0] <= t_next[1] && t_next[0] <= t_next[2] {
+        let i = if t_next_m[0] <= t_next_m[1] && t_next_m[0] <= t_next_m[2] {
             0
-        } else if t_next[1] <= t_next[2] {
+        } else if t_next_m[1] <= t_next_m[2] {
             1
         } else {
             2
         };
-        t = t_next[i];
-        t_next[i] += w.t_delta[i];
+        t = t_next_m[i];
+        t_next_m[i] += w.t_delta_m[i];
         v[i] += w.step[i];
         local[i] += w.step[i];
         if !(0..CHUNK).contains(&local[i]) {
@@ -133,8 +134,8 @@ fn trace_chunks(chunks: &mut Chunks, w: &Walk) {
     }
 }
 
-/// A dense box of voxel bits, x fastest; its corner on a chunk's and its x extent whole
-/// chunks, so a chunk's row of 16 bits lies in one word.
+/// A dense box of voxel bits, x fastest; its corner on a chunk's and its extent whole chunks
+/// on every axis, so a chunk's row of 16 bits lies in one word and every chunk is whole.
 struct Block {
     lo: [i32; 3],
     n: [i64; 3],
@@ -165,10 +166,12 @@ impl Block {
         let hit = self.index(w.hit).unwrap_or(-1);
         let stride =
             [w.step[0] as i64, w.step[1] as i64 * self.n[0], w.step[2] as i64 * self.n[0] * self.n[1]];
-        let [mut tx, mut ty, mut tz] = w.t_next;
+        let [mut tx, mut ty, mut tz] = w.t_next_m;
         let mut t = 0.0;
-        while t < w.end && at != hit {
-            // The walk stays within the block it spans; a bit outside (rounding) is dropped.
+        while t < w.end_m && at != hit {
+            // The walk stays within the block: the block spans every walk's voxels a voxel
+            // more each way (`walk`). A voxel outside it on one axis would name another voxel
+            // of the block; only a bit outside the whole block is dropped here.
             if let Some(word) = usize::try_from(at >> 6).ok().and_then(|k| self.bits.get(k)) {
                 let bit = 1u64 << (at & 63);
                 if word.load(Ordering::Relaxed) & bit == 0 {
@@ -178,15 +181,15 @@ impl Block {
             // The axis whose boundary comes first (the first of equals).
             if tx <= ty && tx <= tz {
                 t = tx;
-                tx += w.t_delta[0];
+                tx += w.t_delta_m[0];
                 at += stride[0];
             } else if ty <= tz {
                 t = ty;
-                ty += w.t_delta[1];
+                ty += w.t_delta_m[1];
                 at += stride[1];
             } else {
                 t = tz;
-                tz += w.t_delta[2];
+                tz += w.t_delta_m[2];
                 at += stride[2];
             }
         }

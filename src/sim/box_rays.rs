@@ -3,8 +3,11 @@
 //! moves), and a box whose bounding sphere lies wholly beyond the nearest hit found so far is
 //! not tested. Each box is tested with `mj_ray`'s own arithmetic (its bounding-sphere test,
 //! then each face), so the distances are the same numbers; ties go to the lower geom id, as
-//! `mj_ray`'s do. A world with any other geom a ray may meet is left to `mj_ray`.
+//! `mj_ray`'s do. A world with any other geom a ray may meet is left to `mj_ray`. Same numbers
+//! as long as the MuJoCo library computes without fused multiply-adds, as Rust does (an x86-64
+//! build without `-mfma`, as the one this bench fetches; tests/lidar.rs checks it).
 
+use mujoco_rs::mujoco_c::mjNGROUP;
 use mujoco_rs::prelude::{MjData, MjModel, MjtGeomBase};
 use std::sync::Arc;
 
@@ -17,10 +20,10 @@ const CULL_SLACK_M: f64 = 1e-6;
 /// bounding radius, bounding radius, and geom id.
 #[derive(Debug, Clone)]
 struct RayBox {
-    pos: [f64; 3],
+    pos_m: [f64; 3],
     mat: [f64; 9],
-    size: [f64; 3],
-    radius_sqr: f64,
+    half_m: [f64; 3],
+    radius_m2: f64,
     radius_m: f64,
     geom: usize,
 }
@@ -47,7 +50,7 @@ impl BoxRays {
                 Ok(m) => mat_rgba.get(m).is_none_or(|c| c[3] == 0.0),
                 Err(_) => rgba[g][3] == 0.0,
             };
-            let group = model.geom_group()[g].clamp(0, groups.len() as i32 - 1) as usize;
+            let group = model.geom_group()[g].clamp(0, mjNGROUP as i32 - 1) as usize;
             if invisible || groups.get(group).is_none_or(|&on| on == 0) {
                 continue;
             }
@@ -56,13 +59,13 @@ impl BoxRays {
                 return None;
             }
             let s = size[g];
-            let radius_sqr = s[0] * s[0] + s[1] * s[1] + s[2] * s[2];
+            let radius_m2 = s[0] * s[0] + s[1] * s[1] + s[2] * s[2];
             boxes.push(RayBox {
-                pos: xpos[g],
+                pos_m: xpos[g],
                 mat: xmat[g],
-                size: s,
-                radius_sqr,
-                radius_m: radius_sqr.sqrt(),
+                half_m: s,
+                radius_m2,
+                radius_m: radius_m2.sqrt(),
                 geom: g,
             });
         }
@@ -78,7 +81,7 @@ impl BoxRays {
             if let Some((d, _)) = best {
                 // The box's nearest point is its centre's distance less its radius away.
                 let reach = (d * vec_sqr.sqrt() + b.radius_m + CULL_SLACK_M).powi(2);
-                let dif = [b.pos[0] - pnt[0], b.pos[1] - pnt[1], b.pos[2] - pnt[2]];
+                let dif = [b.pos_m[0] - pnt[0], b.pos_m[1] - pnt[1], b.pos_m[2] - pnt[2]];
                 if dif[0] * dif[0] + dif[1] * dif[1] + dif[2] * dif[2] > reach {
                     continue;
                 }
@@ -98,14 +101,15 @@ impl RayBox {
     /// the crossing.
     fn ray(&self, pnt: &[f64; 3], vec: &[f64; 3], beyond: f64) -> f64 {
         // The bounding sphere: a x^2 + 2 b x + c = 0 with a root ahead.
-        let dif = [pnt[0] - self.pos[0], pnt[1] - self.pos[1], pnt[2] - self.pos[2]];
+        let dif = [pnt[0] - self.pos_m[0], pnt[1] - self.pos_m[1], pnt[2] - self.pos_m[2]];
         let a = vec[0] * vec[0] + vec[1] * vec[1] + vec[2] * vec[2];
         let b = vec[0] * dif[0] + vec[1] * dif[1] + vec[2] * dif[2];
-        let c = dif[0] * dif[0] + dif[1] * dif[1] + dif[2] * dif[2] - self.radius_sqr;
+        let c = dif[0] * dif[0] + dif[1] * dif[1] + dif[2] * dif[2] - self.radius_m2;
         let det = b * b - a * c;
-        // No root, or both behind (the larger, (-b + sqrt(det)) / a, below zero: the sphere
-        // wholly behind the origin, which lies outside it).
-        if det < MIN_VAL || (b > 0.0 && c > 0.0) {
+        // No root, or both behind: the larger, (-b + sqrt(det)) / a, below zero. That needs the
+        // origin outside the sphere and the ray leaving it (b, c > 0; else the root is not
+        // negative), and only then is the root taken.
+        if det < MIN_VAL || (b > 0.0 && c > 0.0 && (-b + det.sqrt()) / a < 0.0) {
             return -1.0;
         }
         // The ray in the box's frame (the transposed rotation).
@@ -121,7 +125,7 @@ impl RayBox {
             m[2] * vec[0] + m[5] * vec[1] + m[8] * vec[2],
         ];
         const FACES: [[usize; 2]; 3] = [[1, 2], [0, 2], [0, 1]];
-        let s = &self.size;
+        let s = &self.half_m;
         let mut x = -1.0;
         for (i, [f0, f1]) in FACES.into_iter().enumerate() {
             if lvec[i].abs() <= MIN_VAL {
