@@ -167,16 +167,14 @@ impl FreeSpace {
                 }
             }
         }
+        // Non-finite coordinates, and garbage far off, are neither marked nor walked.
+        rays.retain(|(from, to)| from.coords.iter().chain(to.coords.iter()).all(|v| v.abs() < FAR_M));
         let (lo, hi) = capsules_box(body, p.self_margin_m);
-        let sane = |(from, to): &&(Point3<f64>, Point3<f64>)| {
-            from.coords.iter().chain(to.coords.iter()).all(|v| v.abs() < FAR_M) // non-finite, garbage
-        };
-        for (from, to) in rays.iter().filter(sane) {
+        for (from, to) in &rays {
             let in_box = (0..3).all(|i| to[i] >= lo[i] && to[i] <= hi[i]);
             let on_body = in_box && body.iter().any(|c| c.distance_m(to) < p.self_margin_m);
             regard.mark(&(to - from), on_body);
         }
-        let rays: Vec<_> = rays.iter().filter(sane).copied().collect();
         ray_walk::merge(&mut self.chunks, ray_walk::walk(&rays, p.voxel_m, p.reach_m, walker));
         for c in body {
             self.fill(c, p.voxel_m);
