@@ -319,4 +319,31 @@ mod tests {
         let ok: SurroundingsParams = toml::from_str("voxel_m = 0.05").expect("a positive voxel");
         assert_eq!(ok.voxel_m, 0.05);
     }
+
+    /// The planner's input is one list whatever order the sweeps and their returns came in.
+    /// The coordinates are multiples of 1/64 m, so every voxel's sum is exact in any order
+    /// and only the list's order could differ.
+    #[test]
+    fn the_seen_points_are_one_list_whatever_the_returns_order() {
+        let p = SurroundingsParams::default();
+        // Each return twice (a voxel is a surface from two returns on), once in each sweep.
+        let pts: Vec<[f32; 3]> = (0..600)
+            .map(|i| {
+                let i = i % 300;
+                let k = (i * 37 % 101) as f32;
+                [k / 64.0, ((i * 13) % 29) as f32 / 64.0, ((i * 7) % 11) as f32 / 64.0]
+            })
+            .collect();
+        let (a, b) = pts.split_at(300);
+        let mut first = Surroundings::default();
+        first.add(&cloud(a), &[], &p);
+        first.add(&cloud(b), &[], &p);
+        let mut second = Surroundings::default();
+        let reversed: Vec<[f32; 3]> = b.iter().rev().copied().collect();
+        second.add(&cloud(&reversed), &[], &p);
+        second.add(&cloud(&a.iter().rev().copied().collect::<Vec<_>>()), &[], &p);
+        let (x, y) = (first.points(&p), second.points(&p));
+        assert!(x.len() > 20, "{} voxels: the case is not shown", x.len());
+        assert_eq!(x, y);
+    }
 }
