@@ -778,6 +778,53 @@ fn the_ik_keeps_the_body_off_a_wall_the_lidar_saw() {
     );
 }
 
+/// Regression `walking-chest-ratcheted-along-a-nose`: the IK held each capsule off its one
+/// nearest point, and a capsule moving along a row of points was held off each in turn
+/// while it came nearer the next: the chest over a nose, its two nearest points 8 cm apart,
+/// went from 30 mm to 19.8 and the plan was refused. Bars of points 6.5 and 10 cm apart
+/// across the path of the blind plan's chest, where it leans farthest forward and 5 cm
+/// above, 1 cm into it: planned among each, the body keeps its clearance from every point
+/// to a third of a millimetre (held off its nearest alone, it came 0.6 mm nearer).
+#[test]
+fn the_ik_holds_the_body_off_a_row_of_points_not_only_its_nearest() {
+    let (model, rects, q0, p, blind) = planned_blind();
+    let mut kin = Kinematics::new(&model);
+    let chest = clearance::upper_limbs(&model, &hrp4::sole_frames(&model).unwrap())
+        .into_iter()
+        .find(|l| l.name == "CHEST_Y_LINK")
+        .expect("the chest's capsule");
+    // The chest's foremost point over the blind plan, and its height there.
+    let (mut front_x, mut front_z) = (f64::NEG_INFINITY, 0.0);
+    for s in &blind.trajectory.samples {
+        kin.update(&s.q).unwrap();
+        let c = chest.capsule(&kin);
+        for end in [c.a, c.b] {
+            if end.x + c.radius_m > front_x {
+                (front_x, front_z) = (end.x + c.radius_m, end.z);
+            }
+        }
+    }
+    for spacing_m in [0.065, 0.1] {
+        for above_m in [0.0, 0.05] {
+            let bar: Vec<Point3<f64>> = (-8..=8)
+                .map(|k| Point3::new(front_x - 0.01, spacing_m * f64::from(k), front_z + above_m))
+                .collect();
+            let (blind_least, _) = upper_body_reach(&blind, &bar);
+            assert!(blind_least < 0.0, "the blind plan passes through the bar: {blind_least} m");
+            let among = PlanRequest::new(&model, &q0, &rects, &p)
+                .among(std::sync::Arc::new(clearance::SeenPoints::new(bar.clone())))
+                .max_stances(Some(2))
+                .climb()
+                .expect("planned behind the bar");
+            let (least, _) = upper_body_reach(&among, &bar);
+            assert!(
+                least >= p.ik.body_clearance_m - 3e-4,
+                "bar {spacing_m} m apart, {above_m} m up: the body came within {least} m of it"
+            );
+        }
+    }
+}
+
 /// Issue 42, real-0014 with sweeps taken as the robot moved: the chest met a right handrail
 /// in a gap no ray had crossed, planned as free space. Space the lidar could have seen and
 /// did not is kept off as a surface is: the same wall as unseen space 2 cm beyond the blind
@@ -859,7 +906,8 @@ fn a_plan_between_two_walls_keeps_the_sway_or_is_refused() {
     assert!(refused > 0, "walls 11 cm inside the body's reach were planned between");
 }
 
-/// The planner's nearest seen point equals the brute-force one (every point, every capsule).
+/// The planner's nearest seen point equals the brute-force one (every point, every capsule),
+/// and so do the witnesses the IK holds each capsule off.
 #[test]
 fn the_nearest_seen_point_is_the_brute_force_one() {
     let model = hrp4::model().unwrap();
@@ -881,7 +929,7 @@ fn the_nearest_seen_point_is_the_brute_force_one() {
     let range = 0.08;
     let limbs = clearance::upper_limbs(&model, &hrp4::sole_frames(&model).unwrap());
     assert!(limbs.len() >= 6, "arms, trunk and head: {}", limbs.len());
-    let mut found = 0;
+    let (mut found, mut witnessed) = (0, 0);
     for limb in &limbs {
         let c = limb.capsule(&kin);
         let brute = points.iter().map(|p| c.distance_m(p)).fold(f64::INFINITY, f64::min);
@@ -893,8 +941,40 @@ fn the_nearest_seen_point_is_the_brute_force_one() {
             }
             None => assert!(brute > range, "{}: missed a point {brute} m away", limb.name),
         }
+        // Its witnesses, by brute force: each the nearest point within range at least the
+        // spacing from every one before it, while within the band of the nearest, up to the
+        // most there are.
+        let witnesses = match seen.probe(&c, range) {
+            clearance::Probe::Near(w) => w,
+            clearance::Probe::Clear { .. } => Vec::new(),
+        };
+        let mut chosen: Vec<Point3<f64>> = Vec::new();
+        for w in &witnesses {
+            let brute = points
+                .iter()
+                .filter(|p| chosen.iter().all(|q| (*p - q).norm() >= clearance::WITNESS_SPACING_M))
+                .map(|p| c.distance_m(p))
+                .fold(f64::INFINITY, f64::min);
+            assert!((w.clearance_m - brute).abs() < 1e-9, "{}: {} vs {brute}", limb.name, w.clearance_m);
+            chosen.push(points[w.block]);
+        }
+        let more = points
+            .iter()
+            .filter(|p| chosen.iter().all(|q| (*p - q).norm() >= clearance::WITNESS_SPACING_M))
+            .map(|p| c.distance_m(p))
+            .fold(f64::INFINITY, f64::min);
+        let band_m =
+            witnesses.first().map_or(range, |w| range.min(w.clearance_m + clearance::WITNESS_BAND_M));
+        assert!(
+            witnesses.len() == clearance::MAX_WITNESSES || more > band_m,
+            "{}: {} witnesses, and a point {more} m away apart from them",
+            limb.name,
+            witnesses.len()
+        );
+        witnessed = witnessed.max(witnesses.len());
     }
     assert!(found > 0, "the scatter reaches some capsule");
+    assert!(witnessed > 1, "some capsule has more than one witness");
 }
 
 /// The tracker's probe cache skips a capsule's search only when it cannot have come within
@@ -921,11 +1001,11 @@ fn the_probe_cache_answers_as_a_fresh_search_does() {
             radius_m: 0.04,
         };
         let fresh = match seen.probe(&capsule, range) {
-            clearance::Probe::Near(n) => Some(n),
-            clearance::Probe::Clear { .. } => None,
+            clearance::Probe::Near(witnesses) => witnesses,
+            clearance::Probe::Clear { .. } => Vec::new(),
         };
-        fresh_hits += usize::from(fresh.is_some());
-        assert_eq!(cache.nearest(0, &seen, capsule, range), fresh, "step {step}, y {y}");
+        fresh_hits += usize::from(!fresh.is_empty());
+        assert_eq!(cache.witnesses(0, &seen, capsule, range), fresh, "step {step}, y {y}");
     }
     assert!(fresh_hits > 10, "the path comes within range of the wall: {fresh_hits}");
 }

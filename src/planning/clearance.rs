@@ -204,7 +204,7 @@ impl SeenPoints {
     /// `kin` holds, `Nearest::block` being its index ([`SeenPoints::point`]); `None` when no point is within `range_m` of the capsule.
     pub fn nearest(&self, kin: &Kinematics, limb: &Limb, range_m: f64) -> Option<Nearest> {
         match self.probe(&limb.capsule(kin), range_m) {
-            Probe::Near(n) => Some(n),
+            Probe::Near(mut witnesses) => Some(witnesses.swap_remove(0)),
             Probe::Clear { .. } => None,
         }
     }
@@ -236,28 +236,82 @@ impl SeenPoints {
             return Probe::Clear { gap_m };
         }
         let middle = Point3::from((capsule.a.coords + capsule.b.coords) / 2.0);
-        let reach = half_length + upper.min(capsule.radius_m + range_m);
+        // Every point within `WITNESS_BAND_M` of the nearest's clearance lies in the ball
+        // (the nearest's axis distance is at most `upper`).
+        let reach = half_length + (upper + WITNESS_BAND_M).min(capsule.radius_m + range_m);
         let q = [middle.x, middle.y, middle.z];
-        let mut best: Option<Nearest> = None;
-        for found in tree.query(&q).within::<kiddo::SquaredEuclidean<f64>>(reach * reach).execute() {
-            let p = self.points[found.item as usize];
-            let point = capsule.axis_point_nearest(&p);
-            let away = point - p;
-            let clearance_m = away.norm() - capsule.radius_m;
-            if clearance_m <= range_m && best.as_ref().is_none_or(|n| clearance_m < n.clearance_m) {
-                let normal = away.try_normalize(1e-12).unwrap_or_else(Vector3::z);
-                best = Some(Nearest { block: found.item as usize, clearance_m, point, normal });
+        let found = tree.query(&q).within::<kiddo::SquaredEuclidean<f64>>(reach * reach).execute();
+        // The nearest of the points `apart` admits, within range.
+        let nearest = |apart: &dyn Fn(&Point3<f64>) -> bool| {
+            let mut best: Option<Nearest> = None;
+            for f in &found {
+                let p = self.points[f.item as usize];
+                let point = capsule.axis_point_nearest(&p);
+                let away = point - p;
+                let clearance_m = away.norm() - capsule.radius_m;
+                if clearance_m <= range_m
+                    && best.as_ref().is_none_or(|n| clearance_m < n.clearance_m)
+                    && apart(&p)
+                {
+                    let normal = away.try_normalize(1e-12).unwrap_or_else(Vector3::z);
+                    best = Some(Nearest { block: f.item as usize, clearance_m, point, normal });
+                }
+            }
+            best
+        };
+        // The witnesses: the nearest point, then each time the nearest of those
+        // `WITNESS_SPACING_M` or more from every witness before it, within `WITNESS_BAND_M`
+        // of the nearest's clearance.
+        let mut witnesses: Vec<Nearest> = Vec::new();
+        while witnesses.len() < MAX_WITNESSES {
+            let apart = |p: &Point3<f64>| {
+                witnesses.iter().all(|w| (p - self.points[w.block]).norm() >= WITNESS_SPACING_M)
+            };
+            match nearest(&apart) {
+                Some(w)
+                    if witnesses.first().is_none_or(|f| w.clearance_m <= f.clearance_m + WITNESS_BAND_M) =>
+                {
+                    witnesses.push(w)
+                }
+                _ => break,
             }
         }
-        best.map_or(Probe::Clear { gap_m: 0.0 }, Probe::Near)
+        if witnesses.is_empty() {
+            Probe::Clear { gap_m: 0.0 }
+        } else {
+            Probe::Near(witnesses)
+        }
     }
 }
+
+/// How far apart [`SeenPoints::probe`]'s witnesses of a capsule lie at least, metres. A
+/// capsule held off its one nearest point moves across the direction it is held in, and so
+/// nearer the points beside that one: the chest over a nose, its two nearest points on it
+/// 8 cm apart, was held off each in turn, tick by tick, while it came 2 mm nearer the
+/// other, from 30 mm to 19.8 (`envelope-0100`, sweeps taken walking; regression
+/// `walking-chest-ratcheted-along-a-nose`); and a point held no more, the IK's other tasks
+/// pulled the capsule toward it by 9 mm in one tick. The witnesses hold it off each part
+/// of what is near at once. More than a 3 cm voxel's diagonal, so that a witness is not the
+/// neighbour of another on the same patch of a surface, which that one's row holds off.
+pub const WITNESS_SPACING_M: f64 = 0.05;
+
+/// How much farther than its nearest point a capsule's other witnesses may be, metres: a
+/// point 2 cm farther matters once the capsule has moved 2 cm toward it, and is a witness
+/// by then (the ratchet went between points within 2 mm of each other).
+pub const WITNESS_BAND_M: f64 = 0.02;
+
+/// The most witnesses of a capsule: its nearest point and three more, each at least
+/// [`WITNESS_SPACING_M`] from the others (a chest between two rails and over a nose has
+/// three parts of what is near it).
+pub const MAX_WITNESSES: usize = 4;
 
 /// What [`SeenPoints::probe`] found for a capsule.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Probe {
-    /// The nearest point, within range.
-    Near(Nearest),
+    /// The points within range the capsule is held off: the nearest first, then up to
+    /// [`MAX_WITNESSES`] in all, each the nearest of those at least [`WITNESS_SPACING_M`]
+    /// from the ones before it, while within [`WITNESS_BAND_M`] of the nearest's clearance.
+    Near(Vec<Nearest>),
     /// No point within range; every one is at least `gap_m` beyond it (0: not known).
     Clear {
         /// Metres.
@@ -275,31 +329,26 @@ pub struct ProbeCache {
 }
 
 impl ProbeCache {
-    /// The nearest point to capsule `i` (now `capsule`) within `range_m`, probing `seen`
-    /// only when it may have come within range since its last probe.
-    pub fn nearest(
-        &mut self,
-        i: usize,
-        seen: &SeenPoints,
-        capsule: Capsule,
-        range_m: f64,
-    ) -> Option<Nearest> {
+    /// The witnesses of capsule `i` (now `capsule`) within `range_m`, the nearest first
+    /// ([`Probe::Near`]; empty when none is within range), probing `seen` only when it may
+    /// have come within range since its last probe.
+    pub fn witnesses(&mut self, i: usize, seen: &SeenPoints, capsule: Capsule, range_m: f64) -> Vec<Nearest> {
         if self.clear.len() <= i {
             self.clear.resize(i + 1, None);
         }
         if let Some((then, gap_m)) = &self.clear[i] {
             if (capsule.a - then.a).norm().max((capsule.b - then.b).norm()) < *gap_m {
-                return None;
+                return Vec::new();
             }
         }
         match seen.probe(&capsule, range_m) {
-            Probe::Near(n) => {
+            Probe::Near(witnesses) => {
                 self.clear[i] = None;
-                Some(n)
+                witnesses
             }
             Probe::Clear { gap_m } => {
                 self.clear[i] = Some((capsule, gap_m));
-                None
+                Vec::new()
             }
         }
     }

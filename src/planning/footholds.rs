@@ -94,9 +94,24 @@ pub struct GaitParams {
     /// the feet, metres: HRP-4's upper arms reach 0.215 m from its midline (the shoulder
     /// joint 0.175 m out, the arm 4 cm thick), the CoM sways over each foot (half the lanes'
     /// spacing, about 0.1 m), and the body keeps its 3 cm clearance from the surroundings'
-    /// points, which stand up to 2 cm proud of a noisy wall. 0.36 m. A flight with less than
-    /// twice this between what stands beside it at the body's height is refused.
+    /// points, which stand up to 2 cm proud of a noisy wall. 0.36 m. The lanes move to keep
+    /// what stands beside the flight this far from their midline, and a flight with less
+    /// than twice this between what stands beside it at the body's height is refused from
+    /// the floor (on the flight, `room_commit_margin_m` less).
     pub body_half_width_m: f64,
+    /// On the flight, a room between the points seen beside it down to twice
+    /// `body_half_width_m` less this is kept, metres; from the floor the climb starts on,
+    /// the whole of twice `body_half_width_m` is needed ([`GaitParams::committing`] sets
+    /// this to 0). The room is measured to the nearest of the points, voxel centroids that
+    /// stand proud of a noisy rail or wall by the tail of the noise; a nearer look, from the
+    /// flight or walking, sees more of them, and their nearest stands farther in:
+    /// `real-0046`'s rails, truly 0.798 m apart, measured 0.735-0.741 m from the floor and
+    /// 0.715 m from step 1 walking (regression `walking-room-narrowed-on-the-flight`). A
+    /// judgment at the limit is thus made once, before a foot is set, as
+    /// `side_commit_margin_m` keeps the lanes'. 3 cm: what is left is the arms' reach, the
+    /// CoM's sway and the IK's 3 cm clearance from the points themselves (0.345 m a side),
+    /// which the IK's own check (`IkParams::min_body_clearance_m`) still guards.
+    pub room_commit_margin_m: f64,
     /// Heights above the tread below in which a surface the lidar saw beside the feet is
     /// beside the body (from the hands to above the shoulders), metres. Lower, it is a
     /// riser, a tread's edge or a low box the legs pass above.
@@ -157,10 +172,15 @@ pub struct GaitParams {
 
 impl GaitParams {
     /// These limits for a climb planned from the floor it starts on: a sole's side overhang
-    /// within `side_overhang_m - side_commit_margin_m`.
+    /// within `side_overhang_m - side_commit_margin_m`, and the room beside the flight the
+    /// whole of the body's lane (no `room_commit_margin_m` taken off).
     #[must_use]
     pub fn committing(&self) -> Self {
-        Self { side_overhang_m: self.side_overhang_m - self.side_commit_margin_m, ..self.clone() }
+        Self {
+            side_overhang_m: self.side_overhang_m - self.side_commit_margin_m,
+            room_commit_margin_m: 0.0,
+            ..self.clone()
+        }
     }
 }
 
@@ -183,6 +203,7 @@ impl Default for GaitParams {
             sole_length_m: crate::robot::hrp4::SOLE_SIZE_M[0],
             sole_width_m: crate::robot::hrp4::SOLE_SIZE_M[1],
             body_half_width_m: 0.36,
+            room_commit_margin_m: 0.03,
             body_band_m: [0.4, 1.5],
             approach_floor_returns: 8,
             floor_obstruction_returns: 6,
@@ -342,8 +363,9 @@ pub fn footholds_below(
         true => lay.room_m.min(Layout::new(start, &all, seen, p).room_m),
         false => lay.room_m,
     };
-    if room_m < 2.0 * p.body_half_width_m {
-        return Err(PlanError::NarrowFlight { room_m, needs_m: 2.0 * p.body_half_width_m });
+    let needs_m = 2.0 * p.body_half_width_m - p.room_commit_margin_m;
+    if room_m < needs_m {
+        return Err(PlanError::NarrowFlight { room_m, needs_m });
     }
     Ok(out)
 }
@@ -1172,7 +1194,7 @@ mod tests {
         let (rects, stance) = flight_and_stance(0.15);
         let mut both = wall(0.35);
         both.extend(wall(-0.2));
-        match footholds(&stance, &rects, &both, &LEGS, &p) {
+        match footholds(&stance, &rects, &both, &LEGS, &p.committing()) {
             Err(PlanError::NarrowFlight { room_m, needs_m }) => {
                 assert!(
                     (room_m - 0.55).abs() < 1e-9 && (needs_m - 2.0 * p.body_half_width_m).abs() < 1e-12,
@@ -1180,6 +1202,29 @@ mod tests {
                 )
             }
             other => panic!("expected the flight refused as narrow, got {other:?}"),
+        }
+    }
+
+    /// Regression `walking-room-narrowed-on-the-flight`: a nearer look sees more of a noisy
+    /// rail's returns, and the nearest of them stands farther in. A room between the
+    /// flight's limit and the floor's (`room_commit_margin_m` wider) is refused from the
+    /// floor and kept on the flight, so that a judgment at the limit is made once, before a
+    /// foot is set.
+    #[test]
+    fn a_room_near_the_limit_is_refused_from_the_floor_and_kept_on_the_flight() {
+        let p = GaitParams::default();
+        let (rects, stance) = flight_and_stance(0.0);
+        let room_m = 2.0 * p.body_half_width_m - p.room_commit_margin_m / 2.0;
+        let mut both = wall(room_m / 2.0);
+        both.extend(wall(-room_m / 2.0));
+        let on_the_flight = footholds(&stance, &rects, &both, &LEGS, &p).expect("room enough on the flight");
+        assert!(lanes_of(&on_the_flight).iter().all(|l| l.abs() < 1e-9), "{:?}", lanes_of(&on_the_flight));
+        match footholds(&stance, &rects, &both, &LEGS, &p.committing()) {
+            Err(PlanError::NarrowFlight { room_m: seen_m, needs_m }) => {
+                assert!((seen_m - room_m).abs() < 1e-9, "{seen_m}");
+                assert!((needs_m - 2.0 * p.body_half_width_m).abs() < 1e-12, "{needs_m}");
+            }
+            other => panic!("expected the flight refused from the floor, got {other:?}"),
         }
     }
 

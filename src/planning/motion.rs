@@ -394,43 +394,49 @@ pub fn upper_body_mask(model: &RobotModel, feet: &[usize]) -> Vec<bool> {
 
 /// Clearance rows for `limbs` into `g`: with `fixed`, one row per capsule (a fixed count
 /// keeps the QP's shape; the legs, near a step at every stride), the damper of its nearest
-/// obstacle (`nearest`) when one is within range, else a row of zeros; without, a row per
+/// obstacle (`witnesses`' first) when one is within range, else a row of zeros; without, a row per
 /// capsule with an obstacle in range only (the rest of the body, rarely near anything: a
-/// row of zeros per arm, trunk and head shape made every open-flight IK tick 23 % dearer).
-/// Returns the least clearance and which capsule (index in `limbs`) and obstacle it is
+/// row of zeros per arm, trunk and head shape made every open-flight IK tick 23 % dearer);
+/// and a row more for each other witness `witnesses` gives (see
+/// [`clearance::Probe::Near`]). Returns the least clearance and which capsule (index in `limbs`) and obstacle it is
 /// between, and the same of the obstacles `marked` only.
 #[allow(clippy::too_many_arguments)]
 fn clearance_rows(
     kin: &Kinematics,
     jac: &mut nalgebra::Matrix6xX<f64>,
     limbs: &[Limb],
-    mut nearest: impl FnMut(usize, &Limb) -> Option<Nearest>,
+    mut witnesses: impl FnMut(usize, &Limb) -> Vec<Nearest>,
     min_m: f64,
     gain_per_s: f64,
     g: &mut ik::Inequality,
     fixed: bool,
     marked: impl Fn(usize) -> bool,
 ) -> [Option<(f64, usize, usize)>; 2] {
-    let near: Vec<(usize, Option<Nearest>)> = limbs
-        .iter()
-        .enumerate()
-        .map(|(i, limb)| (i, nearest(i, limb)))
-        .filter(|(_, n)| fixed || n.is_some())
-        .collect();
-    if g.bound.len() != near.len() {
+    // A row per witness of each limb, the nearest first (with none, an inactive row where
+    // the rows are `fixed`).
+    let mut rows: Vec<(usize, Option<Nearest>, bool)> = Vec::with_capacity(limbs.len());
+    for (i, limb) in limbs.iter().enumerate() {
+        let near = witnesses(i, limb);
+        if near.is_empty() && fixed {
+            rows.push((i, None, true));
+        }
+        rows.extend(near.into_iter().enumerate().map(|(k, n)| (i, Some(n), k == 0)));
+    }
+    if g.bound.len() != rows.len() {
         *g = ik::Inequality {
-            jacobian: nalgebra::DMatrix::zeros(near.len(), jac.ncols()),
-            bound: nalgebra::DVector::zeros(near.len()),
+            jacobian: nalgebra::DMatrix::zeros(rows.len(), jac.ncols()),
+            bound: nalgebra::DVector::zeros(rows.len()),
         };
     }
     let mut least: [Option<(f64, usize, usize)>; 2] = [None, None];
-    for (r, (i, near)) in near.into_iter().enumerate() {
+    for (r, (i, near, first)) in rows.into_iter().enumerate() {
         g.jacobian.row_mut(r).fill(0.0);
         g.bound[r] = 1.0;
         if let Some(near) = near {
             g.bound[r] =
                 ik::clearance(kin, jac, limbs[i].link, &near, min_m, gain_per_s, g.jacobian.row_mut(r));
-            for (k, kept) in [true, marked(near.block)].into_iter().enumerate() {
+            // The least clearances are of the nearest points (the other witnesses are farther).
+            for (k, kept) in [first, first && marked(near.block)].into_iter().enumerate() {
                 if kept && least[k].is_none_or(|(d, _, _)| near.clearance_m < d) {
                     least[k] = Some((near.clearance_m, i, near.block));
                 }
@@ -592,7 +598,7 @@ impl<'m> Tracker<'m> {
             kin,
             &mut self.frame_jac,
             &self.limbs,
-            |_, limb| clearance::nearest(kin, limb, &self.blocks, range),
+            |_, limb| clearance::nearest(kin, limb, &self.blocks, range).into_iter().collect(),
             p.leg_clearance_m,
             p.clearance_gain_per_s,
             &mut self.clear[0],
@@ -603,7 +609,7 @@ impl<'m> Tracker<'m> {
             kin,
             &mut self.frame_jac,
             &self.upper_limbs,
-            |i, limb| self.probes.nearest(i, &self.seen, limb.capsule(kin), range),
+            |i, limb| self.probes.witnesses(i, &self.seen, limb.capsule(kin), range),
             p.body_clearance_m,
             p.clearance_gain_per_s,
             &mut self.clear[1],
@@ -614,7 +620,7 @@ impl<'m> Tracker<'m> {
             kin,
             &mut self.frame_jac,
             &self.limbs,
-            |i, limb| self.leg_probes.nearest(i, &self.leg_seen, limb.capsule(kin), range),
+            |i, limb| self.leg_probes.witnesses(i, &self.leg_seen, limb.capsule(kin), range),
             p.body_clearance_m,
             p.clearance_gain_per_s,
             &mut self.clear[2],
