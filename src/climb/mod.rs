@@ -79,8 +79,8 @@ pub struct RunParams {
     /// (`CycleReport::looked_again_standing`): a moving head's pass leaves space near the
     /// body no ray crossed (its steep rows are the oldest), which the body keeps off; so is
     /// one the body is held off such a gap in (`look_standing_when_held_off_unseen`). Not
-    /// yet the default: some plans are still refused so, and nothing drives the real servo
-    /// so (the suites' figures with it on: BENCHMARKS.md).
+    /// yet the default: nothing drives the real servo so, though every suite passes with it
+    /// on (the figures: BENCHMARKS.md).
     pub sweep_while_moving: bool,
     /// With `sweep_while_moving`, a plan made on a pass the head took moving that holds the
     /// upper body at its clearance from space the pass left unseen
