@@ -948,23 +948,28 @@ fn the_nearest_seen_point_is_the_brute_force_one() {
             clearance::Probe::Near(w) => w,
             clearance::Probe::Clear { .. } => Vec::new(),
         };
-        let mut chosen: Vec<Point3<f64>> = Vec::new();
-        for w in &witnesses {
-            let brute = points
+        let nearest_apart = |chosen: &[Point3<f64>]| {
+            points
                 .iter()
                 .filter(|p| chosen.iter().all(|q| (*p - q).norm() >= clearance::WITNESS_SPACING_M))
                 .map(|p| c.distance_m(p))
-                .fold(f64::INFINITY, f64::min);
-            assert!((w.clearance_m - brute).abs() < 1e-9, "{}: {} vs {brute}", limb.name, w.clearance_m);
-            chosen.push(points[w.block]);
-        }
-        let more = points
-            .iter()
-            .filter(|p| chosen.iter().all(|q| (*p - q).norm() >= clearance::WITNESS_SPACING_M))
-            .map(|p| c.distance_m(p))
-            .fold(f64::INFINITY, f64::min);
+                .fold(f64::INFINITY, f64::min)
+        };
         let band_m =
             witnesses.first().map_or(range, |w| range.min(w.clearance_m + clearance::WITNESS_BAND_M));
+        let mut chosen: Vec<Point3<f64>> = Vec::new();
+        for w in &witnesses {
+            let brute = nearest_apart(&chosen);
+            assert!((w.clearance_m - brute).abs() < 1e-9, "{}: {} vs {brute}", limb.name, w.clearance_m);
+            assert!(
+                w.clearance_m <= band_m,
+                "{}: a witness {} m away, past the band",
+                limb.name,
+                w.clearance_m
+            );
+            chosen.push(points[w.block]);
+        }
+        let more = nearest_apart(&chosen);
         assert!(
             witnesses.len() == clearance::MAX_WITNESSES || more > band_m,
             "{}: {} witnesses, and a point {more} m away apart from them",

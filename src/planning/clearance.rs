@@ -209,8 +209,8 @@ impl SeenPoints {
         }
     }
 
-    /// The point nearest to `capsule` when one is within `range_m` of it, else how far
-    /// beyond the range every point is known to be.
+    /// The witnesses of `capsule`, the point nearest to it first ([`Probe::Near`]), when one
+    /// is within `range_m` of it, else how far beyond the range every point is known to be.
     pub fn probe(&self, capsule: &Capsule, range_m: f64) -> Probe {
         let Some(tree) = self.tree.as_ref() else { return Probe::Clear { gap_m: f64::INFINITY } };
         // The nearest point to each of a few axis samples `spacing` apart bounds the axis's
@@ -291,8 +291,9 @@ impl SeenPoints {
 /// other, from 30 mm to 19.8 (`envelope-0100`, sweeps taken walking; regression
 /// `walking-chest-ratcheted-along-a-nose`); and a point held no more, the IK's other tasks
 /// pulled the capsule toward it by 9 mm in one tick. The witnesses hold it off each part
-/// of what is near at once. More than a 3 cm voxel's diagonal, so that a witness is not the
-/// neighbour of another on the same patch of a surface, which that one's row holds off.
+/// of what is near at once. More than the diagonal of a 3 cm voxel's face (4.2 cm), so that a
+/// witness is not the neighbour of another on the same patch of a surface, which that one's
+/// row holds off.
 pub const WITNESS_SPACING_M: f64 = 0.05;
 
 /// How much farther than its nearest point a capsule's other witnesses may be, metres: a

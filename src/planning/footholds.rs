@@ -353,8 +353,8 @@ pub fn footholds_below(
         out.push(on_step);
         prev_along = along;
     }
-    // Between two handrails (or walls) nearer each other than the body's lane, the IK holds
-    // each capsule off its one nearest point and gives way toward the other side: the
+    // Between two handrails (or walls) nearer each other than the body's lane, the IK held
+    // each capsule off its one nearest point and gave way toward the other side: the
     // chest went onto a rail (regression `chest-between-two-rails`). Judged over the whole
     // flight seen, not only the steps planned now, so that a narrowing higher up is refused
     // before a foot is set; and after the steps themselves (a riser over 40 cm high stands

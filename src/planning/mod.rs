@@ -270,12 +270,14 @@ pub enum PlanError {
         t_s: f64,
     },
     /// What the lidar saw beside the flight at the body's height (handrails, walls) leaves
-    /// less room across than the body's lane (twice `GaitParams::body_half_width_m`).
+    /// less room across than the body's lane (twice `GaitParams::body_half_width_m`; on the
+    /// flight, `GaitParams::room_commit_margin_m` less).
     #[error("the flight leaves {room_m:.2} m between what stands beside it at the body's height, less than the {needs_m:.2} m the body sweeps")]
     NarrowFlight {
         /// The room between the nearest surfaces on either side, metres.
         room_m: f64,
-        /// The body's lane, metres.
+        /// The room needed, metres: the body's lane (from the floor), or it less the commit
+        /// margin (on the flight).
         needs_m: f64,
     },
     /// The IK's swing foot ends too far from its target.

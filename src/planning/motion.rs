@@ -93,7 +93,8 @@ pub struct IkParams {
     pub body_clearance_m: f64,
     /// Least distance a plan may bring the rest of the body (arms, trunk, head) to a
     /// surface the lidar saw, metres, or it is refused: the clearance the IK keeps
-    /// (`body_clearance_m`) holds each capsule off its one nearest point, and between two
+    /// (`body_clearance_m`) holds each capsule off a few witnesses near it
+    /// (`clearance::Probe::Near`), and between two
     /// surfaces (a chest between two handrails) or past a noisy one it gives way; the body
     /// executed sways about its plan, ±20 mm measured on the chest under the stabilizer
     /// (regression `chest-between-two-rails`'s recording), so a plan nearer than that
@@ -397,7 +398,7 @@ pub fn upper_body_mask(model: &RobotModel, feet: &[usize]) -> Vec<bool> {
 /// obstacle (`witnesses`' first) when one is within range, else a row of zeros; without, a row per
 /// capsule with an obstacle in range only (the rest of the body, rarely near anything: a
 /// row of zeros per arm, trunk and head shape made every open-flight IK tick 23 % dearer);
-/// and a row more for each other witness `witnesses` gives (see
+/// and, without `fixed`, a row more for each other witness `witnesses` gives (see
 /// [`clearance::Probe::Near`]). Returns the least clearance and which capsule (index in `limbs`) and obstacle it is
 /// between, and the same of the obstacles `marked` only.
 #[allow(clippy::too_many_arguments)]
@@ -417,6 +418,7 @@ fn clearance_rows(
     let mut rows: Vec<(usize, Option<Nearest>, bool)> = Vec::with_capacity(limbs.len());
     for (i, limb) in limbs.iter().enumerate() {
         let near = witnesses(i, limb);
+        debug_assert!(!fixed || near.len() <= 1, "fixed rows hold one obstacle a capsule");
         if near.is_empty() && fixed {
             rows.push((i, None, true));
         }
