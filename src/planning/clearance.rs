@@ -286,12 +286,11 @@ impl SeenPoints {
 
 /// How far apart [`SeenPoints::probe`]'s witnesses of a capsule lie at least, metres. A
 /// capsule held off its one nearest point moves across the direction it is held in, and so
-/// nearer the points beside that one: the chest over a nose, its two nearest points on it
-/// 8 cm apart, was held off each in turn, tick by tick, while it came 2 mm nearer the
-/// other, from 30 mm to 19.8 (`envelope-0100`, sweeps taken walking; regression
-/// `walking-chest-ratcheted-along-a-nose`); and a point held no more, the IK's other tasks
-/// pulled the capsule toward it by 9 mm in one tick. The witnesses hold it off each part
-/// of what is near at once. More than the diagonal of a 3 cm voxel's face (4.2 cm), so that a
+/// nearer the points beside that one: held off two points of a nose in turn, tick by tick,
+/// a chest comes nearer each while held off the other (regression
+/// `walking-chest-ratcheted-along-a-nose`), and a point no longer held is one the IK's
+/// other tasks pull the capsule toward. The witnesses hold it off each part of what is
+/// near at once. More than the diagonal of a 3 cm voxel's face (4.2 cm), so that a
 /// witness is not the neighbour of another on the same patch of a surface, which that one's
 /// row holds off.
 pub const WITNESS_SPACING_M: f64 = 0.05;

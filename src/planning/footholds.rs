@@ -104,10 +104,9 @@ pub struct GaitParams {
     /// the whole of twice `body_half_width_m` is needed ([`GaitParams::committing`] sets
     /// this to 0). The room is measured to the nearest of the points, voxel centroids that
     /// stand proud of a noisy rail or wall by the tail of the noise; a nearer look, from the
-    /// flight or walking, sees more of them, and their nearest stands farther in:
-    /// `real-0046`'s rails, truly 0.798 m apart, measured 0.735-0.741 m from the floor and
-    /// 0.715 m from step 1 walking (regression `walking-room-narrowed-on-the-flight`). A
-    /// judgment at the limit is thus made once, before a foot is set, as
+    /// flight or walking, sees more of them, and their nearest stands farther in, by
+    /// centimetres (regression `walking-room-narrowed-on-the-flight`). A judgment at the
+    /// limit is thus made once, before a foot is set, as
     /// `side_commit_margin_m` keeps the lanes'. 3 cm: what is left is the arms' reach, the
     /// CoM's sway and the IK's 3 cm clearance from the points themselves (0.345 m a side),
     /// which the IK's own check (`IkParams::min_body_clearance_m`) still guards.
