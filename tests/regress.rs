@@ -147,7 +147,12 @@ fn the_same_seed_writes_the_same_cases_and_a_case_file_alone_reproduces_its_run(
     let report: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     let verdict: Verdict = serde_json::from_value(report["verdict"].clone()).unwrap();
     assert_eq!(verdict, r.verdict);
+    // The suite ran two climbs at once, each on a pool of its own (a share of the cores),
+    // the run alone on every core: the same figures to the bit all the same.
     assert_eq!(report["sim_s"].as_f64(), Some(r.sim_s), "the same simulated time, to the bit");
+    assert_eq!(report["min_margin_m"].as_f64(), r.min_margin_m, "the same least margin, to the bit");
+    assert_eq!(report["max_friction_ratio"].as_f64(), Some(r.max_friction_ratio));
+    assert_eq!(report["steps_climbed"].as_u64(), Some(r.steps_climbed as u64));
     assert_eq!(alone.status.success(), r.pass);
 }
 

@@ -39,7 +39,9 @@ pub struct RegressArgs {
     /// Let a case pass when at least this fraction of its draws pass (the report says so).
     #[arg(long, default_value_t = 1.0)]
     min_rate: f64,
-    /// Climbs at once (default: the machine's cores).
+    /// Climbs at once (default: the machine's cores). With more than one, each climb's
+    /// parallel parts (the lidar's rows, perception) run on its own share of the cores
+    /// (the same results on any number of threads).
     #[arg(long)]
     jobs: Option<usize>,
     /// Wall-time limit of one run, seconds (it is then cancelled: verdict `timeout`).

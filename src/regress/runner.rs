@@ -180,11 +180,18 @@ pub fn run(
     let appender = Mutex::new(Appender::open(&results_path).map_err(io(&results_path))?);
     let finished: Mutex<Vec<CaseResult>> = Mutex::new(Vec::new());
     let write_error: Mutex<Option<RunError>> = Mutex::new(None);
+    let threads = threads_per_job(opt.jobs, rayon::current_num_threads());
     std::thread::scope(|scope| {
         for _ in 0..opt.jobs.max(1) {
             scope.spawn(|| {
+                // The climb's parallel parts run on the worker's own threads; without a pool
+                // of its own (one that cannot be built), on the process's.
+                let pool = threads.and_then(|n| rayon::ThreadPoolBuilder::new().num_threads(n).build().ok());
                 while let Some(job) = queue.lock().map(|mut q| q.pop_front()).unwrap_or(None) {
-                    let result = run_one(info, &job, opt);
+                    let result = match &pool {
+                        Some(pool) => pool.install(|| run_one(info, &job, opt)),
+                        None => run_one(info, &job, opt),
+                    };
                     if let Ok(mut a) = appender.lock() {
                         if let Err(e) = a.append(&result) {
                             if let Ok(mut w) = write_error.lock() {
@@ -211,6 +218,16 @@ pub fn run(
     done.extend(finished);
     done.sort_by_key(|r| (r.index, r.seed_index));
     Ok(Ran { results: done, ran_here })
+}
+
+/// The threads each of `jobs` climbs at once gets for its parallel parts (the lidar's rows,
+/// perception), when the `cores` of the process's pool are to be shared among them: a pool
+/// of its own of `cores / jobs` (at least one), so that the climbs do not queue their
+/// parallel work behind one another's on one pool, nor wake each other's threads. `None`
+/// for one climb at a time: it has the whole pool. The results are the same on any number
+/// of threads (perception's bands and the free space's chunks are fixed in number).
+fn threads_per_job(jobs: usize, cores: usize) -> Option<usize> {
+    (jobs > 1).then(|| (cores / jobs).max(1))
 }
 
 /// The command that reproduces a run alone.
@@ -375,4 +392,18 @@ fn climb(
         r.finish().map_err(|e| e.to_string())?;
     }
     report
+}
+
+#[cfg(test)]
+mod tests {
+    use super::threads_per_job;
+
+    #[test]
+    fn climbs_at_once_share_the_cores_one_thread_each_at_least() {
+        assert_eq!(threads_per_job(1, 16), None, "one climb at a time has the whole pool");
+        assert_eq!(threads_per_job(2, 2), Some(1));
+        assert_eq!(threads_per_job(2, 16), Some(8));
+        assert_eq!(threads_per_job(3, 16), Some(5));
+        assert_eq!(threads_per_job(16, 2), Some(1), "more climbs than cores: one thread each");
+    }
 }
