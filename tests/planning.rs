@@ -1416,3 +1416,50 @@ fn a_plan_request_with_a_zero_speed_is_refused() {
         Ok(_) => panic!("planned at zero speed"),
     }
 }
+
+/// A plan is its segments tracked whole in one round, and a round tracked again is cut
+/// short: a round that found a touchdown beyond the leading leg's reach (the planner lowers
+/// it and tracks again, `planning::reach`) stops once every touchdown is measured. Each
+/// first stance of Exp. 1 and of 37 cm treads (one stance a plan, as the loop plans; a
+/// touchdown lowered in each) tracked again from its start gives the plan's own trajectory
+/// to the bit, and the round thrown away took no more ticks than a round takes to its
+/// touchdown (a whole round before the cut: 711 and 757 ticks, where 239 and 252 now).
+#[test]
+fn a_plan_is_its_segments_tracked_whole_and_a_round_tracked_again_stops_at_its_touchdown() {
+    let model = hrp4::model().unwrap();
+    let p = PlanParams::default();
+    let deep_treads = common::regression("a-sole-twisting-under-load-turned-the-estimate");
+    for (name, s) in [("Exp. 1", Scenario::default()), ("deep treads", deep_treads)] {
+        let scene = common::scene_of(&s);
+        let rects = rectangles::from_step_tops(scene.steps());
+        let q0 = start_q(&model, &scene.robot_start());
+        let plan = PlanRequest::new(&model, &q0, &rects, &p).max_stances(Some(1)).climb().unwrap();
+        let whole = plan.trajectory.samples.len() - 1;
+        let ticks = plan.tracking.ik_ticks;
+        // The ticks of a round up to the end of its touchdown (one stance: one touchdown);
+        // the round thrown away took as many, to its own timing's 10 % (its touchdown
+        // higher, its swing a little shorter).
+        let touchdown = plan.segments.iter().rposition(|s| s.phase == Phase::SwingRight).unwrap();
+        let to_touchdown = plan.trajectory.samples[1..].iter().filter(|s| s.segment <= touchdown).count();
+        println!("{name}: {ticks} IK ticks for a trajectory of {whole}, {to_touchdown} to its touchdown");
+        assert!(ticks > whole, "{name}: the test needs a plan tracked again (a touchdown lowered)");
+        assert!(
+            ticks - whole <= to_touchdown + to_touchdown / 10,
+            "{name}: the round thrown away took {} ticks, {to_touchdown} to its touchdown",
+            ticks - whole
+        );
+        let (again, _) = stairbench::planning::motion::track(
+            &model,
+            &q0,
+            &plan.segments,
+            &plan.blocks,
+            plan.seen.clone(),
+            &p.ik,
+        )
+        .unwrap();
+        assert!(
+            again == plan.trajectory,
+            "{name}: the plan's segments tracked again differ from its trajectory"
+        );
+    }
+}

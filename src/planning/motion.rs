@@ -841,6 +841,25 @@ pub fn track(
     seen: Arc<SeenPoints>,
     p: &IkParams,
 ) -> Result<(JointTrajectory, Tracking), PlanError> {
+    track_until(model, q0, segments, blocks, seen, p, &mut |_, _| Ok(false)).map(|(t, s, _)| (t, s))
+}
+
+/// Whether [`track_until`] stops after a segment (its index, the samples so far).
+pub type StopAfter<'a> = dyn FnMut(usize, &[Sample]) -> Result<bool, PlanError> + 'a;
+
+/// [`track`], stopped after the first segment `stop(segment, samples so far)` says `true`
+/// of (its checks done, the tracking's figures of the segments tracked): the trajectory so
+/// far, its tracking and the segment it stopped after (`None` when it tracked them all).
+/// `stop`'s error is returned as it is.
+pub fn track_until(
+    model: &RobotModel,
+    q0: &[f64],
+    segments: &[Segment],
+    blocks: &[SceneBox],
+    seen: Arc<SeenPoints>,
+    p: &IkParams,
+    stop: &mut StopAfter<'_>,
+) -> Result<(JointTrajectory, Tracking, Option<usize>), PlanError> {
     let mut tracker = Tracker::new(model, q0, blocks, seen, p)?;
     let feet = tracker.sole_frames();
     let dt = 1.0 / p.rate_hz;
@@ -860,6 +879,7 @@ pub fn track(
     // The link poses of the tick before, for the body's angular momentum over each tick.
     let mut before = tracker.kinematics().link_poses().to_vec();
     let mut moments = MomentRates::default();
+    let mut stopped = None;
     for (si, seg) in segments.iter().enumerate() {
         let end = t0 + seg.duration_s;
         while (tick + 1) as f64 * dt <= end + 1e-9 {
@@ -958,6 +978,10 @@ pub fn track(
             }
         }
         t0 = end;
+        if stop(si, &samples)? {
+            stopped = Some(si);
+            break;
+        }
     }
     stats.ik_interior_point_qps = tracker.qp.interior_point_qps();
     stats.max_tipping_moment_nm = moments.max_tipping_nm;
@@ -969,7 +993,7 @@ pub fn track(
             limit_m: p.com_tolerance_m,
         });
     }
-    Ok((JointTrajectory { rate_hz: p.rate_hz, samples }, stats))
+    Ok((JointTrajectory { rate_hz: p.rate_hz, samples }, stats, stopped))
 }
 
 #[cfg(test)]

@@ -3,8 +3,8 @@
 
 use super::clearance::{step_blocks, SeenPoints};
 use super::footholds::{approach, footholds_below, retreat, riser_in_sight, GaitParams};
-use super::gait::{segments, Body, Legs, Segment, StepParams};
-use super::motion::{track, IkParams, JointTrajectory, Tracking};
+use super::gait::{segments, Body, Legs, Phase, Segment, StepParams};
+use super::motion::{track_until, IkParams, JointTrajectory, Sample, Tracking};
 use super::stance::Stance;
 use super::{reach, PlanError};
 use crate::perception::PlaneSegment;
@@ -24,7 +24,8 @@ const BLOCK_DEPTH_M: f64 = 0.1;
 
 /// Rounds of tracking at most to bring the leading leg's touchdowns within its reach (see
 /// [`reach`]): the third is kept whatever it leaves (the plans of `bench plan` took two:
-/// the hip moves by millimetres with the CoM's height).
+/// the hip moves by millimetres with the CoM's height). A round that will be tracked again
+/// stops at its last touchdown: what follows it would be thrown away.
 const REACH_ROUNDS: usize = 3;
 
 /// A touchdown's leg beyond its reach by a waypoint lowering of at most this much is within
@@ -306,7 +307,23 @@ impl<'a> PlanRequest<'a> {
                 seg.duration_s *= k;
             }
             gait_time_s += gait_started.elapsed().as_secs_f64();
-            let (trajectory, mut tracking) = track(model, q0, &segs, &blocks, seen.clone(), &p.ik)?;
+            // A round that will be tracked again (a touchdown beyond the leg's reach, and
+            // rounds left) stops once every touchdown is measured: the rest of it would be
+            // thrown away.
+            let last_touchdown = segs.iter().rposition(|s| s.phase == Phase::SwingRight);
+            let (mut landed_kin, mut beyond) = (Kinematics::new(model), false);
+            let mut measured = |si: usize, samples: &[Sample]| {
+                let seg = &segs[si];
+                if let Some(landed) =
+                    samples.last().filter(|l| l.segment == si && seg.phase == Phase::SwingRight)
+                {
+                    let drop_m = reach::touchdown_drop_m(model, &mut landed_kin, seg, &landed.q, reach_m)?;
+                    beyond |= drop_m > REACH_TOLERANCE_M;
+                }
+                Ok(beyond && round < REACH_ROUNDS && Some(si) >= last_touchdown)
+            };
+            let (trajectory, mut tracking, stopped) =
+                track_until(model, q0, &segs, &blocks, seen.clone(), &p.ik, &mut measured)?;
             let more_m = reach::touchdown_drops_m(model, &segs, &trajectory, reach_m)?;
             tracking.ik_ticks += ik_spent.ik_ticks;
             tracking.ik_interior_point_qps += ik_spent.ik_interior_point_qps;
@@ -314,8 +331,9 @@ impl<'a> PlanRequest<'a> {
             let reached = round >= REACH_ROUNDS || more_m.iter().all(|&d| d <= REACH_TOLERANCE_M);
             // A turn the moment takes time for: the same path over k times the time asks
             // 1 / k^2 the moment.
+            // (Judged on a whole round only: a stopped one is tracked again.)
             let over: Vec<(usize, f64)> = (tracking.segment_yaw_moments_nm.iter().enumerate())
-                .filter(|&(_, &m)| m > yaw_limit_nm)
+                .filter(|&(_, &m)| m > yaw_limit_nm && stopped.is_none())
                 .map(|(i, &m)| (i, (m / yaw_limit_nm).sqrt() * SLOWING_MARGIN))
                 .collect();
             let held = over.is_empty() || moment_round == MOMENT_ROUNDS;
