@@ -25,14 +25,15 @@ const BLOCK_DEPTH_M: f64 = 0.1;
 /// Rounds of tracking at most to bring the leading leg's touchdowns within its reach (see
 /// [`reach`]): the third is kept whatever it leaves (the plans of `bench plan` took two:
 /// the hip moves by millimetres with the CoM's height). A round that will be tracked again
-/// stops at its last touchdown: what follows it would be thrown away.
+/// stops at its last touchdown: what follows it is tracked in the next round.
 const REACH_ROUNDS: usize = 3;
 
 /// A touchdown's leg beyond its reach by a waypoint lowering of at most this much is within
 /// it, metres.
 const REACH_TOLERANCE_M: f64 = 1e-3;
 
-/// Rounds of tracking at most, after the first, that slow the segments whose turn about the
+/// Rounds of tracking at most, after the first whole one (not stopped at a touchdown beyond
+/// reach: its turn is judged on the round tracked again), that slow the segments whose turn about the
 /// vertical asks more of the soles' friction than the plan allows
 /// ([`IkParams::max_yaw_moment_share`]); the plan the last one gives is kept, its moment
 /// in its [`Tracking`].
@@ -308,8 +309,11 @@ impl<'a> PlanRequest<'a> {
             }
             gait_time_s += gait_started.elapsed().as_secs_f64();
             // A round that will be tracked again (a touchdown beyond the leg's reach, and
-            // rounds left) stops once every touchdown is measured: the rest of it would be
-            // thrown away.
+            // rounds left) stops once every touchdown is measured: the rest of it is tracked
+            // in the next round, where its turn about the vertical is judged. (Before, the
+            // rest was tracked here too and thrown away, its turn judged on it: a plan whose
+            // first round both lowered a touchdown and slowed a later segment for its turn
+            // now slows it a round later. No plan of the suites did.)
             let last_touchdown = segs.iter().rposition(|s| s.phase == Phase::SwingRight);
             let (mut landed_kin, mut beyond) = (Kinematics::new(model), false);
             let mut measured = |si: usize, samples: &[Sample]| {

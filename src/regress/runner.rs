@@ -225,7 +225,9 @@ pub fn run(
 /// of its own of `cores / jobs` (at least one), so that the climbs do not queue their
 /// parallel work behind one another's on one pool, nor wake each other's threads. `None`
 /// for one climb at a time: it has the whole pool. The results are the same on any number
-/// of threads (perception's bands and the free space's chunks are fixed in number).
+/// of threads: nothing a climb computes depends on how its parallel work is split
+/// (perception's bands and the free space's chunks are fixed in number, the range noise's
+/// chunks feed an exact median, and each lidar row draws its noise from its own seed).
 fn threads_per_job(jobs: usize, cores: usize) -> Option<usize> {
     (jobs > 1).then(|| (cores / jobs).max(1))
 }
