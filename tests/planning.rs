@@ -1423,7 +1423,7 @@ fn a_plan_request_with_a_zero_speed_is_refused() {
 /// first stance of Exp. 1 and of 37 cm treads (one stance a plan, as the loop plans; a
 /// touchdown lowered in each) tracked again from its start gives the plan's own trajectory
 /// to the bit, and the round thrown away took no more ticks than a round takes to its
-/// touchdown (a whole round before the cut: 711 and 757 ticks, where 239 and 252 now).
+/// touchdown (a whole round, as it once took, fails this).
 #[test]
 fn a_plan_is_its_segments_tracked_whole_and_a_round_tracked_again_stops_at_its_touchdown() {
     let model = hrp4::model().unwrap();

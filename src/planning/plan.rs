@@ -310,10 +310,7 @@ impl<'a> PlanRequest<'a> {
             gait_time_s += gait_started.elapsed().as_secs_f64();
             // A round that will be tracked again (a touchdown beyond the leg's reach, and
             // rounds left) stops once every touchdown is measured: the rest of it is tracked
-            // in the next round, where its turn about the vertical is judged. (Before, the
-            // rest was tracked here too and thrown away, its turn judged on it: a plan whose
-            // first round both lowered a touchdown and slowed a later segment for its turn
-            // now slows it a round later. No plan of the suites did.)
+            // in the next round, where its turn about the vertical is judged.
             let last_touchdown = segs.iter().rposition(|s| s.phase == Phase::SwingRight);
             let (mut landed_kin, mut beyond) = (Kinematics::new(model), false);
             let mut measured = |si: usize, samples: &[Sample]| {
