@@ -170,11 +170,12 @@ pub fn run(
         std::fs::create_dir_all(dir).map_err(io(dir))?;
     }
     let have: BTreeSet<(String, usize)> = done.iter().map(CaseResult::key).collect();
-    let jobs: VecDeque<Job> = prepared
+    let jobs: Vec<Job> = prepared
         .iter()
         .flat_map(|c| (0..opt.seeds).map(move |k| Job { case: c.clone(), seed_index: k }))
         .filter(|j| !have.contains(&(j.case.0.id.clone(), j.seed_index)))
         .collect();
+    let jobs = start_order(jobs);
     let total = jobs.len();
     let queue = Mutex::new(jobs);
     let appender = Mutex::new(Appender::open(&results_path).map_err(io(&results_path))?);
@@ -230,6 +231,27 @@ pub fn run(
 /// chunks feed an exact median, and each lidar row draws its noise from its own seed).
 fn threads_per_job(jobs: usize, cores: usize) -> Option<usize> {
     (jobs > 1).then(|| (cores / jobs).max(1))
+}
+
+/// `jobs` in the order they are started: the longest expected first ([`expected_cycles`]),
+/// so that the climbs still running when the queue empties are short ones and the cores
+/// are not left to one long climb at the end (longest processing time first, Graham 1969);
+/// alike ones in case and draw order. The order changes no result: each run's seed is its
+/// case's and draw's, and the results are written sorted.
+fn start_order(mut jobs: Vec<Job>) -> VecDeque<Job> {
+    jobs.sort_by_key(|j| std::cmp::Reverse(expected_cycles(&j.case.0.scenario)));
+    VecDeque::from(jobs)
+}
+
+/// How many climbing cycles `scenario`'s run is expected to take: about one (or `k`) for a
+/// climb expected to be refused from the floor (or before step `k`); a climb's steps and the
+/// floor's two else.
+fn expected_cycles(scenario: &crate::scenario::Scenario) -> u32 {
+    const FLOOR_CYCLES: u32 = 2;
+    match &scenario.expect {
+        Some(e) if e.outcome == ExpectedOutcome::Refuse => e.before_step.unwrap_or(1),
+        _ => scenario.staircase.steps + FLOOR_CYCLES,
+    }
 }
 
 /// The command that reproduces a run alone.
@@ -398,7 +420,50 @@ fn climb(
 
 #[cfg(test)]
 mod tests {
-    use super::threads_per_job;
+    use super::{start_order, threads_per_job, Job};
+    use crate::params::ClimbParams;
+    use crate::regress::generate::Case;
+    use crate::scenario::{ExpectSpec, ExpectedOutcome, Scenario};
+    use std::sync::Arc;
+
+    /// The runs expected to take longest start first: a climb of many steps before one of
+    /// few, a refusal from the floor last, a refusal before step `k` after climbs shorter
+    /// than `k` cycles; alike runs keep their case and draw order.
+    #[test]
+    fn a_suites_longest_runs_start_first() {
+        let job = |id: &str, steps: u32, expect: Option<(ExpectedOutcome, Option<u32>)>, seed_index| {
+            let mut scenario = Scenario::default();
+            scenario.staircase.steps = steps;
+            scenario.expect = expect.map(|(outcome, before_step)| ExpectSpec {
+                before_step,
+                ..ExpectSpec::new(outcome, String::new())
+            });
+            let case = Case {
+                id: id.into(),
+                index: 0,
+                name: None,
+                values: Default::default(),
+                redraws: 0,
+                scenario,
+                params: None,
+            };
+            Job { case: Arc::new((case, ClimbParams::default())), seed_index }
+        };
+        let refuse = ExpectedOutcome::Refuse;
+        let jobs = vec![
+            job("three", 3, Some((ExpectedOutcome::Climb, None)), 0),
+            job("refused-from-the-floor", 12, Some((refuse, None)), 0),
+            job("twelve", 12, Some((ExpectedOutcome::Either, None)), 0),
+            job("refused-before-4", 8, Some((refuse, Some(4))), 0),
+            job("five", 5, None, 0),
+            job("twelve", 12, Some((ExpectedOutcome::Either, None)), 1),
+        ];
+        let order: Vec<(String, usize)> =
+            start_order(jobs).iter().map(|j| (j.case.0.id.clone(), j.seed_index)).collect();
+        let expected =
+            [("twelve", 0), ("twelve", 1), ("five", 0), ("three", 0), ("refused-before-4", 0), ("refused-from-the-floor", 0)];
+        assert_eq!(order, expected.map(|(id, k)| (id.to_string(), k)));
+    }
 
     #[test]
     fn climbs_at_once_share_the_cores_one_thread_each_at_least() {
