@@ -460,8 +460,14 @@ mod tests {
         ];
         let order: Vec<(String, usize)> =
             start_order(jobs).iter().map(|j| (j.case.0.id.clone(), j.seed_index)).collect();
-        let expected =
-            [("twelve", 0), ("twelve", 1), ("five", 0), ("three", 0), ("refused-before-4", 0), ("refused-from-the-floor", 0)];
+        let expected = [
+            ("twelve", 0),
+            ("twelve", 1),
+            ("five", 0),
+            ("three", 0),
+            ("refused-before-4", 0),
+            ("refused-from-the-floor", 0),
+        ];
         assert_eq!(order, expected.map(|(id, k)| (id.to_string(), k)));
     }
 
