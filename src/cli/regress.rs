@@ -41,7 +41,8 @@ pub struct RegressArgs {
     min_rate: f64,
     /// Climbs at once (default: the machine's cores). With more than one, each climb's
     /// parallel parts (the lidar's rows, perception) run on its own share of the cores
-    /// (the same results on any number of threads).
+    /// (the same results on any number of threads). The runs expected to take longest (most
+    /// steps to climb) start first, so that few long climbs are left at the end.
     #[arg(long)]
     jobs: Option<usize>,
     /// Wall-time limit of one run, seconds (it is then cancelled: verdict `timeout`).
