@@ -244,8 +244,8 @@ fn start_order(mut jobs: Vec<Job>) -> VecDeque<Job> {
 }
 
 /// How many climbing cycles `scenario`'s run is expected to take: about one (or `k`) for a
-/// climb expected to be refused from the floor (or before step `k`); a climb's steps and the
-/// floor's two else.
+/// climb expected to be refused from the floor (or before step `k`); else its steps and the
+/// floor's two.
 fn expected_cycles(scenario: &crate::scenario::Scenario) -> u32 {
     const FLOOR_CYCLES: u32 = 2;
     match &scenario.expect {
@@ -427,8 +427,8 @@ mod tests {
     use std::sync::Arc;
 
     /// The runs expected to take longest start first: a climb of many steps before one of
-    /// few, a refusal from the floor last, a refusal before step `k` after climbs shorter
-    /// than `k` cycles; alike runs keep their case and draw order.
+    /// few, a refusal before step `k` counted as `k` cycles, a refusal from the floor last;
+    /// alike runs keep their case and draw order.
     #[test]
     fn a_suites_longest_runs_start_first() {
         let job = |id: &str, steps: u32, expect: Option<(ExpectedOutcome, Option<u32>)>, seed_index| {
