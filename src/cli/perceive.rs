@@ -7,7 +7,9 @@ use clap::Args;
 use serde_json::json;
 use stairbench::cloud::io::{read_cloud, read_xyz_text};
 use stairbench::cloud::PointCloud;
-use stairbench::perception::{metrics, perceive, perceive_voxels, Method, NeighbourSearch, Perception};
+use stairbench::perception::{
+    median_timed, metrics, perceive, perceive_voxels, Method, NeighbourSearch, Perception,
+};
 use stairbench::scene::Scene;
 use stairbench::sensor::AssembleParams;
 use stairbench::sim::scan_scenario;
@@ -150,13 +152,7 @@ pub fn run(a: PerceiveArgs) -> Result<ExitCode> {
         Input::Voxels(cloud) => (cloud, true, None),
     };
     let run_once = || if voxels { perceive_voxels(cloud, &params) } else { perceive(cloud, &params) };
-    let mut runs: Vec<_> = (0..a.repeat.max(1)).map(|_| run_once()).collect();
-    runs.sort_by(|x, y| match (x, y) {
-        (Ok(x), Ok(y)) => x.timings.total_ms.total_cmp(&y.timings.total_ms),
-        _ => std::cmp::Ordering::Equal,
-    });
-    let result = runs.swap_remove(runs.len() / 2);
-    let result = match result {
+    let result = match median_timed(a.repeat, run_once) {
         Ok(r) => r,
         Err(e) => {
             if a.json {

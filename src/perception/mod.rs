@@ -719,6 +719,28 @@ pub fn perceive(cloud: &PointCloud, p: &PerceptionParams) -> Result<Perception, 
     Ok(on_risers(found, cloud, noise_m, p))
 }
 
+/// `run` made `repeat` times (at least once), one result alive at a time, as in a loop that
+/// perceives sweep after sweep and keeps the last (runs kept side by side would each take
+/// fresh memory, and time its first touch): the last result with the timings of the
+/// median run by total time. Perception is deterministic, so every run finds the same
+/// steps; the first error ends the runs.
+pub fn median_timed<E>(
+    repeat: usize,
+    mut run: impl FnMut() -> Result<Perception, E>,
+) -> Result<Perception, E> {
+    let mut timings = Vec::with_capacity(repeat.max(1));
+    let mut last = run()?;
+    timings.push(last.timings.clone());
+    for _ in 1..repeat {
+        drop(last);
+        last = run()?;
+        timings.push(last.timings.clone());
+    }
+    timings.sort_by(|a, b| a.total_ms.total_cmp(&b.total_ms));
+    last.timings = timings.swap_remove(timings.len() / 2);
+    Ok(last)
+}
+
 /// Perception of a sweep whose rows arrive one after another (a tilting lidar's, a row every
 /// 25 ms), by the cell method: the work that needs only the rows in (each row's range
 /// differences for the noise, each row of cells' sums) is done as they arrive, and the rest

@@ -10,7 +10,8 @@ use stairbench::cloud::PointCloud;
 use stairbench::geom2d;
 use stairbench::perception::normals::grid_window;
 use stairbench::perception::{
-    metrics, perceive, Method, NeighbourSearch, Perception, PerceptionParams, PerceptionStream, PhaseTimings,
+    median_timed, metrics, perceive, Method, NeighbourSearch, Perception, PerceptionParams, PerceptionStream,
+    PhaseTimings,
 };
 use stairbench::scene::Scene;
 use stairbench::sensor::AssembleParams;
@@ -36,12 +37,7 @@ struct Case {
 /// The median run (by total time) of `repeat` runs, after one warm-up.
 fn median_run(cloud: &PointCloud, p: &PerceptionParams, repeat: usize) -> Result<Perception> {
     let _ = perceive(cloud, p);
-    let mut runs = Vec::with_capacity(repeat);
-    for _ in 0..repeat {
-        runs.push(perceive(cloud, p)?);
-    }
-    runs.sort_by(|a, b| a.timings.total_ms.total_cmp(&b.timings.total_ms));
-    Ok(runs.swap_remove(runs.len() / 2))
+    Ok(median_timed(repeat, || perceive(cloud, p))?)
 }
 
 /// `cloud`'s sweep given to a [`PerceptionStream`] row by row, as the lidar sends it, `repeat`
