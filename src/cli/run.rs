@@ -54,7 +54,9 @@ pub struct RunArgs {
     /// Instead of one climb, find the speed margin: the largest speed-up of the planned
     /// timing (the default's, or --params') at which the climb still passes every check
     /// (factors as --speedup's, doubled up to --max-speedup, then bisected to 10 %; each
-    /// try is a whole climb, its simulated time printed).
+    /// try is a whole climb, its simulated time printed). Where the planned timing stops
+    /// safely short of the top (a refusal), a try passes when it keeps every check: the
+    /// margin of the walks before the refusal.
     #[arg(long)]
     speed_margin: bool,
     /// Largest factor --speed-margin tries.
@@ -237,12 +239,21 @@ fn run_speed_margin(scenario: &Scenario, params: &ClimbParams, a: &RunArgs) -> R
         println!(
             "  x {:.2}: {} ({:.1} s simulated in {:.1} s){}",
             t.factor,
-            if t.success { "passes" } else { "FAILS" },
+            match (t.kept, t.success) {
+                (true, true) => "passes",
+                (true, false) => "stops safely, every check kept",
+                (false, _) => "FAILS",
+            },
             t.sim_s,
             t.wall_s,
             t.why.as_ref().map(|w| format!("\n      {w}")).unwrap_or_default()
         );
     })?;
+    if m.planned_stops {
+        println!(
+            "the planned timing stops short of the top with every check kept: a faster try passes when it keeps every check, and the margin is of the motion before the stop"
+        );
+    }
     match (m.passes_at, m.fails_at) {
         (Some(p), Some(f)) => println!("speed margin: passes at x {p:.2}, fails at x {f:.2}"),
         (Some(p), None) => println!("speed margin: passes at every factor tried, up to x {p:.2}"),

@@ -6,6 +6,12 @@
 //! segment the plan shortens by less than the factor); the factor is doubled until a climb
 //! fails, then bisected (geometrically) between the last pass and the first failure.
 //!
+//! A try passes when it keeps every check and the planned timing's outcome: to the top
+//! where that climbed; where that stopped safely short of it (a refusal, or no staircase
+//! seen ahead, with no check violated: a case the bench expects refused, or either), a safe
+//! stop or a climb, so that the margin is of the motion before the stop (the walks on the
+//! floor to look again).
+//!
 //! [`PlanParams::faster`]: crate::planning::PlanParams::faster
 
 use super::outcome::{StopReason, Violation};
@@ -19,6 +25,9 @@ pub struct Try {
     pub factor: f64,
     /// The climb passed every check to the top.
     pub success: bool,
+    /// It kept every check and the planned timing's outcome (see the module's doc): the
+    /// search's pass.
+    pub kept: bool,
     /// Its first violated check, if any.
     pub first_violation: Option<Violation>,
     /// Why the loop stopped early, if it did.
@@ -34,6 +43,9 @@ pub struct Try {
 /// The search's result.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct SpeedMargin {
+    /// The planned timing's climb stopped safely short of the top (a refusal, or no
+    /// staircase ahead, with no check violated): a pass is then a try that keeps every check.
+    pub planned_stops: bool,
     /// The largest factor that passed (`None`: even the planned timing fails).
     pub passes_at: Option<f64>,
     /// The smallest factor that failed (`None`: every factor up to the maximum passed).
@@ -52,12 +64,17 @@ pub fn speed_margin<E>(
     climb: &mut dyn FnMut(&PlanParams) -> Result<ClimbReport, E>,
     on_try: &mut dyn FnMut(&Try),
 ) -> Result<SpeedMargin, E> {
-    let mut out = SpeedMargin { passes_at: None, fails_at: None, tries: Vec::new() };
+    let mut out = SpeedMargin { planned_stops: false, passes_at: None, fails_at: None, tries: Vec::new() };
     let mut attempt = |factor: f64, out: &mut SpeedMargin| -> Result<bool, E> {
         let r = climb(&plan.faster(factor))?;
+        if factor == 1.0 {
+            out.planned_stops = stopped_safely(&r);
+        }
+        let kept = r.success || (out.planned_stops && stopped_safely(&r));
         let t = Try {
             factor,
             success: r.success,
+            kept,
             first_violation: r.first_violation().cloned(),
             stop: r.stop.clone(),
             why: r.why_failed(),
@@ -66,7 +83,7 @@ pub fn speed_margin<E>(
         };
         on_try(&t);
         out.tries.push(t);
-        Ok(r.success)
+        Ok(kept)
     };
     if !attempt(1.0, &mut out)? {
         out.fails_at = Some(1.0);
@@ -97,4 +114,73 @@ pub fn speed_margin<E>(
     out.passes_at = Some(lo);
     out.fails_at = hi;
     Ok(out)
+}
+
+/// Whether climb `r` stopped short of the top safely: refused by the planner, or with no
+/// staircase seen ahead, and no check violated on the way.
+fn stopped_safely(r: &ClimbReport) -> bool {
+    r.first_violation().is_none()
+        && matches!(r.stop, Some(StopReason::Refused { .. } | StopReason::NoStaircaseAhead { .. }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::planning::PlanError;
+
+    /// A climb that ends as `stop` says (none: to the top).
+    fn ended(stop: Option<StopReason>) -> ClimbReport {
+        ClimbReport {
+            scenario: "fake".into(),
+            success: stop.is_none(),
+            steps_climbed: 0,
+            steps_total: 3,
+            stop,
+            cycles: Vec::new(),
+            sim_s: 1.0,
+            wall_s: 0.0,
+            looked_again_standing: Vec::new(),
+        }
+    }
+
+    /// The margin of climbs that end, by the speed-up they are made at, as `outcome` says.
+    fn margin(outcome: impl Fn(f64) -> Option<StopReason>) -> SpeedMargin {
+        let base = PlanParams::default();
+        let mut climb = |p: &PlanParams| -> Result<ClimbReport, ()> {
+            Ok(ended(outcome(p.step.com_speed_m_s / base.step.com_speed_m_s)))
+        };
+        speed_margin(&base, 8.0, 0.1, &mut climb, &mut |_| {}).unwrap()
+    }
+
+    #[test]
+    fn a_refusal_at_the_planned_timing_is_measured_to_where_a_check_breaks() {
+        let refused = || Some(StopReason::Refused { cycle: 2, refusal: PlanError::NoSteps.refusal() });
+        let fell = || Some(StopReason::Fell { cycle: 2 });
+        // Refused up to x 3 (or climbing, as a faster look may see more), falls from x 3.
+        for before in [refused(), None] {
+            let m = margin(|f| {
+                if f >= 3.0 - 1e-9 {
+                    fell()
+                } else if f <= 1.0 {
+                    refused()
+                } else {
+                    before.clone()
+                }
+            });
+            assert!(m.planned_stops);
+            let (pass, fail) = (m.passes_at.unwrap(), m.fails_at.unwrap());
+            assert!(pass < 3.0 && fail >= 3.0 - 1e-9 && fail / pass <= 1.1 + 1e-9, "{pass} {fail}");
+            for t in &m.tries {
+                assert_eq!(t.kept, t.factor < 3.0 - 1e-9, "x {}", t.factor);
+            }
+        }
+        // A climb to the top at the planned timing keeps its margin only while it climbs:
+        // a refusal when faster is a failure.
+        let m = margin(|f| if f < 2.0 - 1e-9 { None } else { refused() });
+        assert!(!m.planned_stops);
+        assert!(m.passes_at.unwrap() < 2.0 && m.fails_at.unwrap() >= 2.0 - 1e-9);
+        // A fall at the planned timing leaves no margin.
+        let m = margin(|_| fell());
+        assert_eq!((m.passes_at, m.fails_at), (None, Some(1.0)));
+    }
 }
