@@ -101,9 +101,13 @@ fn error_chain(e: &anyhow::Error) -> String {
 /// come from the heap (`M_MMAP_THRESHOLD`). `bench perceive` measures the difference.
 fn keep_freed_memory() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: mallopt only sets allocator parameters; called before any thread starts.
-    unsafe {
-        libc::mallopt(libc::M_TOP_PAD, 64 << 20);
-        libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
+    {
+        const TOP_PAD_BYTES: i32 = 64 << 20;
+        const MMAP_THRESHOLD_BYTES: i32 = 32 << 20;
+        // SAFETY: mallopt only sets allocator parameters; called before any thread starts.
+        unsafe {
+            libc::mallopt(libc::M_TOP_PAD, TOP_PAD_BYTES);
+            libc::mallopt(libc::M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES);
+        }
     }
 }

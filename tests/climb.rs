@@ -229,7 +229,7 @@ fn the_speed_margin_is_measured_and_its_edge_names_a_check() {
         let p = ClimbParams { plan: plan.clone(), ..params.clone() };
         climb_scenario(&Scenario::default(), p.loop_params(), &p.sim(), &mut Nobody, &Cancel::never())
     };
-    let m = speed_margin(&params.plan, 8.0, 0.25, &mut one, &mut |t| {
+    let m = speed_margin(&params.plan, 8.0, 0.25, false, &mut one, &mut |t| {
         println!("x {:.2}: {} {:?}", t.factor, t.success, t.why);
     })
     .unwrap();

@@ -9,7 +9,7 @@ use stairbench::climb::{ClimbReport, CycleReport, Each, Event, Observer, Watch};
 use stairbench::params::ClimbParams;
 use stairbench::record::viewer::{RerunLogger, Sink};
 use stairbench::regress::verdict::{strayed, verdict_of};
-use stairbench::scenario::Scenario;
+use stairbench::scenario::{ExpectedOutcome, Scenario};
 use stairbench::sim::climb_scenario;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -54,9 +54,9 @@ pub struct RunArgs {
     /// Instead of one climb, find the speed margin: the largest speed-up of the planned
     /// timing (the default's, or --params') at which the climb still passes every check
     /// (factors as --speedup's, doubled up to --max-speedup, then bisected to 10 %; each
-    /// try is a whole climb, its simulated time printed). Where the planned timing stops
-    /// safely short of the top (a refusal), a try passes when it keeps every check: the
-    /// margin of the walks before the refusal.
+    /// try is a whole climb, its simulated time printed). For a case that may be refused (its
+    /// [expect] outcome refuse or either) whose planned timing is refused, a try passes when
+    /// it is refused no earlier with every check kept: the margin of the walks before.
     #[arg(long)]
     speed_margin: bool,
     /// Largest factor --speed-margin tries.
@@ -235,11 +235,12 @@ fn run_speed_margin(scenario: &Scenario, params: &ClimbParams, a: &RunArgs) -> R
         let p = ClimbParams { plan: plan.clone(), ..params.clone() };
         climb_scenario(scenario, p.loop_params(), &p.sim(), &mut stairbench::climb::Nobody, &never)
     };
-    let m = speed_margin(&params.plan, a.max_speedup, 0.1, &mut climb, &mut |t| {
+    let refusal_allowed = scenario.expect.as_ref().is_some_and(|e| e.outcome != ExpectedOutcome::Climb);
+    let m = speed_margin(&params.plan, a.max_speedup, 0.1, refusal_allowed, &mut climb, &mut |t| {
         println!(
             "  x {:.2}: {} ({:.1} s simulated in {:.1} s){}",
             t.factor,
-            match (t.kept, t.success) {
+            match (t.passes, t.success) {
                 (true, true) => "passes",
                 (true, false) => "stops safely, every check kept",
                 (false, _) => "FAILS",
@@ -249,9 +250,9 @@ fn run_speed_margin(scenario: &Scenario, params: &ClimbParams, a: &RunArgs) -> R
             t.why.as_ref().map(|w| format!("\n      {w}")).unwrap_or_default()
         );
     })?;
-    if m.planned_stops {
+    if m.planned_stopped_safely {
         println!(
-            "the planned timing stops short of the top with every check kept: a faster try passes when it keeps every check, and the margin is of the motion before the stop"
+            "the planned timing stops short of the top with every check kept, as the case allows: a faster try passes when it stops so no earlier, and the margin is of the motion before the stop"
         );
     }
     match (m.passes_at, m.fails_at) {

@@ -7,10 +7,12 @@
 //! fails, then bisected (geometrically) between the last pass and the first failure.
 //!
 //! A try passes when it keeps every check and the planned timing's outcome: to the top
-//! where that climbed; where that stopped safely short of it (a refusal, or no staircase
-//! seen ahead, with no check violated: a case the bench expects refused, or either), a safe
-//! stop or a climb, so that the margin is of the motion before the stop (the walks on the
-//! floor to look again).
+//! where that climbed. Where the case allows a refusal (its expected outcome `refuse` or
+//! `either`) and the planned timing stopped safely short of the top (refused, or no
+//! staircase seen ahead, every cycle passing), a try passes too when it stops safely no
+//! earlier (at that cycle or later, as many steps climbed or more), so that the margin is of
+//! the motion before the stop (the walks on the floor to look again); a faster try refused
+//! sooner, before the motion it is to measure, fails.
 //!
 //! [`PlanParams::faster`]: crate::planning::PlanParams::faster
 
@@ -27,7 +29,7 @@ pub struct Try {
     pub success: bool,
     /// It kept every check and the planned timing's outcome (see the module's doc): the
     /// search's pass.
-    pub kept: bool,
+    pub passes: bool,
     /// Its first violated check, if any.
     pub first_violation: Option<Violation>,
     /// Why the loop stopped early, if it did.
@@ -43,9 +45,9 @@ pub struct Try {
 /// The search's result.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct SpeedMargin {
-    /// The planned timing's climb stopped safely short of the top (a refusal, or no
-    /// staircase ahead, with no check violated): a pass is then a try that keeps every check.
-    pub planned_stops: bool,
+    /// The case allows a refusal and the planned timing's climb stopped safely short of the
+    /// top (see the module's doc): a try then passes by stopping safely no earlier.
+    pub planned_stopped_safely: bool,
     /// The largest factor that passed (`None`: even the planned timing fails).
     pub passes_at: Option<f64>,
     /// The smallest factor that failed (`None`: every factor up to the maximum passed).
@@ -57,24 +59,33 @@ pub struct SpeedMargin {
 /// Searches factors from 1 up to `max_factor` until the pass and fail factors are within
 /// `1 + resolution` of each other. `climb(plan)` runs one whole climb with the planner's
 /// parameters `plan` (the given ones sped up); `on_try` sees each climb as it ends.
+/// `refusal_allowed`: the case may be refused (see the module's doc).
 pub fn speed_margin<E>(
     plan: &PlanParams,
     max_factor: f64,
     resolution: f64,
+    refusal_allowed: bool,
     climb: &mut dyn FnMut(&PlanParams) -> Result<ClimbReport, E>,
     on_try: &mut dyn FnMut(&Try),
 ) -> Result<SpeedMargin, E> {
-    let mut out = SpeedMargin { planned_stops: false, passes_at: None, fails_at: None, tries: Vec::new() };
+    let mut out =
+        SpeedMargin { planned_stopped_safely: false, passes_at: None, fails_at: None, tries: Vec::new() };
+    // Where the planned timing stopped safely (its cycle, steps climbed), when it did.
+    let mut planned_stop: Option<(usize, usize)> = None;
     let mut attempt = |factor: f64, out: &mut SpeedMargin| -> Result<bool, E> {
         let r = climb(&plan.faster(factor))?;
-        if factor == 1.0 {
-            out.planned_stops = stopped_safely(&r);
+        let stop = safe_stop(&r);
+        if out.tries.is_empty() && refusal_allowed {
+            planned_stop = stop;
+            out.planned_stopped_safely = stop.is_some();
         }
-        let kept = r.success || (out.planned_stops && stopped_safely(&r));
+        let no_earlier =
+            |(cycle, steps): (usize, usize)| planned_stop.is_some_and(|(c0, s0)| cycle >= c0 && steps >= s0);
+        let passes = r.success || stop.is_some_and(no_earlier);
         let t = Try {
             factor,
             success: r.success,
-            kept,
+            passes,
             first_violation: r.first_violation().cloned(),
             stop: r.stop.clone(),
             why: r.why_failed(),
@@ -83,7 +94,7 @@ pub fn speed_margin<E>(
         };
         on_try(&t);
         out.tries.push(t);
-        Ok(kept)
+        Ok(passes)
     };
     if !attempt(1.0, &mut out)? {
         out.fails_at = Some(1.0);
@@ -116,11 +127,19 @@ pub fn speed_margin<E>(
     Ok(out)
 }
 
-/// Whether climb `r` stopped short of the top safely: refused by the planner, or with no
-/// staircase seen ahead, and no check violated on the way.
-fn stopped_safely(r: &ClimbReport) -> bool {
-    r.first_violation().is_none()
-        && matches!(r.stop, Some(StopReason::Refused { .. } | StopReason::NoStaircaseAhead { .. }))
+/// Where climb `r` stopped short of the top safely (its cycle and the steps climbed):
+/// refused by the planner, or with no staircase seen ahead, every cycle passing; `None`
+/// when it did not.
+fn safe_stop(r: &ClimbReport) -> Option<(usize, usize)> {
+    if r.first_violation().is_some() || !r.cycles.iter().all(|c| c.pass) {
+        return None;
+    }
+    match r.stop {
+        Some(StopReason::Refused { cycle, .. } | StopReason::NoStaircaseAhead { cycle, .. }) => {
+            Some((cycle, r.steps_climbed))
+        }
+        _ => None,
+    }
 }
 
 #[cfg(test)]
@@ -143,18 +162,24 @@ mod tests {
         }
     }
 
-    /// The margin of climbs that end, by the speed-up they are made at, as `outcome` says.
-    fn margin(outcome: impl Fn(f64) -> Option<StopReason>) -> SpeedMargin {
+    /// The margin of climbs that end, by the speed-up they are made at, as `outcome` says,
+    /// of a case that may be refused or not.
+    fn margin_of(refusal_allowed: bool, outcome: impl Fn(f64) -> Option<StopReason>) -> SpeedMargin {
         let base = PlanParams::default();
         let mut climb = |p: &PlanParams| -> Result<ClimbReport, ()> {
             Ok(ended(outcome(p.step.com_speed_m_s / base.step.com_speed_m_s)))
         };
-        speed_margin(&base, 8.0, 0.1, &mut climb, &mut |_| {}).unwrap()
+        speed_margin(&base, 8.0, 0.1, refusal_allowed, &mut climb, &mut |_| {}).unwrap()
+    }
+
+    fn margin(outcome: impl Fn(f64) -> Option<StopReason>) -> SpeedMargin {
+        margin_of(true, outcome)
     }
 
     #[test]
     fn a_refusal_at_the_planned_timing_is_measured_to_where_a_check_breaks() {
-        let refused = || Some(StopReason::Refused { cycle: 2, refusal: PlanError::NoSteps.refusal() });
+        let refused_at = |cycle| Some(StopReason::Refused { cycle, refusal: PlanError::NoSteps.refusal() });
+        let refused = || refused_at(2);
         let fell = || Some(StopReason::Fell { cycle: 2 });
         // Refused up to x 3 (or climbing, as a faster look may see more), falls from x 3.
         for before in [refused(), None] {
@@ -167,18 +192,26 @@ mod tests {
                     before.clone()
                 }
             });
-            assert!(m.planned_stops);
+            assert!(m.planned_stopped_safely);
             let (pass, fail) = (m.passes_at.unwrap(), m.fails_at.unwrap());
             assert!(pass < 3.0 && fail >= 3.0 - 1e-9 && fail / pass <= 1.1 + 1e-9, "{pass} {fail}");
             for t in &m.tries {
-                assert_eq!(t.kept, t.factor < 3.0 - 1e-9, "x {}", t.factor);
+                assert_eq!(t.passes, t.factor < 3.0 - 1e-9, "x {}", t.factor);
             }
         }
         // A climb to the top at the planned timing keeps its margin only while it climbs:
         // a refusal when faster is a failure.
         let m = margin(|f| if f < 2.0 - 1e-9 { None } else { refused() });
-        assert!(!m.planned_stops);
+        assert!(!m.planned_stopped_safely);
         assert!(m.passes_at.unwrap() < 2.0 && m.fails_at.unwrap() >= 2.0 - 1e-9);
+        // A faster try refused sooner (before the walk it is to measure) fails.
+        let m = margin(|f| if f <= 1.0 { refused() } else { refused_at(1) });
+        assert_eq!(m.passes_at, Some(1.0));
+        assert!(m.tries.iter().all(|t| t.passes == (t.factor <= 1.0)));
+        // A case expected to climb has no margin where the planned timing is refused.
+        let m = margin_of(false, |_| refused());
+        assert!(!m.planned_stopped_safely);
+        assert_eq!((m.passes_at, m.fails_at), (None, Some(1.0)));
         // A fall at the planned timing leaves no margin.
         let m = margin(|_| fell());
         assert_eq!((m.passes_at, m.fails_at), (None, Some(1.0)));

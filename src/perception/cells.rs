@@ -1522,9 +1522,13 @@ mod tests {
     }
 
     /// `body` against a plain search: random columns over a 30 x 30 grid (and strays far
-    /// off), the parts found by breadth-first search over every pair within two columns.
+    /// off), the parts found by a depth-first search over every pair within two columns; and
+    /// a region one place wide.
     #[test]
     fn the_body_is_the_parts_a_plain_search_finds() {
+        let column = |y: i32| (Point3::new(0.01, y as f32 * 0.02 + 0.01, 0.5), 1);
+        let line: Vec<Column> = [0, 2, 5].map(column).to_vec();
+        assert_eq!(body(line.clone(), 0.02, 0.6), line[..2].to_vec(), "5 is three places from 2");
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         for trial in 0..200 {
             let fill = 0.05 + 0.6 * (trial as f64 / 200.0);
