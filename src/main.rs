@@ -95,10 +95,9 @@ fn error_chain(e: &anyhow::Error) -> String {
 /// Memory freed by glibc's malloc is kept for the next allocation instead of going back to
 /// the system: a perception of a sweep takes and frees some megabytes each time, and with
 /// glibc's defaults (given back above 128 kB at the heap's top, blocks of 128 kB and more
-/// mapped and unmapped each time) each frame touched them afresh, a page fault per 4 kB,
-/// 1,100 a frame on Exp. 1's sweep. Up to 64 MB are kept at the heap's top
-/// (`M_TOP_PAD`), and blocks under 32 MB (glibc's own ceiling for its sliding threshold)
-/// come from the heap (`M_MMAP_THRESHOLD`). `bench perceive` measures the difference.
+/// mapped and unmapped each time) each frame touched them afresh, a page fault per 4 kB.
+/// Up to 64 MB are kept at the heap's top (`M_TOP_PAD`), and blocks under 32 MB (glibc's
+/// own ceiling for its sliding threshold) come from the heap (`M_MMAP_THRESHOLD`).
 fn keep_freed_memory() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     {

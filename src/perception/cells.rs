@@ -1186,8 +1186,8 @@ fn join_by_table(keys: &[(i32, i32)], lo: (i32, i32), [nx, ny]: [usize; 2], part
     let mut runs: Vec<(usize, usize, u32)> = Vec::new();
     let mut row_start = Vec::with_capacity(nx + 1);
     for x in 0..nx {
-        row_start.push(runs.len());
         let first_of_row = runs.len();
+        row_start.push(first_of_row);
         for (y, &i) in at[x * ny..(x + 1) * ny].iter().enumerate() {
             if i == NONE {
                 continue;
