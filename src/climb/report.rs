@@ -318,3 +318,62 @@ impl Serialize for ClimbReport {
         .serialize(s)
     }
 }
+
+/// Reports made up for tests of what reads them.
+#[cfg(test)]
+pub(crate) mod fixture {
+    use super::*;
+    use crate::climb::outcome::Check;
+
+    /// A climb of 3 steps through cycles to `cycles`, stopped by `stop` (none: to the top);
+    /// `violated`: its last cycle broke a check (a knee's collision with step 2).
+    pub(crate) fn report(cycles: &[Footing], stop: Option<StopReason>, violated: bool) -> ClimbReport {
+        let cycles: Vec<CycleReport> = cycles
+            .iter()
+            .enumerate()
+            .map(|(i, to)| {
+                let mut execution = Execution::empty();
+                let broke = violated && i + 1 == cycles.len();
+                if broke {
+                    execution.violations.push(Violation {
+                        t_s: 1.0,
+                        cycle: i + 1,
+                        check: Check::Collision { geom: "knee".into(), other: "step_2".into() },
+                    });
+                }
+                CycleReport {
+                    cycle: i + 1,
+                    to: *to,
+                    pass: !broke,
+                    steps_seen: 3,
+                    closer_look: None,
+                    looked_again_standing: None,
+                    stood_s: 0.0,
+                    scan_s: 0.0,
+                    perceive_s: 0.0,
+                    plan_s: 0.0,
+                    execute_s: 0.0,
+                    estimate_error: None,
+                    correction_m: None,
+                    correction_yaw_rad: None,
+                    plan_nearest_surface: None,
+                    plan_nearest_unseen: None,
+                    plan_moments_nm: None,
+                    execution,
+                }
+            })
+            .collect();
+        let success = stop.is_none() && !violated;
+        ClimbReport {
+            scenario: "t".into(),
+            success,
+            steps_climbed: if success { 3 } else { 0 },
+            steps_total: 3,
+            stop,
+            cycles,
+            sim_s: 0.0,
+            wall_s: 0.0,
+            looked_again_standing: Vec::new(),
+        }
+    }
+}

@@ -145,31 +145,33 @@ fn safe_stop(r: &ClimbReport) -> Option<(usize, usize)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::climb::report::fixture::report;
+    use crate::climb::Footing;
     use crate::planning::PlanError;
 
-    /// A climb that ends as `stop` says (none: to the top).
-    fn ended(stop: Option<StopReason>) -> ClimbReport {
-        ClimbReport {
-            scenario: "fake".into(),
-            success: stop.is_none(),
-            steps_climbed: 0,
-            steps_total: 3,
-            stop,
-            cycles: Vec::new(),
-            sim_s: 1.0,
-            wall_s: 0.0,
-            looked_again_standing: Vec::new(),
-        }
+    /// A climb through two floor cycles that ends as `stop` says (none: to the top), its
+    /// last cycle breaking a check where `violated`.
+    fn ended(stop: Option<StopReason>, violated: bool) -> ClimbReport {
+        report(&[Footing::Floor, Footing::Floor], stop, violated)
     }
 
-    /// The margin of climbs that end, by the speed-up they are made at, as `outcome` says,
-    /// of a case that may be refused or not.
-    fn margin_of(refusal_allowed: bool, outcome: impl Fn(f64) -> Option<StopReason>) -> SpeedMargin {
+    /// The margin of climbs that end, by the speed-up they are made at, as `outcome` says
+    /// (how they stopped, and whether a check broke on the way), of a case that may be
+    /// refused or not.
+    fn margin_with(
+        refusal_allowed: bool,
+        outcome: impl Fn(f64) -> (Option<StopReason>, bool),
+    ) -> SpeedMargin {
         let base = PlanParams::default();
         let mut climb = |p: &PlanParams| -> Result<ClimbReport, ()> {
-            Ok(ended(outcome(p.step.com_speed_m_s / base.step.com_speed_m_s)))
+            let (stop, violated) = outcome(p.step.com_speed_m_s / base.step.com_speed_m_s);
+            Ok(ended(stop, violated))
         };
         speed_margin(&base, 8.0, 0.1, refusal_allowed, &mut climb, &mut |_| {}).unwrap()
+    }
+
+    fn margin_of(refusal_allowed: bool, outcome: impl Fn(f64) -> Option<StopReason>) -> SpeedMargin {
+        margin_with(refusal_allowed, |f| (outcome(f), false))
     }
 
     fn margin(outcome: impl Fn(f64) -> Option<StopReason>) -> SpeedMargin {
@@ -215,5 +217,15 @@ mod tests {
         // A fall at the planned timing leaves no margin.
         let m = margin(|_| fell());
         assert_eq!((m.passes_at, m.fails_at), (None, Some(1.0)));
+        // A refusal after a check broke is no safe stop: not at the planned timing (no
+        // margin) ...
+        let m = margin_with(true, |_| (refused(), true));
+        assert!(!m.planned_stopped_safely);
+        assert_eq!((m.passes_at, m.fails_at), (None, Some(1.0)));
+        // ... nor at a faster one, refused at the same cycle as the planned timing.
+        let m = margin_with(true, |f| (refused(), f >= 3.0 - 1e-9));
+        assert!(m.planned_stopped_safely);
+        assert!(m.passes_at.unwrap() < 3.0 && m.fails_at.unwrap() >= 3.0 - 1e-9);
+        assert!(m.tries.iter().all(|t| t.passes == (t.factor < 3.0 - 1e-9)), "{:?}", m.tries);
     }
 }

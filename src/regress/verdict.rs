@@ -163,57 +163,8 @@ pub fn classify(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::climb::{CycleReport, Execution};
+    use crate::climb::report::fixture::report;
     use crate::planning::PlanError;
-
-    fn report(cycles: &[Footing], stop: Option<StopReason>, violated: bool) -> ClimbReport {
-        let cycles: Vec<CycleReport> = cycles
-            .iter()
-            .enumerate()
-            .map(|(i, to)| {
-                let mut execution = Execution::empty();
-                if violated && i + 1 == cycles.len() {
-                    execution.violations.push(crate::climb::Violation {
-                        t_s: 1.0,
-                        cycle: i + 1,
-                        check: crate::climb::Check::Collision { geom: "knee".into(), other: "step_2".into() },
-                    });
-                }
-                CycleReport {
-                    cycle: i + 1,
-                    to: *to,
-                    pass: !violated,
-                    steps_seen: 3,
-                    closer_look: None,
-                    looked_again_standing: None,
-                    stood_s: 0.0,
-                    scan_s: 0.0,
-                    perceive_s: 0.0,
-                    plan_s: 0.0,
-                    execute_s: 0.0,
-                    estimate_error: None,
-                    correction_m: None,
-                    correction_yaw_rad: None,
-                    plan_nearest_surface: None,
-                    plan_nearest_unseen: None,
-                    plan_moments_nm: None,
-                    execution,
-                }
-            })
-            .collect();
-        let success = stop.is_none() && !violated;
-        ClimbReport {
-            scenario: "t".into(),
-            success,
-            steps_climbed: if success { 3 } else { 0 },
-            steps_total: 3,
-            stop,
-            cycles,
-            sim_s: 0.0,
-            wall_s: 0.0,
-            looked_again_standing: Vec::new(),
-        }
-    }
 
     /// Seconds per stair count the cycles that went up a step only: not the floor walk, not
     /// a cycle that stayed on its step; with the stand, each one's standing before its plan.
