@@ -195,7 +195,7 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
             println!("Rerun recording saved to {}", path.display());
         }
     }
-    print_summary(&report);
+    print_summary(&report, params.run.still_speed_m_s);
     // A scenario written by `regress` says what the bench should do: the verdict against it.
     let verdict = scenario.expect.as_ref().map(|e| (e, verdict_of(e, &report, false)));
     if let Some((e, v)) = &verdict {
@@ -299,7 +299,9 @@ fn print_cycle(c: &CycleReport) {
     }
 }
 
-fn print_summary(r: &ClimbReport) {
+/// The climb's summary lines; `still_speed_m_s` is the speed under which the robot takes itself
+/// to be still.
+fn print_summary(r: &ClimbReport, still_speed_m_s: f64) {
     println!(
         "\n{}: {} of {} steps climbed, {:.1} s simulated in {:.1} s wall ({:.1} x real time)",
         if r.success { "SUCCESS" } else { "FAILED" },
@@ -344,6 +346,13 @@ fn print_summary(r: &ClimbReport) {
                 yaw_rad.to_degrees()
             ),
             None => println!("estimate: off (the loop read the simulator's true pose)"),
+        }
+        if let Some(v) = r.max_still_true_speed_m_s() {
+            println!(
+                "still: the robot judged itself still at each plan's end (its base under {:.0} mm/s as it saw it) with its base truly at most {:.1} mm/s",
+                still_speed_m_s * 1e3,
+                v * 1e3
+            );
         }
         match ticks {
             0 => println!("stabilizer: off (the planned q(t) open loop)"),

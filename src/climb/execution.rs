@@ -52,6 +52,12 @@ pub struct Execution {
     /// Wall time of the physics alone (MuJoCo's steps), seconds: the execution's wall time
     /// less this and the stabilizer's is the checks' and the loop's own.
     pub physics_wall_s: f64,
+    /// The base's true speed, m/s, when the robot judged itself still and ended its hold of
+    /// the plan's last instant (on its own estimate, `RunParams::still_speed_m_s`): the
+    /// bench's measure of that judgement. `None` where the hold ran to its longest, or no
+    /// stabilizer held.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub still_true_speed_m_s: Option<f64>,
 }
 
 /// What the stabilizer cost over an execution.
@@ -82,6 +88,7 @@ impl Execution {
             cancelled: false,
             control: None,
             physics_wall_s: 0.0,
+            still_true_speed_m_s: None,
         }
     }
 

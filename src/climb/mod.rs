@@ -50,7 +50,9 @@ pub struct RunParams {
     /// standing still too).
     pub settle_s: f64,
     /// After `settle_s`, the robot stands on until its base has moved no faster than this
-    /// for `still_s` in a row, m/s (at most `max_settle_s` in all): a plan starts from the
+    /// for `still_s` in a row, m/s (at most `max_settle_s` in all), as its own estimate
+    /// places the base (encoders, the anchor sole, the IMU; the simulator's truth where the
+    /// loop reads it, `[estimate] enabled = false`): a plan starts from the
     /// measured configuration, taken at rest (§6.2's motion is quasi-static). At x 2 speed
     /// Exp. 1's floor walk ended with the robot swaying sideways at 0.1 m/s; the next plan
     /// started mid-sway and the CoM left the right sole's polygon 43 ms in.

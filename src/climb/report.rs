@@ -245,6 +245,12 @@ impl ClimbReport {
         self.cycles.iter().filter_map(|c| c.plan_moments_nm.map(|m| m[1])).reduce(f64::max)
     }
 
+    /// The largest true speed of the base at which the robot judged itself still at a plan's
+    /// end, m/s ([`Execution::still_true_speed_m_s`]; `None` when no hold ended so).
+    pub fn max_still_true_speed_m_s(&self) -> Option<f64> {
+        self.cycles.iter().filter_map(|c| c.execution.still_true_speed_m_s).reduce(f64::max)
+    }
+
     /// The largest error of the robot's estimate of its base's position at a sweep over every
     /// cycle, metres (`None` when no cycle knew the truth beside an estimate).
     pub fn max_estimate_error_m(&self) -> Option<f64> {

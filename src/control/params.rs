@@ -115,8 +115,8 @@ pub struct StabilizerParams {
     /// last weight shift, and cut there, its sway goes on under the servos alone and can
     /// slide a sole (regression `a-plan-ending-mid-sway-slid-a-sole`). A real robot's
     /// stabilizer runs on; so does this one, until the body is still. Still is judged as the
-    /// stand judges it, by the bench on the simulator's base speed (its linear speed only),
-    /// not by the robot's sensors.
+    /// stand judges it, on the base's linear speed as the robot's own estimate has it
+    /// ([`crate::estimate::still`]; the simulator's where the loop reads the truth).
     pub max_end_hold_s: f64,
     /// How far below its planned height a late foot may seek the ground, metres.
     pub max_seek_m: f64,

@@ -26,6 +26,7 @@
 //! real robot would feed it the same.
 
 pub mod path;
+pub mod still;
 
 use crate::robot::hrp4;
 use crate::robot::kinematics::frame_in_base;
@@ -150,7 +151,7 @@ impl<'m> Odometry<'m> {
     }
 
     /// The base's pose from the anchor foot through the legs at `joints`.
-    fn base(&self, joints: &[f64]) -> Result<Isometry3<f64>, RobotError> {
+    pub fn base(&self, joints: &[f64]) -> Result<Isometry3<f64>, RobotError> {
         Ok(self.anchor * self.sole_in_base(self.anchor_foot, joints)?.inverse())
     }
 

@@ -64,6 +64,11 @@ pub struct CaseResult {
     /// Largest error of its yaw, radians (absolute; `None` likewise).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_estimate_yaw_rad: Option<f64>,
+    /// Largest true speed of the base at which the robot judged itself still at a plan's
+    /// end, m/s (`ClimbReport::max_still_true_speed_m_s`; `None` likewise, or in results
+    /// written before it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_still_true_speed_m_s: Option<f64>,
     /// Simulated seconds of motion per stair (the cycles that went up a step; `None` when
     /// none did, or in results written before it was kept).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -117,6 +122,7 @@ impl CaseResult {
         self.max_friction_ratio = r.max_friction_ratio();
         self.max_estimate_error_m = r.max_estimate_error_m();
         self.max_estimate_yaw_rad = r.max_estimate_yaw_rad();
+        self.max_still_true_speed_m_s = r.max_still_true_speed_m_s();
         self.s_per_stair = r.seconds_per_stair();
         self.s_per_stair_with_stand = r.seconds_per_stair_with_stand();
         self.looked_again_standing = r.looked_again_standing.len();

@@ -304,6 +304,7 @@ fn run_one(info: &SuiteInfo, job: &Job, opt: &Options) -> CaseResult {
         max_friction_ratio: 0.0,
         max_estimate_error_m: None,
         max_estimate_yaw_rad: None,
+        max_still_true_speed_m_s: None,
         s_per_stair: None,
         s_per_stair_with_stand: None,
         looked_again_standing: 0,

@@ -174,6 +174,14 @@ pub fn text(results: &[CaseResult], min_rate: f64, pace: Option<Pace>, worst: us
             "seconds per stair with the settle and the standing sweep before each plan: median {median:.1} s, {least:.1} to {most:.1} s"
         );
     }
+    if let Some((median, _, most, n)) = spread(|r| r.max_still_true_speed_m_s) {
+        let _ = writeln!(
+            t,
+            "the body's true speed where the robot judged itself still at a plan's end: median {:.1} mm/s, at most {:.1} mm/s over {n} runs (the largest of each)",
+            median * 1e3,
+            most * 1e3
+        );
+    }
     let again: Vec<usize> = results.iter().map(|r| r.looked_again_standing).filter(|&n| n > 0).collect();
     if !again.is_empty() {
         let _ = writeln!(

@@ -16,6 +16,7 @@ use crate::climb::{
 use crate::control::attitude::TiltFilter;
 use crate::control::Stabilizer;
 use crate::estimate::path::Belief;
+use crate::estimate::still::BaseSpeed;
 use crate::estimate::Odometry;
 use crate::planning::gait::Swing;
 use crate::planning::{Foot, Plan};
@@ -23,7 +24,7 @@ use crate::robot::hrp4;
 use crate::robot::model::{base_pose, set_base_pose, RobotModel, Q_JOINTS};
 use crate::scene::Scene;
 use nalgebra::{Isometry3, Vector3};
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 
 /// The position servos with the integral term of [`ServoParams`].
 struct Servos {
@@ -87,7 +88,19 @@ pub fn execute(
     observer: &mut dyn Observer,
     cancel: &Cancel,
 ) -> Result<Execution, SimError> {
-    execute_from(world, model, scene, plan, &Isometry3::identity(), params, None, None, observer, cancel)
+    execute_from(
+        world,
+        model,
+        scene,
+        plan,
+        &Isometry3::identity(),
+        params,
+        None,
+        None,
+        None,
+        observer,
+        cancel,
+    )
 }
 
 /// [`execute`] of a plan made in a frame that lies at `plan_to_world` in the true world (the
@@ -95,7 +108,10 @@ pub fn execute(
 /// targets carried into the world ([`Monitor::plan_to_world`]). With `tilt`, the
 /// stabilizer's IMU tilt filter carries on from it and is left there for the next plan; with
 /// `gyro`, the gyro the robot's estimate reads ([`RobotState::gyro_rad_s`]) draws its noise on
-/// from it (a fresh reader repeats the same noise at every plan).
+/// from it (a fresh reader repeats the same noise at every plan). With `seen_speed`, the
+/// base's speed as the robot's estimate has it after the last physics step
+/// ([`crate::estimate::still`]) judges when the body is still at the plan's end; without,
+/// the simulator's (a robot that keeps no estimate plans on the truth).
 #[allow(clippy::too_many_arguments)]
 pub fn execute_from(
     world: &mut World,
@@ -106,6 +122,7 @@ pub fn execute_from(
     params: &SimParams,
     tilt: Option<&mut TiltFilter>,
     gyro: Option<&mut SimSensors>,
+    seen_speed: Option<&dyn Fn() -> f64>,
     observer: &mut dyn Observer,
     cancel: &Cancel,
 ) -> Result<Execution, SimError> {
@@ -173,6 +190,7 @@ pub fn execute_from(
         if stabilized { params.stabilizer.max_hold_s + params.stabilizer.max_end_hold_s } else { 0.0 };
     let last_step = steps + (held_steps / dt).ceil() as usize + 1;
     let mut end_hold = EndHold::default();
+    let seen = |w: &World| seen_speed.map_or_else(|| base_speed_m_s(w), |s| s());
     let mut q_now = Vec::new();
     // The gyro as the robot's estimate reads it at every physics step.
     let mut fresh = None;
@@ -193,8 +211,10 @@ pub fn execute_from(
             }
         };
         if t > end_s + dt / 2.0
-            && (!stabilized || end_hold.done(world, dt, &params.run, params.stabilizer.max_end_hold_s))
+            && (!stabilized || end_hold.done(seen(world), dt, &params.run, params.stabilizer.max_end_hold_s))
         {
+            // The bench's measure of the robot's judgement that it was still.
+            mon.ex.still_true_speed_m_s = end_hold.still.then(|| base_speed_m_s(world));
             break;
         }
         servos.command(world, &q, dt);
@@ -283,17 +303,20 @@ struct EndHold {
     held_s: f64,
     /// Of them, the last ones the base was still.
     still_s: f64,
+    /// The hold ended on the base still (not on its longest).
+    still: bool,
 }
 
 impl EndHold {
-    /// Whether the hold is over before the next physics step of `dt_s`: the base still for
-    /// `run.still_s` (no faster than `run.still_speed_m_s`), or `max_s` held.
-    fn done(&mut self, world: &World, dt_s: f64, run: &RunParams, max_s: f64) -> bool {
+    /// Whether the hold is over before the next physics step of `dt_s`, the base moving at
+    /// `speed_m_s` now: still for `run.still_s` (no faster than `run.still_speed_m_s`), or
+    /// `max_s` held.
+    fn done(&mut self, speed_m_s: f64, dt_s: f64, run: &RunParams, max_s: f64) -> bool {
         if self.held_s > 0.0 {
-            self.still_s =
-                if base_speed_m_s(world) > run.still_speed_m_s { 0.0 } else { self.still_s + dt_s };
+            self.still_s = if speed_m_s > run.still_speed_m_s { 0.0 } else { self.still_s + dt_s };
         }
-        let done = self.still_s + dt_s / 2.0 >= run.still_s || self.held_s + dt_s / 2.0 >= max_s;
+        self.still = self.still_s + dt_s / 2.0 >= run.still_s;
+        let done = self.still || self.held_s + dt_s / 2.0 >= max_s;
         self.held_s += dt_s;
         done
     }
@@ -380,21 +403,23 @@ fn base_speed_m_s(world: &World) -> f64 {
 /// `speed_m_s` for `still_s` seconds in a row (a sway's turning point is slow for an
 /// instant only), for at most `max_s` seconds; the time it stood, seconds.
 pub fn settle_until_still(world: &mut World, speed_m_s: f64, still_s: f64, max_s: f64) -> f64 {
-    settle_until_still_watched(world, speed_m_s, still_s, max_s, &mut |_| {})
+    settle_until_still_watched(world, speed_m_s, still_s, max_s, &base_speed_m_s, &mut |_| {})
 }
 
-/// [`settle_until_still`], `on_step` called after each physics step.
+/// [`settle_until_still`], the base's speed as `seen(world)` has it (m/s), `on_step` called
+/// after each physics step.
 fn settle_until_still_watched(
     world: &mut World,
     speed_m_s: f64,
     still_s: f64,
     max_s: f64,
+    seen: &dyn Fn(&World) -> f64,
     on_step: &mut dyn FnMut(&World),
 ) -> f64 {
     let dt = world.model().opt().timestep;
     let (mut t_s, mut still_from_s) = (0.0, 0.0);
     while t_s + dt / 2.0 < max_s {
-        if base_speed_m_s(world) > speed_m_s {
+        if seen(world) > speed_m_s {
             still_from_s = t_s + dt;
         } else if t_s - still_from_s + dt / 2.0 >= still_s {
             break;
@@ -579,6 +604,9 @@ impl Executor for SimRobot<'_> {
         let checks = &self.params.checks;
         let (track, model) = (self.track, self.model);
         let head_site = world.site_id(crate::scene::mjcf::HEAD_SITE)?;
+        // The base's speed as the estimate has it, which judges when the robot is still (the
+        // simulator's where it keeps none).
+        let (estimated, seen, mut speed) = (odometry.is_some(), Cell::new(f64::INFINITY), BaseSpeed::new());
         let mut feed = |w: &World| {
             for (k, foot) in [Foot::Right, Foot::Left].into_iter().enumerate() {
                 let at = w.site_pose(soles[k]).translation.vector;
@@ -600,6 +628,9 @@ impl Executor for SimRobot<'_> {
                 if let Err(error) = odo.follow(joints, up.as_ref(), &gyro_rad_s, since_gyro_s) {
                     lost.get_or_insert(error);
                 }
+                if let Ok(base) = odo.base(joints) {
+                    seen.set(speed.follow(w.data().time(), &base.translation.vector));
+                }
                 turn_head(track, odo, &gyro_rad_s, dt);
                 since_gyro_s = Some(dt);
             }
@@ -619,7 +650,8 @@ impl Executor for SimRobot<'_> {
         settle_watched(world, seconds, &mut feed);
         let run = &self.params.run;
         let max_s = (run.max_settle_s - seconds).max(0.0);
-        settle_until_still_watched(world, run.still_speed_m_s, run.still_s, max_s, &mut feed);
+        let seen_speed = |w: &World| if estimated { seen.get() } else { base_speed_m_s(w) };
+        settle_until_still_watched(world, run.still_speed_m_s, run.still_s, max_s, &seen_speed, &mut feed);
         if let Some(error) = lost {
             return Err(error.into());
         }
@@ -671,6 +703,7 @@ impl Executor for SimRobot<'_> {
                 &self.params,
                 tilt,
                 gyro,
+                None,
                 &mut head,
                 cancel,
             );
@@ -682,6 +715,8 @@ impl Executor for SimRobot<'_> {
         // The odometry follows every physics step: the encoders, the feet's loads, the gyro.
         let mut lost = None;
         let mut last_s = None;
+        // The base's speed as the estimate has it, which judges the end of the plan's hold.
+        let (seen, mut speed) = (Cell::new(f64::INFINITY), BaseSpeed::new());
         let mut odometry = Watch(|e: &Event| {
             if let Event::State { stamp_s, state } = e {
                 let loads = state.foot_forces_n.map(|f| f.z);
@@ -693,6 +728,9 @@ impl Executor for SimRobot<'_> {
                     .and_then(|()| odo.update(joints, loads))
                 {
                     lost.get_or_insert(error);
+                }
+                if let Ok(base) = odo.base(joints) {
+                    seen.set(speed.follow(*stamp_s, &base.translation.vector));
                 }
                 turn_head(track, odo, &state.gyro_rad_s, since_last_s.unwrap_or(dt));
                 let truth = || state.head_to_world;
@@ -711,6 +749,7 @@ impl Executor for SimRobot<'_> {
             &self.params,
             tilt,
             gyro,
+            Some(&|| seen.get()),
             &mut odometry,
             cancel,
         )?;
@@ -770,6 +809,39 @@ mod tests {
             }
             other => panic!("{other:?}"),
         }
+    }
+
+    /// The robot judges itself still on its own estimate, as a real one must: set sliding
+    /// at 0.3 m/s on a floor of friction 0.05 (its feet sliding with it, a motion its encoders
+    /// and the sole its estimate stands on cannot feel), it stops waiting after about half a
+    /// second, the body still sliding at several times the limit, and the bench reports the
+    /// slide. On the simulator's speed (the estimate off) it waits until the slide is over
+    /// (about 1.6 s).
+    #[test]
+    fn the_robot_judges_itself_still_on_its_own_estimate() {
+        let mut scenario = crate::scenario::Scenario::default();
+        scenario.room.floor_friction = 0.05;
+        let scene = Scene::from_scenario(&scenario).unwrap();
+        let model = hrp4::model().unwrap();
+        let stand = |estimated: bool| {
+            let world = RefCell::new(World::for_scene(&scene).unwrap());
+            let mut params = SimParams::default();
+            params.estimate.enabled = estimated;
+            let mut robot = SimRobot::new(&world, &model, &scene, &params).unwrap();
+            assert_eq!(robot.settle(0.5).unwrap(), Standing::Upright);
+            world.borrow_mut().data_mut().qvel_mut()[0] = 0.3;
+            let t0_s = world.borrow().data().time();
+            let standing = robot.settle(0.0).unwrap();
+            assert!(matches!(standing, Standing::Slid(_)), "{standing:?}");
+            let w = world.borrow();
+            (w.data().time() - t0_s, base_speed_m_s(&w))
+        };
+        let still = RunParams::default().still_speed_m_s;
+        let (own_s, own_speed) = stand(true);
+        let (truth_s, truth_speed) = stand(false);
+        assert!(own_speed > 3.0 * still, "stood {own_s} s, the base at {own_speed} m/s at its end");
+        assert!(truth_speed <= still, "stood {truth_s} s, the base at {truth_speed} m/s at its end");
+        assert!(truth_s > own_s + 0.5, "{own_s} s on its estimate, {truth_s} s on the truth");
     }
 
     /// A robot pushed sideways stands until it is still, not until the first instant its
