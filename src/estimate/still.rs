@@ -8,6 +8,7 @@
 //! estimate only where `EstimateParams::imu_tilt` has it), as it would on the real robot.
 //! MuJoCo-free.
 
+use super::Odometry;
 use nalgebra::Vector3;
 
 /// The base's speed from the estimate's positions of it, one per instant.
@@ -45,6 +46,15 @@ impl BaseSpeed {
             None => self.last = Some((stamp_s, *position_m)),
         }
         self.speed_m_s
+    }
+
+    /// [`BaseSpeed::follow`] with the base where `odometry` places it at the encoders'
+    /// `joints` (unchanged where its kinematics fail).
+    pub fn follow_estimate(&mut self, stamp_s: f64, odometry: &Odometry, joints: &[f64]) -> f64 {
+        match odometry.base(joints) {
+            Ok(base) => self.follow(stamp_s, &base.translation.vector),
+            Err(_) => self.speed_m_s,
+        }
     }
 
     /// The speed at the last position, m/s (infinite before two).

@@ -628,9 +628,7 @@ impl Executor for SimRobot<'_> {
                 if let Err(error) = odo.follow(joints, up.as_ref(), &gyro_rad_s, since_gyro_s) {
                     lost.get_or_insert(error);
                 }
-                if let Ok(base) = odo.base(joints) {
-                    seen.set(speed.follow(w.data().time(), &base.translation.vector));
-                }
+                seen.set(speed.follow_estimate(w.data().time(), odo, joints));
                 turn_head(track, odo, &gyro_rad_s, dt);
                 since_gyro_s = Some(dt);
             }
@@ -729,9 +727,7 @@ impl Executor for SimRobot<'_> {
                 {
                     lost.get_or_insert(error);
                 }
-                if let Ok(base) = odo.base(joints) {
-                    seen.set(speed.follow(*stamp_s, &base.translation.vector));
-                }
+                seen.set(speed.follow_estimate(*stamp_s, odo, joints));
                 turn_head(track, odo, &state.gyro_rad_s, since_last_s.unwrap_or(dt));
                 let truth = || state.head_to_world;
                 let believed =
