@@ -30,7 +30,9 @@
 //!    as step 3 gives them (a table over the region's box of columns, one per band of cell
 //!    rows, summed at the end); each column's mean is one "voxel" of the region, as the
 //!    paper's segments are voxels. A region is one surface: its columns' parts a gap away
-//!    from its body, and small beside it, are not its ([`CellParams::min_part_share`]).
+//!    from its body, and small beside it, are not its ([`CellParams::min_part_share`]). A
+//!    gap is space no return came from, or space seen through: step 3 also marks where
+//!    the rays of points well below a region's plane came down through it.
 //!
 //! Step 1's sums need only a cell's own rows: [`Stream`] takes them as a sweep's rows
 //! arrive, and leaves the rest, which needs the sweep's noise and every cell, for its end.
@@ -111,11 +113,15 @@ pub struct CellParams {
     pub point_floor_m: f64,
     /// A region is one surface, as the paper's segment is one cluster's part of a plane: its
     /// columns fall into parts that touch (within two columns, as `join_touching` joins
-    /// parts), and a part with fewer columns than this share of the region's biggest is not
-    /// the region's. Step 3 gives a tread the returns of a wall beside the flight at the
-    /// tread's height (they lie in its plane, within reach of its edge cell): a few columns
-    /// a gap away, which widen the tread by the gap, and under 20 mm of noise turn the line
-    /// through the treads' middles, the flight's axis, by degrees. A tread cut in two by a
+    /// parts, but not across an empty column that rays were seen through below the plane),
+    /// and a part with fewer columns than this share of the region's biggest is not the
+    /// region's. Step 3 gives a tread the returns of a wall beside the flight at the tread's
+    /// height (they lie in its plane, within reach of its edge cell): a few columns a gap
+    /// away, which widen the tread by the gap, and under 20 mm of noise turn the line
+    /// through the treads' middles, the flight's axis, by degrees. A wall two columns off
+    /// (a stairwell's 4-6 cm gap) touched the tread across the one empty column between
+    /// until the rays that came down through that gap to the wall below parted them (test
+    /// `a_stairwells_gap_beside_the_flight_is_not_read_as_tread`). A tread cut in two by a
     /// leg's shadow, or seen one scan line in three, keeps its parts: each is a like share
     /// of the whole.
     pub min_part_share: f64,
@@ -374,6 +380,11 @@ struct Near {
 /// own point, pushed behind it by the noise (a riser's foot landing on the plane of the tread
 /// below, past the tread's end). A tread lies behind the riser under its own nose, and keeps
 /// its points there.
+///
+/// `crossed` is told, for each region among `near` whose plane the point lies below by more
+/// than [`SEEN_THROUGH_SIGMAS`] of its noise, where the point's ray crossed that plane on
+/// its way down (from the viewpoint): a place where there is no surface of that plane, for
+/// step 4.
 fn region_of(
     q: &Vector3<f64>,
     d: &Vector3<f64>,
@@ -381,6 +392,7 @@ fn region_of(
     planes: &[Plane],
     noise_m: f64,
     p: &CellParams,
+    crossed: &mut impl FnMut(u32, Vector3<f64>),
 ) -> Option<u32> {
     // The ray's origin, from the viewpoint (zero but where the sensor moved).
     let seen_from = q - d;
@@ -395,12 +407,20 @@ fn region_of(
         let d_m = (along - n.offset_m).abs();
         let seen_sd_m = noise_m * (n.normal.dot(d) * inv_range).abs();
         let sd_m = seen_sd_m.max(floor_sd_m);
+        let tolerance_m = (p.point_noise_factor * seen_sd_m).max(p.point_floor_m);
+        if n.region != NONE && along < n.offset_m - (SEEN_THROUGH_SIGMAS * seen_sd_m).max(p.point_floor_m) {
+            // Below the plane, its ray came down through it (from above: the plane's normal
+            // is up) at this fraction of the way from the viewpoint.
+            let above_m = n.normal.dot(&seen_from) - n.offset_m;
+            if above_m > 0.0 {
+                crossed(n.region, seen_from + d * (above_m / (above_m + n.offset_m - along)));
+            }
+        }
         if best.is_some_and(|(bd, bsd, _)| bd * sd_m <= d_m * bsd) {
             continue;
         }
-        let joins = n.region == NONE
-            || (d_m <= (p.point_noise_factor * seen_sd_m).max(p.point_floor_m)
-                && (q - n.cell_centre).norm_squared() <= n.reach2_m2);
+        let joins =
+            n.region == NONE || (d_m <= tolerance_m && (q - n.cell_centre).norm_squared() <= n.reach2_m2);
         if joins {
             best = Some((d_m, sd_m, n));
         }
@@ -729,7 +749,9 @@ fn regions(cloud: &PointCloud, sums: &[CellSums], start: Instant, s: &Setting) -
                         continue;
                     }
                     g.for_points(g.rows_of(cr), cb, |i, q, d| {
-                        if let Some(id) = region_of(&q, &d, &near, &planes, noise_m, p) {
+                        let mut crossed =
+                            |id: u32, at: Vector3<f64>| tables.cross(&mut out, id, &(at + origin));
+                        if let Some(id) = region_of(&q, &d, &near, &planes, noise_m, p, &mut crossed) {
                             tables.add(&mut out, id, i, &points[i as usize]);
                         }
                     });
@@ -738,7 +760,7 @@ fn regions(cloud: &PointCloud, sums: &[CellSums], start: Instant, s: &Setting) -
             out
         })
         .collect();
-    let (columns, points_in_regions) = tables.finish(binned, points);
+    let (columns, crossed, points_in_regions) = tables.finish(binned, points);
     // floor(), as i32, without the library call that x86-64's baseline makes of it.
     let key = |v: f32| {
         let t = f64::from(v) / voxel_m;
@@ -748,8 +770,9 @@ fn regions(cloud: &PointCloud, sums: &[CellSums], start: Instant, s: &Setting) -
     // Each region's body, and its columns' voxel keys, in parallel.
     let columns: Vec<(Vec<Column>, Vec<[i32; 3]>)> = columns
         .into_par_iter()
-        .map(|cols| {
-            let cols = body(cols, voxel_m, p.min_part_share);
+        .zip(crossed)
+        .map(|(cols, crossed)| {
+            let cols = body(cols, voxel_m, p.min_part_share, &crossed);
             let keys = cols.iter().map(|(pos, _)| [key(pos.x), key(pos.y), key(pos.z)]).collect();
             (cols, keys)
         })
@@ -854,6 +877,13 @@ struct ColumnTables {
 /// A column's mean point and its count of points.
 type Column = (Point3<f32>, u32);
 
+/// A column's place: its index along x and y (multiples of the voxel edge, world-aligned).
+type Place = (i32, i32);
+
+/// Each region's columns, its empty places rays crossed below its plane, and the points
+/// binned in all ([`ColumnTables::finish`]).
+type Binning = (Vec<Vec<Column>>, Vec<Vec<Place>>, usize);
+
 /// A region's columns so far: the lowest and highest column (x, y) and the points of the
 /// cells that reach it.
 type Extent = ((i32, i32), (i32, i32), f64);
@@ -867,10 +897,12 @@ struct ColumnBox {
 }
 
 /// One band's binning: per region, its table of column sums and counts, or the points'
-/// indices for a sparse region (allocated when a point first comes).
+/// indices for a sparse region (allocated when a point first comes); and per dense region,
+/// its places a ray crossed below its plane (allocated when one first does).
 struct Binned {
     tables: Vec<Vec<([f32; 3], u32)>>,
     members: Vec<Vec<u32>>,
+    crossed: Vec<Vec<bool>>,
 }
 
 impl ColumnTables {
@@ -935,7 +967,25 @@ impl ColumnTables {
 
     /// A band's binning, nothing in it yet.
     fn empty(&self) -> Binned {
-        Binned { tables: vec![Vec::new(); self.boxes.len()], members: vec![Vec::new(); self.boxes.len()] }
+        let n = self.boxes.len();
+        Binned { tables: vec![Vec::new(); n], members: vec![Vec::new(); n], crossed: vec![Vec::new(); n] }
+    }
+
+    /// Region `id`'s place under `at` (world) crossed by a ray below its plane; a place
+    /// outside its box, or a sparse region's, is not kept.
+    #[inline]
+    fn cross(&self, out: &mut Binned, id: u32, at: &Vector3<f64>) {
+        let id = id as usize;
+        let Some(b) = &self.boxes[id] else { return };
+        let (x, y) =
+            (floor_i32(at.x as f32 * self.inv_m) - b.lo.0, floor_i32(at.y as f32 * self.inv_m) - b.lo.1);
+        if x >= 0 && y >= 0 && (y as usize) < b.ny && (x as usize) < b.len / b.ny {
+            let crossed = &mut out.crossed[id];
+            if crossed.is_empty() {
+                crossed.resize(b.len, false);
+            }
+            crossed[x as usize * b.ny + y as usize] = true;
+        }
     }
 
     /// Point `i` (at `q`, world) into region `id`'s columns.
@@ -965,12 +1015,23 @@ impl ColumnTables {
         }
     }
 
-    /// Each region's columns (mean point and count) from the bands' binnings, and the
+    /// Each region's columns (mean point and count) from the bands' binnings, its empty
+    /// places a ray crossed below its plane (column keys, as [`body`] takes them), and the
     /// points binned in all.
-    fn finish(&self, binned: Vec<Binned>, points: &[Point3<f32>]) -> (Vec<Vec<Column>>, usize) {
+    fn finish(&self, binned: Vec<Binned>, points: &[Point3<f32>]) -> Binning {
         let mut bands = binned.into_iter();
-        let Some(mut all) = bands.next() else { return (vec![Vec::new(); self.boxes.len()], 0) };
+        let n = self.boxes.len();
+        let Some(mut all) = bands.next() else { return (vec![Vec::new(); n], vec![Vec::new(); n], 0) };
         for band in bands {
+            for (into, from) in all.crossed.iter_mut().zip(band.crossed) {
+                if into.is_empty() {
+                    *into = from;
+                } else if !from.is_empty() {
+                    for (a, b) in into.iter_mut().zip(from) {
+                        *a |= b;
+                    }
+                }
+            }
             for (into, from) in all.tables.iter_mut().zip(band.tables) {
                 if into.is_empty() {
                     *into = from;
@@ -987,6 +1048,26 @@ impl ColumnTables {
                 into.extend(from);
             }
         }
+        let crossed = (all.crossed.iter().zip(&all.tables).zip(&self.boxes))
+            .map(|((crossed, table), b)| match b {
+                Some(b) if !crossed.is_empty() && !table.is_empty() => {
+                    let (nx, ny) = ((b.len / b.ny) as i64, b.ny as i64);
+                    let filled = |x: i64, y: i64| {
+                        x >= 0 && y >= 0 && x < nx && y < ny && table[(x * ny + y) as usize].1 > 0
+                    };
+                    // Empty places beside a column: the only ones that part columns.
+                    (0..b.len)
+                        .filter(|&k| crossed[k] && table[k].1 == 0)
+                        .filter(|&k| {
+                            let (x, y) = ((k / b.ny) as i64, (k % b.ny) as i64);
+                            (-1..=1).any(|dx| (-1..=1).any(|dy| filled(x + dx, y + dy)))
+                        })
+                        .map(|k| (b.lo.0 + (k / b.ny) as i32, b.lo.1 + (k % b.ny) as i32))
+                        .collect()
+                }
+                _ => Vec::new(),
+            })
+            .collect();
         let mut count = 0;
         let columns = (all.tables.into_par_iter().zip(all.members).zip(&self.boxes))
             .map(|((table, members), b)| match b {
@@ -1001,7 +1082,7 @@ impl ColumnTables {
         for cols in &columns {
             count += cols.iter().map(|c| c.1 as usize).sum::<usize>();
         }
-        (columns, count)
+        (columns, crossed, count)
     }
 }
 
@@ -1095,11 +1176,16 @@ fn fit_to_members(
 
 /// The parts of a region's columns `cols` (edge `v`) that touch (within two columns) with at
 /// least `min_share` of the biggest part's columns: its body, without the strays a gap
-/// away (see [`CellParams::min_part_share`]). The columns keep their order. The parts are
-/// joined in one pass over the region's columns in order of place, each column with the
-/// columns before it within reach (union-find): over a table of the region's box, or, for a
-/// region spread too far for one (a stray a long way off), a map of its places.
-fn body(cols: Vec<Column>, v: f64, min_share: f64) -> Vec<Column> {
+/// away (see [`CellParams::min_part_share`]). Two columns a place apart touch through an
+/// empty place beside both, unless a ray crossed the region's plane there on its way down
+/// (`crossed`, column keys): space seen through is a gap, where a place no return came
+/// from (a shadow, between scan lines) is not. The columns keep their order.
+///
+/// With nothing crossed the parts are joined in one pass over the region's columns in
+/// order of place, each column with the columns before it within reach (union-find): over
+/// a table of the region's box, or, for a region spread too far for one (a stray a long
+/// way off), a map of its places; else by [`join_bridged`], over a table.
+fn body(cols: Vec<Column>, v: f64, min_share: f64, crossed: &[Place]) -> Vec<Column> {
     if cols.len() < 2 || min_share <= 0.0 {
         return cols;
     }
@@ -1113,10 +1199,12 @@ fn body(cols: Vec<Column>, v: f64, min_share: f64) -> Vec<Column> {
     }
     let (nx, ny) = ((hi.0 - lo.0) as usize + 1, (hi.1 - lo.1) as usize + 1);
     let mut parts = UnionFind::new(cols.len());
-    if nx.saturating_mul(ny) > 64 * cols.len() + 4096 {
+    if !crossed.is_empty() {
+        join_bridged(&keys, crossed, lo, [nx, ny], &mut parts);
+    } else if nx.saturating_mul(ny) > 64 * cols.len() + 4096 {
         join_by_map(&keys, &mut parts);
     } else {
-        join_by_table(&keys, lo, [nx, ny], &mut parts);
+        join_by_table(&keys, lo, [nx, ny], &[], &mut parts);
     }
     let roots: Vec<u32> = (0..cols.len() as u32).map(|i| parts.find(i)).collect();
     let mut sizes = vec![0usize; cols.len()];
@@ -1168,10 +1256,20 @@ impl UnionFind {
 /// is wider than that), so two runs of such rows touch when their spans, widened by `TOUCH`,
 /// overlap: the rows' runs are joined in one merge of their sorted spans. The parts are
 /// those of every pair of columns within `TOUCH` both ways, as a pass over each place's
-/// reach would join them, with work in the runs rather than the places.
-fn join_by_table(keys: &[(i32, i32)], lo: (i32, i32), [nx, ny]: [usize; 2], parts: &mut UnionFind) {
+/// reach would join them, with work in the runs rather than the places. The keys `skip`
+/// marks (by index; none when it is empty) are left out: their pairs are joined elsewhere.
+fn join_by_table(
+    keys: &[(i32, i32)],
+    lo: (i32, i32),
+    [nx, ny]: [usize; 2],
+    skip: &[bool],
+    parts: &mut UnionFind,
+) {
     let mut at = vec![NONE; nx * ny];
     for (i, &(x, y)) in keys.iter().enumerate() {
+        if skip.get(i) == Some(&true) {
+            continue;
+        }
         let place = &mut at[(x - lo.0) as usize * ny + (y - lo.1) as usize];
         // A column whose mean rounded onto another's place (at a column's edge, in f32) is
         // in that one's part.
@@ -1219,6 +1317,101 @@ fn join_by_table(keys: &[(i32, i32)], lo: (i32, i32), [nx, ny]: [usize; 2], part
                     } else {
                         b += 1;
                     }
+                }
+            }
+        }
+    }
+}
+
+/// How far below a region's plane, in the point's noise as seen across it (`sigma |ray .
+/// n|`), a point must lie for its ray to have passed through where the plane has no
+/// surface: 4. Within a region's tolerance ([`CellParams::point_noise_factor`], 1.5) lie
+/// 87 % of its own points; below it, 7 %: the noise's tail under the region, each ray
+/// crossing the plane a little short of its point, often between two scan lines where the
+/// region has no column. Beyond 4 sigma lie 3 in 100 000 (Gaussian), a few of a sweep. A
+/// gap the sensor sees through is crossed by the rays that reach past it, about one to a
+/// place where it is a few centimetres wide.
+const SEEN_THROUGH_SIGMAS: f64 = 4.0;
+
+/// A place of [`join_bridged`]'s table a ray crossed below the region's plane, with no
+/// column.
+const CROSSED: u32 = u32::MAX - 1;
+
+/// Joins the columns at `keys` that touch: neighbours (8-connected), and any two beside one
+/// place that holds a column or is empty with no ray crossed below the plane there
+/// (`crossed`): the [`TOUCH`] of two places but for space seen through. Two columns of
+/// which one has no crossed place about it touch as they do without any (their places
+/// between are about it): those pairs are joined by [`join_by_table`], and only the pairs
+/// of columns beside a crossed place are judged here, over a table of the keys' box
+/// (lowest place `lo`, `size` places each way) and two places around it. The box is within
+/// the region's [`ColumnTables`] box (the only regions with crossed places), whose size
+/// its points bound.
+fn join_bridged(
+    keys: &[Place],
+    crossed: &[Place],
+    lo: (i32, i32),
+    [nx, ny]: [usize; 2],
+    parts: &mut UnionFind,
+) {
+    const MARGIN: usize = 2;
+    let (wide, tall) = (nx + 2 * MARGIN, ny + 2 * MARGIN);
+    let slot = |(x, y): (i32, i32)| -> Option<usize> {
+        let (x, y) = (x - lo.0 + MARGIN as i32, y - lo.1 + MARGIN as i32);
+        (x >= 0 && y >= 0 && (x as usize) < wide && (y as usize) < tall)
+            .then(|| x as usize * tall + y as usize)
+    };
+    let mut at = vec![NONE; wide * tall];
+    let slots: Vec<usize> = keys.iter().filter_map(|&k| slot(k)).collect();
+    debug_assert_eq!(slots.len(), keys.len(), "the keys lie in their box");
+    for (i, &s) in slots.iter().enumerate() {
+        // A column whose mean rounded onto another's place is in that one's part.
+        match at[s] {
+            NONE => at[s] = i as u32,
+            owner => {
+                parts.join(i as u32, owner);
+            }
+        }
+    }
+    // The 8 places about a place, as steps in the table: a column lies MARGIN places or
+    // more from the table's edge, and so do the places within two of it.
+    let t = tall as isize;
+    let around: [isize; 8] = [-t - 1, -t, -t + 1, -1, 1, t - 1, t, t + 1];
+    let mut by_gap_place = vec![false; wide * tall];
+    // A crossed place two or more from the keys' box is beside no column.
+    let near_box = |&&(x, y): &&(i32, i32)| {
+        (lo.0 - 1..=lo.0 + nx as i32).contains(&x) && (lo.1 - 1..=lo.1 + ny as i32).contains(&y)
+    };
+    for s in crossed.iter().filter(near_box).filter_map(|&k| slot(k)) {
+        if at[s] == NONE {
+            at[s] = CROSSED;
+            for d in around {
+                by_gap_place[s.wrapping_add_signed(d)] = true;
+            }
+        }
+    }
+    let by_gap: Vec<bool> = slots.iter().map(|&s| by_gap_place[s]).collect();
+    join_by_table(keys, lo, [nx, ny], &by_gap, parts);
+    let column = |v: u32| v < CROSSED;
+    for (i, &s) in slots.iter().enumerate().filter(|(i, _)| by_gap[*i]) {
+        for dx in -2isize..=2 {
+            for dy in -2isize..=2 {
+                let q = s.wrapping_add_signed(dx * t + dy);
+                let j = at[q];
+                if !column(j) || j == i as u32 {
+                    continue;
+                }
+                let touch = !by_gap[j as usize]
+                    || (dx.abs() <= 1 && dy.abs() <= 1)
+                    || around.iter().any(|&d| {
+                        let p = s.wrapping_add_signed(d);
+                        let (px, py) = (
+                            (p / tall) as isize - (q / tall) as isize,
+                            (p % tall) as isize - (q % tall) as isize,
+                        );
+                        px.abs() <= 1 && py.abs() <= 1 && at[p] != CROSSED
+                    });
+                if touch {
+                    parts.join(i as u32, j);
                 }
             }
         }
@@ -1465,16 +1658,28 @@ mod tests {
         order.shuffle(&mut rng);
         let binned: Vec<Binned> = order
             .chunks(150)
-            .map(|chunk| {
+            .enumerate()
+            .map(|(band, chunk)| {
                 let mut out = tables.empty();
                 for &i in chunk {
                     tables.add(&mut out, u32::from(i >= 400), i, &pts[i as usize]);
                 }
+                // Rays crossed region 0's plane at an empty place of its box beside a
+                // column (twice, in two bands), at one beside none, at a place with points,
+                // and outside its box; region 1's (sparse).
+                if band < 2 {
+                    tables.cross(&mut out, 0, &Vector3::new(0.01, 0.17, 0.2));
+                }
+                tables.cross(&mut out, 0, &Vector3::new(0.01, 0.30, 0.2));
+                tables.cross(&mut out, 0, &Vector3::new(0.001, 0.001, 0.2));
+                tables.cross(&mut out, 0, &Vector3::new(3.0, 3.0, 0.2));
+                tables.cross(&mut out, 1, &Vector3::new(5.0, 5.0, 0.6));
                 out
             })
             .collect();
-        let (columns, count) = tables.finish(binned, &pts);
+        let (columns, crossed, count) = tables.finish(binned, &pts);
         assert_eq!(count, pts.len());
+        assert_eq!(crossed, [vec![(0, 8)], vec![]], "the empty place beside a column, once");
         let members: [Vec<u32>; 2] = [(0..400).collect(), vec![400, 401]];
         for (got, members) in columns.into_iter().zip(members) {
             let key = |c: &Column| (floor_i32(c.0.x * 50.0), floor_i32(c.0.y * 50.0));
@@ -1505,20 +1710,31 @@ mod tests {
         let tread = columns(0..88, 0..15);
         let mut region = tread.clone();
         region.extend(columns(94..95, [2, 7, 12].into_iter()));
-        let kept = body(region, 0.02, CellParams::default().min_part_share);
+        let kept = body(region, 0.02, CellParams::default().min_part_share, &[]);
         assert_eq!(kept, tread, "the strays dropped, the tread whole and in order");
         // A tread cut in two by a leg's shadow, and one seen one scan line in three: kept.
         let halves: Vec<Column> = columns(0..40, 0..15).into_iter().chain(columns(55..88, 0..15)).collect();
-        assert_eq!(body(halves.clone(), 0.02, 0.1), halves);
+        assert_eq!(body(halves.clone(), 0.02, 0.1, &[]), halves);
         let lines = columns(0..88, (0..15).step_by(3));
-        assert_eq!(body(lines.clone(), 0.02, 0.1), lines);
+        assert_eq!(body(lines.clone(), 0.02, 0.1, &[]), lines);
         // Parts that touch (one empty column between) are one part, however small.
         let touching: Vec<Column> = columns(0..88, 0..15).into_iter().chain(columns(89..90, 0..1)).collect();
-        assert_eq!(body(touching.clone(), 0.02, 0.1), touching);
+        assert_eq!(body(touching.clone(), 0.02, 0.1, &[]), touching);
         // Two columns on one place (a mean rounded onto a column's edge) stay with it.
         let mut twice = tread.clone();
         twice.push(tread[20]);
-        assert_eq!(body(twice.clone(), 0.02, 0.1), twice);
+        assert_eq!(body(twice.clone(), 0.02, 0.1, &[]), twice);
+        // A wall's returns two places past the side, one empty column between: one part
+        // with the tread where nothing was seen between them (a shadow), not where rays
+        // came down through that gap to the wall below (a stairwell's gap beside the flight).
+        let mut walled = tread.clone();
+        walled.extend(columns(89..90, 0..15));
+        assert_eq!(body(walled.clone(), 0.02, 0.1, &[]), walled);
+        // The gap runs on past the tread's front and back edges, as a stairwell's does.
+        let gap: Vec<(i32, i32)> = (-1..16).map(|y| (88, y)).collect();
+        assert_eq!(body(walled.clone(), 0.02, 0.1, &gap), tread, "the gap seen through");
+        let shadow: Vec<(i32, i32)> = gap.iter().copied().filter(|&(_, y)| y != 7).collect();
+        assert_eq!(body(walled.clone(), 0.02, 0.1, &shadow), walled, "one place not seen through");
     }
 
     /// `body` against a plain search: random columns over a 30 x 30 grid (and strays far
@@ -1528,7 +1744,7 @@ mod tests {
     fn the_body_is_the_parts_a_plain_search_finds() {
         let column = |y: i32| (Point3::new(0.01, y as f32 * 0.02 + 0.01, 0.5), 1);
         let line: Vec<Column> = [0, 2, 5].map(column).to_vec();
-        assert_eq!(body(line.clone(), 0.02, 0.6), line[..2].to_vec(), "5 is three places from 2");
+        assert_eq!(body(line.clone(), 0.02, 0.6, &[]), line[..2].to_vec(), "5 is three places from 2");
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         for trial in 0..200 {
             let fill = 0.05 + 0.6 * (trial as f64 / 200.0);
@@ -1558,35 +1774,58 @@ mod tests {
                 .iter()
                 .map(|&(x, y)| (Point3::new(x as f32 * 0.02 + 0.01, y as f32 * 0.02 + 0.01, 0.5), 1))
                 .collect();
-            let mut part = vec![usize::MAX; places.len()];
-            let mut sizes = Vec::new();
-            for s in 0..places.len() {
-                if part[s] != usize::MAX {
-                    continue;
-                }
-                let (id, mut queue, mut size) = (sizes.len(), vec![s], 0);
-                part[s] = id;
-                while let Some(i) = queue.pop() {
-                    size += 1;
-                    for j in 0..places.len() {
-                        let near =
-                            (places[i].0 - places[j].0).abs() <= 2 && (places[i].1 - places[j].1).abs() <= 2;
-                        if near && part[j] == usize::MAX {
-                            part[j] = id;
-                            queue.push(j);
+            // Places rays crossed: some empty, some a column's (which changes nothing), some
+            // outside the box. Only a region whose tables were dense has them, never one
+            // with strays a long way off.
+            let mut crossed: Vec<(i32, i32)> = (-3..33)
+                .flat_map(|x| (-3..33).map(move |y| (x, y)))
+                .filter(|_| rand::Rng::random_bool(&mut rng, 0.3))
+                .collect();
+            crossed.push((90, -90));
+            let tries = if trial % 4 == 3 { vec![Vec::new()] } else { vec![Vec::new(), crossed] };
+            for crossed in tries {
+                let chebyshev = |a: (i32, i32), b: (i32, i32)| (a.0 - b.0).abs().max((a.1 - b.1).abs());
+                let open = |q: (i32, i32)| places.contains(&q) || !crossed.contains(&q);
+                let touch = |a: (i32, i32), b: (i32, i32)| match chebyshev(a, b) {
+                    0 | 1 => true,
+                    2 => (a.0 - 1..=a.0 + 1)
+                        .flat_map(|x| (a.1 - 1..=a.1 + 1).map(move |y| (x, y)))
+                        .any(|q| chebyshev(q, a) == 1 && chebyshev(q, b) == 1 && open(q)),
+                    _ => false,
+                };
+                let mut part = vec![usize::MAX; places.len()];
+                let mut sizes = Vec::new();
+                for s in 0..places.len() {
+                    if part[s] != usize::MAX {
+                        continue;
+                    }
+                    let (id, mut queue, mut size) = (sizes.len(), vec![s], 0);
+                    part[s] = id;
+                    while let Some(i) = queue.pop() {
+                        size += 1;
+                        for j in 0..places.len() {
+                            if part[j] == usize::MAX && touch(places[i], places[j]) {
+                                part[j] = id;
+                                queue.push(j);
+                            }
                         }
                     }
+                    sizes.push(size);
                 }
-                sizes.push(size);
+                let biggest = sizes.iter().copied().max().unwrap_or(0) as f64;
+                let want: Vec<Column> = cols
+                    .iter()
+                    .zip(&part)
+                    .filter(|(_, k)| sizes[**k] as f64 >= 0.3 * biggest)
+                    .map(|(c, _)| *c)
+                    .collect();
+                let n = crossed.len();
+                assert_eq!(
+                    body(cols.clone(), 0.02, 0.3, &crossed),
+                    want,
+                    "trial {trial}, fill {fill:.2}, {n} crossed"
+                );
             }
-            let biggest = sizes.iter().copied().max().unwrap_or(0) as f64;
-            let want: Vec<Column> = cols
-                .iter()
-                .zip(&part)
-                .filter(|(_, k)| sizes[**k] as f64 >= 0.3 * biggest)
-                .map(|(c, _)| *c)
-                .collect();
-            assert_eq!(body(cols, 0.02, 0.3), want, "trial {trial}, fill {fill:.2}");
         }
     }
 
