@@ -234,10 +234,13 @@ fn a_deep_top_landing_is_found_with_the_flight() {
 /// tread's, they widened it by the gap (1.12 m treads read 1.18 m in `regressions-0029` at
 /// two noise draws in eight), and the step map's registration, voting on the treads' side
 /// edges, moved the robot's estimate 47 mm sideways by them. Each tread comes out as wide
-/// as it is, whatever the draw.
+/// as it is, whatever the draw: under 10 mm of noise with the walls 4 and 6 cm off, and
+/// under 20 mm with them 5.8 cm off, as in `regressions-0029`. Of these the 4 cm walls
+/// widened a tread before (1.039 m at draw 2); on this straight flight the farther walls
+/// lie three places off and never touched, as on `regressions-0029`'s turned one they did.
 #[test]
 fn a_stairwells_gap_beside_the_flight_is_not_read_as_tread() {
-    for gap_m in [0.04, 0.06] {
+    for (gap_m, noise_m) in [(0.04, 0.01), (0.06, 0.01), (0.058, 0.02)] {
         let wall = |side: f64| {
             format!(
                 "[[boxes]]\nname = \"wall{side}\"\ncenter_m = [2.2, {y}, 1.3]\nsize_m = [2.0, 0.1, 2.6]\n",
@@ -252,14 +255,15 @@ fn a_stairwells_gap_beside_the_flight_is_not_read_as_tread() {
         for seed in 0..6 {
             let mut s = Scenario::from_toml_str(&toml, "stairwell.toml").unwrap();
             s.seed = seed;
+            s.lidar.noise_sigma_m = noise_m;
             let (r, sc) = perceive_scored(&s);
-            assert!(sc.found >= 3, "gap {gap_m} m, seed {seed}: {sc:?}");
+            let what = format!("gap {gap_m} m, noise {noise_m} m, seed {seed}");
+            assert!(sc.found >= 3, "{what}: {sc:?}");
             for seg in &r.segments {
+                let (z, w) = (seg.height_m(), seg.width_m());
                 assert!(
-                    seg.width_m() < 1.0 + 0.025,
-                    "gap {gap_m} m, seed {seed}: the tread at {:.3} m read {:.3} m wide, 1.0 m true",
-                    seg.height_m(),
-                    seg.width_m()
+                    (w - 1.0).abs() < 0.025,
+                    "{what}: the tread at {z:.3} m read {w:.3} m wide, 1.0 m true"
                 );
             }
         }

@@ -31,8 +31,8 @@
 //!    rows, summed at the end); each column's mean is one "voxel" of the region, as the
 //!    paper's segments are voxels. A region is one surface: its columns' parts a gap away
 //!    from its body, and small beside it, are not its ([`CellParams::min_part_share`]). A
-//!    gap is space no return came from, or space seen through: step 3 also marks where
-//!    the rays of points well below a region's plane came down through it.
+//!    gap is two or more places no return came from, or one seen through: step 3 also
+//!    marks where the rays of points well below a region's plane came down through it.
 //!
 //! Step 1's sums need only a cell's own rows: [`Stream`] takes them as a sweep's rows
 //! arrive, and leaves the rest, which needs the sweep's noise and every cell, for its end.
@@ -383,8 +383,8 @@ struct Near {
 ///
 /// `crossed` is told, for each region among `near` whose plane the point lies below by more
 /// than [`SEEN_THROUGH_SIGMAS`] of its noise, where the point's ray crossed that plane on
-/// its way down (from the viewpoint): a place where there is no surface of that plane, for
-/// step 4.
+/// its way down (from its row's origin): a place where there is no surface of that plane,
+/// for step 4. A region beside the point in several cells is told once.
 fn region_of(
     q: &Vector3<f64>,
     d: &Vector3<f64>,
@@ -402,7 +402,7 @@ fn region_of(
     // The likeliest so far: its distance and its noise as seen (`d / sd` compared by
     // cross-multiplying, with no division per plane).
     let mut best: Option<(f64, f64, &Near)> = None;
-    for n in near {
+    for (k, n) in near.iter().enumerate() {
         let along = n.normal.dot(q);
         let d_m = (along - n.offset_m).abs();
         let seen_sd_m = noise_m * (n.normal.dot(d) * inv_range).abs();
@@ -412,7 +412,7 @@ fn region_of(
             // Below the plane, its ray came down through it (from above: the plane's normal
             // is up) at this fraction of the way from the viewpoint.
             let above_m = n.normal.dot(&seen_from) - n.offset_m;
-            if above_m > 0.0 {
+            if above_m > 0.0 && !near[..k].iter().any(|m| m.region == n.region) {
                 crossed(n.region, seen_from + d * (above_m / (above_m + n.offset_m - along)));
             }
         }
@@ -1326,11 +1326,14 @@ fn join_by_table(
 /// How far below a region's plane, in the point's noise as seen across it (`sigma |ray .
 /// n|`), a point must lie for its ray to have passed through where the plane has no
 /// surface: 4. Within a region's tolerance ([`CellParams::point_noise_factor`], 1.5) lie
-/// 87 % of its own points; below it, 7 %: the noise's tail under the region, each ray
-/// crossing the plane a little short of its point, often between two scan lines where the
-/// region has no column. Beyond 4 sigma lie 3 in 100 000 (Gaussian), a few of a sweep. A
-/// gap the sensor sees through is crossed by the rays that reach past it, about one to a
-/// place where it is a few centimetres wide.
+/// 87 % of its own points; below it, 7 %: the noise's tail under the region. Such a ray
+/// crosses the plane where the surface truly is (the noise moves a point along its ray),
+/// in the point's own column, which is empty where that point was its only return (far
+/// off, or at an edge): 1 798 such places beside the floor's columns in Exp. 1's sweep at
+/// 1.5 sigma, 1 at 4. Beyond 4 sigma lie 3 in 100 000 (Gaussian), a few of a sweep. A gap
+/// the sensor sees through is crossed by the rays that reach past it: in
+/// `regressions-0029`'s 5.8 cm stairwell gap, enough at 4 sigma to part every tread's wall
+/// strip, and not when two crossings were asked of each place.
 const SEEN_THROUGH_SIGMAS: f64 = 4.0;
 
 /// A place of [`join_bridged`]'s table a ray crossed below the region's plane, with no
@@ -1343,7 +1346,7 @@ const CROSSED: u32 = u32::MAX - 1;
 /// which one has no crossed place about it touch as they do without any (their places
 /// between are about it): those pairs are joined by [`join_by_table`], and only the pairs
 /// of columns beside a crossed place are judged here, over a table of the keys' box
-/// (lowest place `lo`, `size` places each way) and two places around it. The box is within
+/// (lowest place `lo`, `nx` x `ny` places) and two places around it. The box is within
 /// the region's [`ColumnTables`] box (the only regions with crossed places), whose size
 /// its points bound.
 fn join_bridged(
@@ -1813,18 +1816,22 @@ mod tests {
                     sizes.push(size);
                 }
                 let biggest = sizes.iter().copied().max().unwrap_or(0) as f64;
-                let want: Vec<Column> = cols
-                    .iter()
-                    .zip(&part)
-                    .filter(|(_, k)| sizes[**k] as f64 >= 0.3 * biggest)
-                    .map(|(c, _)| *c)
-                    .collect();
-                let n = crossed.len();
-                assert_eq!(
-                    body(cols.clone(), 0.02, 0.3, &crossed),
-                    want,
-                    "trial {trial}, fill {fill:.2}, {n} crossed"
-                );
+                // At a share of 1 only the biggest parts are kept: a wrong join among
+                // parts the share keeps (or drops) shows there.
+                for share in [0.3, 1.0] {
+                    let want: Vec<Column> = cols
+                        .iter()
+                        .zip(&part)
+                        .filter(|(_, k)| sizes[**k] as f64 >= share * biggest)
+                        .map(|(c, _)| *c)
+                        .collect();
+                    let n = crossed.len();
+                    assert_eq!(
+                        body(cols.clone(), 0.02, share, &crossed),
+                        want,
+                        "trial {trial}, fill {fill:.2}, share {share}, {n} crossed"
+                    );
+                }
             }
         }
     }
