@@ -119,8 +119,8 @@ pub struct CellParams {
     /// height (they lie in its plane, within reach of its edge cell): a few columns a gap
     /// away, which widen the tread by the gap, and under 20 mm of noise turn the line
     /// through the treads' middles, the flight's axis, by degrees. A wall two columns off
-    /// (a stairwell's 4-6 cm gap) touched the tread across the one empty column between
-    /// until the rays that came down through that gap to the wall below parted them (test
+    /// (a stairwell's 4-6 cm gap) is kept apart from the tread by the rays that came down
+    /// through that gap to the wall below (test
     /// `a_stairwells_gap_beside_the_flight_is_not_read_as_tread`). A tread cut in two by a
     /// leg's shadow, or seen one scan line in three, keeps its parts: each is a like share
     /// of the whole.
@@ -1329,11 +1329,11 @@ fn join_by_table(
 /// 87 % of its own points; below it, 7 %: the noise's tail under the region. Such a ray
 /// crosses the plane where the surface truly is (the noise moves a point along its ray),
 /// in the point's own column, which is empty where that point was its only return (far
-/// off, or at an edge): 1 798 such places beside the floor's columns in Exp. 1's sweep at
-/// 1.5 sigma, 1 at 4. Beyond 4 sigma lie 3 in 100 000 (Gaussian), a few of a sweep. A gap
-/// the sensor sees through is crossed by the rays that reach past it: in
-/// `regressions-0029`'s 5.8 cm stairwell gap, enough at 4 sigma to part every tread's wall
-/// strip, and not when two crossings were asked of each place.
+/// off, or at an edge): thousands of places beside a floor's columns at 1.5 sigma, about
+/// one at 4 (CHANGELOG, forty-eighth session). Beyond 4 sigma lie 3 in 100 000
+/// (Gaussian), a few of a sweep. A gap the sensor sees through is crossed by the rays that
+/// reach past it, about one to a place of a few-centimetre gap: one crossing is enough
+/// (regression `riser-strays-under-the-floor-toes`, whose stairwell is 5.8 cm off).
 const SEEN_THROUGH_SIGMAS: f64 = 4.0;
 
 /// A place of [`join_bridged`]'s table a ray crossed below the region's plane, with no
