@@ -632,6 +632,37 @@ fn the_pelvis_turns_to_face_the_flight() {
     assert!(most <= 17.0 + 0.1, "turned {most:.1} deg away");
 }
 
+/// Exp. 1's true step tops and the robot's start turned 17 deg from the flight,
+/// half-sitting: a plan whose pelvis turns on the way.
+fn exp1_turned_from_the_flight() -> (RobotModel, Vec<PlaneSegment>, Vec<f64>) {
+    let model = hrp4::model().unwrap();
+    let mut s = Scenario::default();
+    s.robot.yaw_deg = -17.0;
+    let scene = common::scene_of(&s);
+    let q0 = start_q(&model, &scene.robot_start());
+    (model, rectangles::from_step_tops(scene.steps()), q0)
+}
+
+/// How far `other` strays from `path` with its time `ratio` times as long: the largest
+/// distance of a foot or the CoM, metres, and of the pelvis's orientation, degrees.
+fn strays(
+    path: &stairbench::planning::motion::JointTrajectory,
+    other: &stairbench::planning::motion::JointTrajectory,
+    ratio: f64,
+) -> (f64, f64) {
+    let (mut worst_m, mut worst_deg) = (0.0f64, 0.0f64);
+    for smp in &path.samples {
+        let at = other.sample_at(ratio * smp.t_s);
+        for f in 0..2 {
+            worst_m = worst_m.max((smp.feet[f].translation.vector - at.feet[f].translation.vector).norm());
+        }
+        worst_m = worst_m.max((smp.com - at.com).norm());
+        worst_deg =
+            worst_deg.max(base_pose(&smp.q).rotation.angle_to(&base_pose(&at.q).rotation).to_degrees());
+    }
+    (worst_m, worst_deg)
+}
+
 /// A plan made 1.5 times faster is the same path in less time: at each instant of the faster
 /// plan the pelvis, the feet and the CoM are where the plan at x 1 has them 1.5 times later,
 /// within the IK's tick (Exp. 1 from a start turned 17 deg from the flight, so the pelvis
@@ -640,12 +671,7 @@ fn the_pelvis_turns_to_face_the_flight() {
 /// instead of 0.36 deg.
 #[test]
 fn a_plan_made_faster_is_the_same_path_in_less_time() {
-    let model = hrp4::model().unwrap();
-    let mut s = Scenario::default();
-    s.robot.yaw_deg = -17.0;
-    let scene = common::scene_of(&s);
-    let rects = rectangles::from_step_tops(scene.steps());
-    let q0 = start_q(&model, &scene.robot_start());
+    let (model, rects, q0) = exp1_turned_from_the_flight();
     // Without the CoM's acceleration bound (not scaled by a speed-up), every segment is 1.5
     // times shorter.
     let d = PlanParams::default();
@@ -655,16 +681,7 @@ fn a_plan_made_faster_is_the_same_path_in_less_time() {
     assert_eq!(slow.stances, fast.stances);
     let ratio = slow.trajectory.duration_s() / fast.trajectory.duration_s();
     assert!((ratio - 1.5).abs() < 0.01, "x {ratio}");
-    let (mut worst_m, mut worst_deg) = (0.0f64, 0.0f64);
-    for smp in &fast.trajectory.samples {
-        let at = slow.trajectory.sample_at(ratio * smp.t_s);
-        for f in 0..2 {
-            worst_m = worst_m.max((smp.feet[f].translation.vector - at.feet[f].translation.vector).norm());
-        }
-        worst_m = worst_m.max((smp.com - at.com).norm());
-        worst_deg =
-            worst_deg.max(base_pose(&smp.q).rotation.angle_to(&base_pose(&at.q).rotation).to_degrees());
-    }
+    let (worst_m, worst_deg) = strays(&fast.trajectory, &slow.trajectory, ratio);
     let top = |plan: &Plan| base_turn(plan, 0.0, plan.trajectory.samples.last().map_or(0.0, |smp| smp.t_s));
     println!(
         "apart at most {:.2} mm, {worst_deg:.2} deg; on the top step {:.2} / {:.2} deg from the flight",
@@ -683,6 +700,68 @@ fn a_plan_made_faster_is_the_same_path_in_less_time() {
         "the faster plan strays {worst_deg:.2} deg, {:.1} mm",
         worst_m * 1e3
     );
+}
+
+/// A segment the planner slows for its turn (`IkParams::max_yaw_moment_share`) is tracked
+/// with the IK's rates as many times slower: the same path in k times the time. Tracked at
+/// the IK's own rates, the slowed segments of a robot started turned from the flight left
+/// its tasks more time to converge and the pelvis turned another way (14.8 deg apart at
+/// x 2), and a reconfiguration at the joints' speed bound stayed as fast: walking, with the
+/// share at 0.3, `regress real`'s `real-0034` slowed a segment asking 9.0 N m about the
+/// vertical 1.37 and then 1.51 times, and it asked 10.0 and 9.5 N m (with its rates
+/// slowed: 6.1 and 5.1).
+#[test]
+fn a_segment_slowed_for_its_turn_is_the_same_path_asking_a_smaller_moment() {
+    use stairbench::planning::motion::track_until;
+    let (model, rects, q0) = exp1_turned_from_the_flight();
+    let p = PlanParams::default();
+    let plan = PlanRequest::new(&model, &q0, &rects, &p).climb().unwrap();
+    let k = 2.0;
+    let mut slow = plan.segments.clone();
+    for seg in &mut slow {
+        seg.duration_s *= k;
+    }
+    let slowed = vec![k; slow.len()];
+    let (traj, tracking, stopped) =
+        track_until(&model, &q0, &slow, &plan.blocks, plan.seen.clone(), &p.ik, &slowed, &mut |_, _| {
+            Ok(false)
+        })
+        .unwrap();
+    assert_eq!(stopped, None);
+    let (worst_m, worst_deg) = strays(&plan.trajectory, &traj, k);
+    let [_, fast_nm] = plan.tracking.moments_nm();
+    let [_, slow_nm] = tracking.moments_nm();
+    println!(
+        "apart at most {:.2} mm, {worst_deg:.2} deg; about the vertical {fast_nm:.2} N m, slowed x {k}: {slow_nm:.2} N m",
+        worst_m * 1e3
+    );
+    assert!(
+        worst_deg < 1.0 && worst_m < 0.01,
+        "the slowed path strays {worst_deg:.2} deg, {:.1} mm",
+        worst_m * 1e3
+    );
+    // Less than 1/k^2 (x 2.2 at x 2), more than 1/k.
+    assert!(slow_nm < fast_nm / k, "slowed x {k}, the moment fell from {fast_nm:.2} to {slow_nm:.2} N m");
+}
+
+/// A plan whose turn about the vertical its slowing rounds cannot bring within the plan's
+/// bound is refused, with the moment it still asks: it was kept before, its moment in its
+/// tracking and nothing said (`regress real`'s `real-0034`, walking: 17.3 N m of 9.7).
+#[test]
+fn a_turn_the_slowing_cannot_hold_is_refused_not_kept() {
+    let (model, rects, q0) = exp1_on_its_tops();
+    let mut p = PlanParams::default();
+    p.ik.max_yaw_moment_share = 0.001;
+    match PlanRequest::new(&model, &q0, &rects, &p).climb() {
+        Err(PlanError::TurnUnheld { moment_nm, limit_nm, .. }) => {
+            println!("refused: {moment_nm:.2} N m against {limit_nm:.3}");
+            assert!(moment_nm > limit_nm, "{moment_nm} against {limit_nm}");
+        }
+        other => panic!(
+            "a bound at 0.001 of the soles' hold was kept: {:?}",
+            other.map(|plan| plan.tracking.moments_nm())
+        ),
+    }
 }
 
 /// The upper body's least distance to `points` over the plan's samples, by brute force over

@@ -302,6 +302,17 @@ pub enum PlanError {
         /// The largest accepted, metres.
         limit_m: f64,
     },
+    /// A segment's turn about the vertical asks the soles more than the plan allows
+    /// (`IkParams::max_yaw_moment_share`) after the rounds that slow it.
+    #[error("segment {}: its turn asks {moment_nm:.1} N m about the vertical after it was slowed, more than the soles are asked to hold ({limit_nm:.1} N m)", .segment + 1)]
+    TurnUnheld {
+        /// 0-based segment.
+        segment: usize,
+        /// The moment it asks, N m.
+        moment_nm: f64,
+        /// The largest allowed, N m.
+        limit_nm: f64,
+    },
     /// The robot model or its configuration is unusable.
     #[error("robot: {0}")]
     Config(String),
@@ -361,6 +372,8 @@ pub enum RefusalKind {
     FootMisses,
     /// [`PlanError::ComStrays`].
     ComStrays,
+    /// [`PlanError::TurnUnheld`].
+    TurnUnheld,
     /// [`PlanError::Config`].
     Robot,
 }
@@ -408,7 +421,7 @@ pub struct Refusal {
     pub value: Option<f64>,
     /// The limit it broke, in `unit`.
     pub limit: Option<f64>,
-    /// Unit of `value` and `limit` (`m`, `rad`, `ratio`).
+    /// Unit of `value` and `limit` (`m`, `rad`, `ratio`, `N m`).
     pub unit: Option<String>,
     /// The message, as printed.
     pub message: String,
@@ -485,6 +498,9 @@ impl PlanError {
             }
             PlanError::ComStrays { segment, error_m, limit_m } => {
                 (K::ComStrays, None, None, Some(*segment), m(*error_m, *limit_m))
+            }
+            PlanError::TurnUnheld { segment, moment_nm, limit_nm } => {
+                (K::TurnUnheld, None, None, Some(*segment), (Some(*moment_nm), Some(*limit_nm), Some("N m")))
             }
             PlanError::Config(_) => (K::Robot, None, None, None, none),
         };

@@ -841,7 +841,7 @@ pub fn track(
     seen: Arc<SeenPoints>,
     p: &IkParams,
 ) -> Result<(JointTrajectory, Tracking), PlanError> {
-    track_until(model, q0, segments, blocks, seen, p, &mut |_, _| Ok(false)).map(|(t, s, _)| (t, s))
+    track_until(model, q0, segments, blocks, seen, p, &[], &mut |_, _| Ok(false)).map(|(t, s, _)| (t, s))
 }
 
 /// Whether [`track_until`] stops after a segment (its index, the samples so far).
@@ -850,7 +850,11 @@ pub type StopAfter<'a> = dyn FnMut(usize, &[Sample]) -> Result<bool, PlanError> 
 /// [`track`], stopped after the first segment `stop(segment, samples so far)` says `true`
 /// of (its checks done, the tracking's figures of the segments tracked): the trajectory so
 /// far, its tracking and the segment it stopped after (`None` when it tracked them all).
-/// `stop`'s error is returned as it is.
+/// `stop`'s error is returned as it is. A segment `slowed[i]` times longer than the gait
+/// made it (none where `slowed` has no entry) is tracked with the IK's rates that many
+/// times slower ([`IkParams::faster`]): the same path in that much more time, every rate
+/// of it, a reconfiguration at the joints' speed bound included, that many times slower.
+#[allow(clippy::too_many_arguments)]
 pub fn track_until(
     model: &RobotModel,
     q0: &[f64],
@@ -858,6 +862,7 @@ pub fn track_until(
     blocks: &[SceneBox],
     seen: Arc<SeenPoints>,
     p: &IkParams,
+    slowed: &[f64],
     stop: &mut StopAfter<'_>,
 ) -> Result<(JointTrajectory, Tracking, Option<usize>), PlanError> {
     let mut tracker = Tracker::new(model, q0, blocks, seen, p)?;
@@ -881,6 +886,8 @@ pub fn track_until(
     let mut moments = MomentRates::default();
     let mut stopped = None;
     for (si, seg) in segments.iter().enumerate() {
+        let k = slowed.get(si).copied().unwrap_or(1.0);
+        tracker.p = if k == 1.0 { p.clone() } else { p.faster(1.0 / k) };
         let end = t0 + seg.duration_s;
         while (tick + 1) as f64 * dt <= end + 1e-9 {
             let t = (tick + 1) as f64 * dt;

@@ -35,12 +35,14 @@ const REACH_TOLERANCE_M: f64 = 1e-3;
 /// Rounds of tracking at most, after the first whole one (not stopped at a touchdown beyond
 /// reach: its turn is judged on the round tracked again), that slow the segments whose turn about the
 /// vertical asks more of the soles' friction than the plan allows
-/// ([`IkParams::max_yaw_moment_share`]); the plan the last one gives is kept, its moment
-/// in its [`Tracking`].
+/// ([`IkParams::max_yaw_moment_share`]); a plan whose last round still asks more is
+/// refused ([`PlanError::TurnUnheld`]).
 const MOMENT_ROUNDS: usize = 2;
 
 /// A segment slowed for its turn is slowed this much more than the moment's square root
-/// asks: the slower motion's path is not quite the same (the IK's gains are per second).
+/// asks: tracked with its IK's rates as much slower it is the same path, but its moment
+/// falls by less than the square (x 2.2 at x 2, test
+/// `a_segment_slowed_for_its_turn_is_the_same_path_asking_a_smaller_moment`).
 const SLOWING_MARGIN: f64 = 1.1;
 
 /// Every parameter of the planner.
@@ -297,7 +299,8 @@ impl<'a> PlanRequest<'a> {
         let yaw_limit_nm = yaw_moment_limit_nm(model, &body, p)?;
         let mut drops_m = vec![0.0; stances.len()];
         // Each segment's time, as many times the gait's as its turn about the vertical asked
-        // it to be slowed ([`IkParams::max_yaw_moment_share`]).
+        // it to be slowed ([`IkParams::max_yaw_moment_share`]); its IK's rates as many times
+        // slower ([`track_until`]).
         let mut slowed: Vec<f64> = Vec::new();
         let (mut gait_started, mut gait_time_s, mut round, mut moment_round) = (started, 0.0, 1, 0);
         let mut ik_spent = Tracking::default();
@@ -324,7 +327,7 @@ impl<'a> PlanRequest<'a> {
                 Ok(beyond && round < REACH_ROUNDS && Some(si) >= last_touchdown)
             };
             let (trajectory, mut tracking, stopped) =
-                track_until(model, q0, &segs, &blocks, seen.clone(), &p.ik, &mut measured)?;
+                track_until(model, q0, &segs, &blocks, seen.clone(), &p.ik, &slowed, &mut measured)?;
             let more_m = reach::touchdown_drops_m(model, &segs, &trajectory, reach_m)?;
             tracking.ik_ticks += ik_spent.ik_ticks;
             tracking.ik_interior_point_qps += ik_spent.ik_interior_point_qps;
@@ -337,7 +340,14 @@ impl<'a> PlanRequest<'a> {
                 .filter(|&(_, &m)| m > yaw_limit_nm && stopped.is_none())
                 .map(|(i, &m)| (i, (m / yaw_limit_nm).sqrt() * SLOWING_MARGIN))
                 .collect();
-            let held = over.is_empty() || moment_round == MOMENT_ROUNDS;
+            let slowings_spent = moment_round == MOMENT_ROUNDS;
+            if reached && slowings_spent && !over.is_empty() {
+                let (segment, moment_nm) = (tracking.segment_yaw_moments_nm.iter().copied().enumerate())
+                    .max_by(|a, b| a.1.total_cmp(&b.1))
+                    .unwrap_or((0, f64::NAN));
+                return Err(PlanError::TurnUnheld { segment, moment_nm, limit_nm: yaw_limit_nm });
+            }
+            let held = over.is_empty() || slowings_spent;
             if reached && held {
                 return Ok(Some(Plan {
                     start,
