@@ -746,7 +746,8 @@ fn a_segment_slowed_for_its_turn_is_the_same_path_asking_a_smaller_moment() {
 
 /// A plan whose turn about the vertical its slowing rounds cannot bring within the plan's
 /// bound is refused, with the moment it still asks: it was kept before, its moment in its
-/// tracking and nothing said (`regress real`'s `real-0034`, walking: 17.3 N m of 9.7).
+/// tracking and nothing said (`regressions-0060`'s cycle 7, walking: slowed twice, a plan
+/// asking 20.4 N m about the vertical asked 13.4, then 17.3 of the 9.7 allowed).
 #[test]
 fn a_turn_the_slowing_cannot_hold_is_refused_not_kept() {
     let (model, rects, q0) = exp1_on_its_tops();
