@@ -703,13 +703,11 @@ fn a_plan_made_faster_is_the_same_path_in_less_time() {
 }
 
 /// A segment the planner slows for its turn (`IkParams::max_yaw_moment_share`) is tracked
-/// with the IK's rates as many times slower: the same path in k times the time. Tracked at
-/// the IK's own rates, the slowed segments of a robot started turned from the flight left
-/// its tasks more time to converge and the pelvis turned another way (14.8 deg apart at
-/// x 2), and a reconfiguration at the joints' speed bound stayed as fast: walking, with the
-/// share at 0.3, `regress real`'s `real-0034` slowed a segment asking 9.0 N m about the
-/// vertical 1.37 and then 1.51 times, and it asked 10.0 and 9.5 N m (with its rates
-/// slowed: 6.1 and 5.1).
+/// with the IK's rates as many times slower: the same path in k times the time, asking a
+/// smaller moment about the vertical. Tracked at the IK's own rates, its tasks had more
+/// time to converge and the pelvis of a robot started turned from the flight turned
+/// another way, and a reconfiguration at the joints' speed bound stayed as fast (CHANGELOG,
+/// forty-ninth session).
 #[test]
 fn a_segment_slowed_for_its_turn_is_the_same_path_asking_a_smaller_moment() {
     use stairbench::planning::motion::track_until;
@@ -740,14 +738,13 @@ fn a_segment_slowed_for_its_turn_is_the_same_path_asking_a_smaller_moment() {
         "the slowed path strays {worst_deg:.2} deg, {:.1} mm",
         worst_m * 1e3
     );
-    // Less than 1/k^2 (x 2.2 at x 2), more than 1/k.
+    // It falls less than 1/k^2 would have it, but more than 1/k.
     assert!(slow_nm < fast_nm / k, "slowed x {k}, the moment fell from {fast_nm:.2} to {slow_nm:.2} N m");
 }
 
 /// A plan whose turn about the vertical its slowing rounds cannot bring within the plan's
-/// bound is refused, with the moment it still asks: it was kept before, its moment in its
-/// tracking and nothing said (`regressions-0060`'s cycle 7, walking: slowed twice, a plan
-/// asking 20.4 N m about the vertical asked 13.4, then 17.3 of the 9.7 allowed).
+/// bound is refused, with the moment it still asks, not kept with its moment in its
+/// tracking and nothing said.
 #[test]
 fn a_turn_the_slowing_cannot_hold_is_refused_not_kept() {
     let (model, rects, q0) = exp1_on_its_tops();

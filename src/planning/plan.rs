@@ -41,7 +41,7 @@ const MOMENT_ROUNDS: usize = 2;
 
 /// A segment slowed for its turn is slowed this much more than the moment's square root
 /// asks: tracked with its IK's rates as much slower it is the same path, but its moment
-/// falls by less than the square (x 2.2 at x 2, test
+/// falls by less than the square (test
 /// `a_segment_slowed_for_its_turn_is_the_same_path_asking_a_smaller_moment`).
 const SLOWING_MARGIN: f64 = 1.1;
 
