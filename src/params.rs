@@ -1,7 +1,8 @@
 //! Every parameter of a climb, as a parameters file holds them (`run --params`, the MCAP
 //! attachment `params.toml`): perception (§4, Table 1), the step map, planning (§6), the
 //! simulated robot's servos and the checks that judge the execution, the robot's own
-//! estimate of its pose, and the loop's own settings. Fields left out keep their defaults; unknown fields are refused.
+//! estimate of its pose, the loop's own settings and the simulation's physics step. Fields
+//! left out keep their defaults; unknown fields are refused.
 
 use crate::climb::{LoopParams, RunParams};
 use crate::control::StabilizerParams;
@@ -11,7 +12,7 @@ use crate::perception::surroundings::SurroundingsParams;
 use crate::perception::PerceptionParams;
 use crate::planning::PlanParams;
 use crate::sim::checks::CheckParams;
-use crate::sim::params::{ServoParams, SimParams};
+use crate::sim::params::{PhysicsParams, ServoParams, SimParams};
 use crate::sim::sensors::SensorParams;
 
 /// Every parameter of a climb.
@@ -38,6 +39,8 @@ pub struct ClimbParams {
     pub estimate: EstimateParams,
     /// Loop settings.
     pub run: RunParams,
+    /// The simulation's physics (its time step).
+    pub physics: PhysicsParams,
 }
 
 impl ClimbParams {
@@ -59,7 +62,8 @@ impl ClimbParams {
         self.plan.step.validate()?;
         self.stabilizer.validate()?;
         self.sensors.validate()?;
-        self.estimate.validate()
+        self.estimate.validate()?;
+        self.physics.validate(1.0 / self.stabilizer.rate_hz)
     }
 
     /// These parameters with `overrides` laid over them: a parameters file's fields as a
@@ -94,6 +98,7 @@ impl ClimbParams {
             estimate: self.estimate.clone(),
             plan: self.plan.clone(),
             run: self.run.clone(),
+            physics: self.physics.clone(),
         }
     }
 }
@@ -143,6 +148,11 @@ mod tests {
             ("[estimate]\nswitch_load_fraction = 0.2\n", "switch_load_fraction"),
             ("[sensors]\ngyro_bias_rad_s = [nan, 0.0, 0.0]\n", "gyro_bias_rad_s"),
             ("[perception]\nvoxel_resolution_m = -0.01\n", "voxel_resolution_m"),
+            ("[physics]\nstep_s = 0.01\n", "physics.step_s"),
+            ("[physics]\nstep_s = 0.0\n", "physics.step_s"),
+            ("[physics]\nstep_s = nan\n", "physics.step_s"),
+            // Above the stabilizer's period (2.5 ms at 400 Hz), within the engine's bound.
+            ("[physics]\nstep_s = 0.004\n[stabilizer]\nrate_hz = 400.0\n", "physics.step_s"),
         ] {
             let e = base.with_overrides(&table(text)).expect_err(text);
             assert!(e.contains(field), "{text}: {e}");

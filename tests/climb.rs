@@ -86,6 +86,37 @@ fn exp1_is_climbed_to_the_top_with_no_check_violated() {
     assert!(t.physics_s + t.control_s <= t.execute_s, "parts of the execution's time: {t:?}");
 }
 
+/// The physics step is fine enough for what the checks measure: Exp. 1 simulated at half the
+/// default step (a reference the default's figures are not made from) climbs the same cycles
+/// to the same footings, and each cycle's figures agree with the default's within what the
+/// checks resolve: the CoM margin within 1 mm, the touchdown within 1 mm, the slide within
+/// 0.5 mm, the friction ratio within 0.02 (a tenth of Exp. 1's). 2 ms against 1 ms fails it
+/// (the first cycle's margin 2.2 mm apart).
+#[test]
+fn the_default_physics_step_gives_the_figures_of_half_of_it() {
+    let p = ClimbParams::default();
+    let half = ClimbParams {
+        physics: stairbench::sim::params::PhysicsParams { step_s: p.physics.step_s / 2.0 },
+        ..p.clone()
+    };
+    let (a, b) = (climb(&Scenario::default(), &p), climb(&Scenario::default(), &half));
+    print_report(&a);
+    print_report(&b);
+    assert!(a.success && b.success, "{:?} / {:?}", a.stop, b.stop);
+    let to = |r: &ClimbReport| r.cycles.iter().map(|c| c.to).collect::<Vec<_>>();
+    assert_eq!(to(&a), to(&b), "the same cycles to the same footings");
+    for (x, y) in a.cycles.iter().zip(&b.cycles) {
+        let (x, y) = (&x.execution, &y.execution);
+        let near = |u: f64, v: f64, tol: f64, what: &str| {
+            assert!((u - v).abs() <= tol, "{what}: {u:.4} at the default step, {v:.4} at half of it");
+        };
+        near(x.min_margin_m, y.min_margin_m, 1e-3, "CoM margin, m");
+        near(x.max_touchdown_error_m(), y.max_touchdown_error_m(), 1e-3, "touchdown, m");
+        near(x.max_slip_m, y.max_slip_m, 0.5e-3, "slide, m");
+        near(x.max_friction_ratio, y.max_friction_ratio, 0.02, "friction ratio");
+    }
+}
+
 /// The default scenario must not pass by the luck of its noise draw. Seeds 1 and 2 (the
 /// first after the default) both failed the friction check at step 2's touchdown before the
 /// merge of views measured a step's nose by its edge and kept the fuller view's plane.

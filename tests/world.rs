@@ -9,7 +9,7 @@
 mod common;
 
 use stairbench::scenario::Scenario;
-use stairbench::scene::mjcf::{BoxBodies, WORLD_GEOM_GROUP};
+use stairbench::scene::mjcf::{BoxBodies, WorldOptions, WORLD_GEOM_GROUP};
 use stairbench::sim::plant::Plant;
 use stairbench::sim::World;
 
@@ -17,8 +17,9 @@ use stairbench::sim::World;
 fn each_box_in_a_body_of_its_own_gives_the_same_contacts_as_all_in_the_world_body() {
     let scene = common::scene_of(&Scenario::default());
     let plant = Plant::nominal(&stairbench::robot::hrp4::model().unwrap());
-    let mut worlds = [BoxBodies::OneEach, BoxBodies::InWorldBody]
-        .map(|layout| World::with_plant_laid_out(&scene, &plant, layout).unwrap());
+    let mut worlds = [BoxBodies::OneEach, BoxBodies::InWorldBody].map(|layout| {
+        World::with_plant_options(&scene, &plant, &WorldOptions { layout, ..Default::default() }).unwrap()
+    });
     // Where the boxes are: each in a static body of its own under the world body, or all in it.
     for (world, own_bodies) in worlds.iter().zip([true, false]) {
         let m = world.model();

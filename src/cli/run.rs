@@ -11,6 +11,7 @@ use stairbench::record::viewer::{RerunLogger, Sink};
 use stairbench::regress::verdict::{strayed, verdict_of};
 use stairbench::scenario::{ExpectedOutcome, Scenario};
 use stairbench::sim::climb_scenario;
+use stairbench::sim::params::PhysicsParams;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -128,6 +129,13 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         let fields: Vec<String> = plant.fields().iter().map(|(n, v)| format!("{n} {v}")).collect();
         println!("the body differs from the planner's model (seed {}): {}", scenario.seed, fields.join(", "));
     }
+    if params.physics != PhysicsParams::default() {
+        println!(
+            "physics step {} ms (the default {} ms: [physics] step_s)",
+            params.physics.step_s * 1e3,
+            PhysicsParams::default().step_s * 1e3
+        );
+    }
     println!(
         "{:>5}  {:<8} {:<5} {:>10} {:>14} {:<14} {:>12} {:>8} {:>8} {:>6} {:>10} {:>8} {:>7}",
         "cycle",
@@ -210,6 +218,7 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         json["s_per_stair"] = serde_json::to_value(report.seconds_per_stair())?;
         json["s_per_stair_with_stand"] = serde_json::to_value(report.seconds_per_stair_with_stand())?;
         json["plant_preset"] = serde_json::to_value(scenario.plant.preset)?;
+        json["physics_step_s"] = serde_json::to_value(params.physics.step_s)?;
         if let Some((e, v)) = &verdict {
             json["verdict"] = serde_json::to_value(v)?;
             json["expect"] = serde_json::to_value(e)?;

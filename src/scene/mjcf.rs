@@ -26,8 +26,24 @@ pub struct RobotFragment {
     pub extras_xml: String,
 }
 
-/// Physics time step of generated worlds, seconds (1 kHz).
+/// Physics time step of generated worlds by default, seconds (1 kHz; why:
+/// `crate::sim::params::PhysicsParams::step_s`).
 pub const TIMESTEP_S: f64 = 0.001;
+
+/// How a world's MJCF is built beyond its scene and robot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WorldOptions {
+    /// Where the boxes sit in the body tree.
+    pub layout: BoxBodies,
+    /// MuJoCo's time step, seconds.
+    pub step_s: f64,
+}
+
+impl Default for WorldOptions {
+    fn default() -> Self {
+        Self { layout: BoxBodies::default(), step_s: TIMESTEP_S }
+    }
+}
 
 /// Where the world's boxes sit in the MJCF's body tree. Either way MuJoCo has the same
 /// geoms, finds the same contacts and computes the same physics (to rounding: the contacts
@@ -48,13 +64,13 @@ pub enum BoxBodies {
 
 /// The MJCF text of `scene` with `robot` in it.
 pub fn world_xml(scene: &Scene, robot: &RobotFragment) -> String {
-    world_xml_laid_out(scene, robot, BoxBodies::default())
+    world_xml_with(scene, robot, &WorldOptions::default())
 }
 
-/// [`world_xml`] with the boxes laid out as `layout` says.
-pub fn world_xml_laid_out(scene: &Scene, robot: &RobotFragment, layout: BoxBodies) -> String {
+/// [`world_xml`] built as `options` say.
+pub fn world_xml_with(scene: &Scene, robot: &RobotFragment, options: &WorldOptions) -> String {
     // Each box's geom line, with what opens and closes around it.
-    let (open, indent, close) = match layout {
+    let (open, indent, close) = match options.layout {
         BoxBodies::OneEach => ("    <body>\n", "      ", "    </body>\n"),
         BoxBodies::InWorldBody => ("", "    ", ""),
     };
@@ -90,7 +106,7 @@ pub fn world_xml_laid_out(scene: &Scene, robot: &RobotFragment, layout: BoxBodie
     }
     WORLD_TEMPLATE
         .replace("{{NAME}}", &xml_escape(scene.name()))
-        .replace("{{TIMESTEP_S}}", &TIMESTEP_S.to_string())
+        .replace("{{TIMESTEP_S}}", &options.step_s.to_string())
         .replace("{{WORLD_GEOMS}}", geoms.trim_end())
         .replace("{{ROBOT_BODY}}", &robot.body_xml)
         .replace("{{ROBOT_EXTRAS}}", &robot.extras_xml)

@@ -7,7 +7,7 @@ use super::box_rays::BoxRays;
 use super::plant::{Plant, ServoLine};
 use crate::robot::model::{Q_JOINTS, V_JOINTS};
 use crate::robot::{self, hrp4};
-use crate::scene::mjcf::{world_xml_laid_out, BoxBodies, RobotFragment, ROBOT_GEOM_GROUP};
+use crate::scene::mjcf::{world_xml_with, RobotFragment, WorldOptions, ROBOT_GEOM_GROUP};
 use crate::scene::Scene;
 use crate::sensor::{RayCaster, RayHit};
 use mujoco_rs::mujoco_c::{mjNGROUP, mj_ray};
@@ -71,13 +71,17 @@ pub struct World {
 impl World {
     /// Compiles the world of `scene` with `robot` in it and runs forward kinematics once.
     pub fn new(scene: &Scene, robot: &RobotFragment) -> Result<Self, SimError> {
-        Self::laid_out(scene, robot, BoxBodies::default())
+        Self::with_options(scene, robot, &WorldOptions::default())
     }
 
-    /// [`World::new`] with the world's boxes laid out in the body tree as `layout` says (the
-    /// same physics; see [`BoxBodies`]).
-    pub fn laid_out(scene: &Scene, robot: &RobotFragment, layout: BoxBodies) -> Result<Self, SimError> {
-        Self::from_xml(world_xml_laid_out(scene, robot, layout))
+    /// [`World::new`] built as `options` say: the world's boxes laid out in the body tree
+    /// (the same physics, see [`crate::scene::mjcf::BoxBodies`]), the physics step.
+    pub fn with_options(
+        scene: &Scene,
+        robot: &RobotFragment,
+        options: &WorldOptions,
+    ) -> Result<Self, SimError> {
+        Self::from_xml(world_xml_with(scene, robot, options))
     }
 
     /// The world of `scene` with the bench's robot, the HRP-4-class model, standing in
@@ -90,16 +94,20 @@ impl World {
 
     /// [`World::for_scene`] with the robot's body `plant` (drawn for the bench's model).
     pub fn with_plant(scene: &Scene, plant: &Plant) -> Result<Self, SimError> {
-        Self::with_plant_laid_out(scene, plant, BoxBodies::default())
+        Self::with_plant_options(scene, plant, &WorldOptions::default())
     }
 
-    /// [`World::with_plant`] with the world's boxes laid out as `layout` says.
-    pub fn with_plant_laid_out(scene: &Scene, plant: &Plant, layout: BoxBodies) -> Result<Self, SimError> {
+    /// [`World::with_plant`] built as `options` say.
+    pub fn with_plant_options(
+        scene: &Scene,
+        plant: &Plant,
+        options: &WorldOptions,
+    ) -> Result<Self, SimError> {
         let model = hrp4::model()?;
         let q = hrp4::half_sitting_at(&model, &scene.robot_start())?;
         let soles = [hrp4::R_SOLE, hrp4::L_SOLE];
         let robot = robot::mjcf::fragment_varied(&model, &q, &soles, &plant.body)?;
-        let mut world = Self::laid_out(scene, &robot, layout)?;
+        let mut world = Self::with_options(scene, &robot, options)?;
         let a = &plant.actuation;
         if a.latency_s > 0.0 || a.backlash_rad > 0.0 {
             let dt = world.model.opt().timestep;

@@ -11,7 +11,7 @@ use rand_chacha::ChaCha8Rng;
 use stairbench::robot::model::Q_JOINTS;
 use stairbench::robot::{hrp4, Kinematics};
 use stairbench::scenario::Scenario;
-use stairbench::scene::mjcf::BoxBodies;
+use stairbench::scene::mjcf::{BoxBodies, WorldOptions};
 use stairbench::scene::Scene;
 use stairbench::sim::plant::Plant;
 use stairbench::sim::World;
@@ -99,7 +99,8 @@ pub fn run(repeat: usize) -> Result<String> {
     let timestep_s = world.model().opt().timestep;
     // Wall seconds of the standing run in `layout`.
     let stand_s = |layout: BoxBodies| -> Result<f64> {
-        let mut stand = World::with_plant_laid_out(&scene, &nominal, layout)?;
+        let mut stand =
+            World::with_plant_options(&scene, &nominal, &WorldOptions { layout, ..Default::default() })?;
         let steps = (STAND_S / timestep_s).round() as usize;
         let t0 = Instant::now();
         for _ in 0..steps {
