@@ -446,16 +446,13 @@ fn a_step_lower_than_perceived_is_sought_and_waited_for() {
 }
 
 /// The same plan (Exp. 1's first three stances on the true steps) executed with the
-/// stabilizer and without: the largest friction ratio drops by at least 30 %. With it the
-/// execution passes; without it, at the default timing (the CoM x 3 the quasi-static), a
-/// foot reaches its cone's edge and the CoM leaves its polygon (at x 2 it passed, at 0.68
-/// against 0.19 with it).
+/// stabilizer and without: the largest friction ratio drops by at least 30 %.
 #[test]
 fn on_the_same_plan_the_stabilizer_lowers_the_friction_ratio_by_30_percent() {
     let on = with_perceived_height_off_by(0.0, true);
     let off = with_perceived_height_off_by(0.0, false);
     println!("friction ratio: on {:.2}, off {:.2}", on.max_friction_ratio, off.max_friction_ratio);
-    assert!(on.pass(), "{:?}", on.violations);
+    assert!(on.pass() && off.pass());
     assert!(on.max_friction_ratio <= 0.7 * off.max_friction_ratio);
 }
 

@@ -49,8 +49,7 @@ pub struct RunArgs {
     /// Speed the planned motion up by this factor (CoM and foot speeds, shortest
     /// segment and swing piece, the IK's rates), to see how far from quasi-static the
     /// plan runs; the bound on the CoM's acceleration ([step] max_zmp_shift_m) stays. The
-    /// default timing is already twice the quasi-static one (its CoM three times); below 1
-    /// slows it.
+    /// default timing is already twice the quasi-static one; below 1 slows it.
     #[arg(long, default_value_t = 1.0)]
     speedup: f64,
     /// Instead of one climb, find the speed margin: the largest speed-up of the planned

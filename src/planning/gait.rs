@@ -172,7 +172,7 @@ impl Segment {
 pub struct StepParams {
     /// CoM speed along its linear segments, m/s (slow: the static criterion of §6.2 holds
     /// only when accelerations are negligible; see [`StepParams::quasi_static`] and
-    /// [`DEFAULT_COM_SPEEDUP`] for the default's).
+    /// [`DEFAULT_SPEEDUP`] for the default's).
     pub com_speed_m_s: f64,
     /// Largest shift of the ZMP from the CoM's ground point that the CoM's acceleration along
     /// a segment may ask, metres: by the linear inverted pendulum (Kajita et al. 2001) the
@@ -240,26 +240,10 @@ pub const ZMP_SHIFT_M: f64 = 0.04;
 /// suites' figures are in BENCHMARKS.md.
 pub const DEFAULT_SPEEDUP: f64 = 2.0;
 
-/// How many times faster than the quasi-static timing the CoM moves along its segments by
-/// default ([`StepParams::com_speed_m_s`], 18 cm/s), beyond [`DEFAULT_SPEEDUP`]: by the linear
-/// inverted pendulum the CoM's speed moves no ZMP, its acceleration does, and that is
-/// bounded on its own ([`StepParams::max_zmp_shift_m`], which holds the short moves); the
-/// speed bound holds the long ones. x 3 is the fastest tried at which every suite passes,
-/// Exp. 1's speed margin over it x 1.5 or more as issue 42 asks (BENCHMARKS.md; at 4d4519b
-/// `real-0108` slid 5.03 mm at it, since mended). The swing, the IK's rates and the
-/// shortest durations stay at [`DEFAULT_SPEEDUP`]: the whole timing at x 2.5 has a foot
-/// being set down slip past its friction (`regressions-0053`, CHANGELOG, fiftieth session).
-pub const DEFAULT_COM_SPEEDUP: f64 = 3.0;
-
 impl Default for StepParams {
-    /// The quasi-static timing [`DEFAULT_SPEEDUP`] times faster, the CoM
-    /// [`DEFAULT_COM_SPEEDUP`] times.
+    /// The quasi-static timing [`DEFAULT_SPEEDUP`] times faster.
     fn default() -> Self {
-        let quasi_static = Self::quasi_static();
-        Self {
-            com_speed_m_s: quasi_static.com_speed_m_s * DEFAULT_COM_SPEEDUP,
-            ..quasi_static.faster(DEFAULT_SPEEDUP)
-        }
+        Self::quasi_static().faster(DEFAULT_SPEEDUP)
     }
 }
 

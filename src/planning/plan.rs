@@ -60,8 +60,7 @@ pub struct PlanParams {
 impl PlanParams {
     /// The planner with the quasi-static timing ([`StepParams::quasi_static`],
     /// [`IkParams::quasi_static`]); the default is this
-    /// [`DEFAULT_SPEEDUP`](super::gait::DEFAULT_SPEEDUP) times faster, its CoM
-    /// [`DEFAULT_COM_SPEEDUP`](super::gait::DEFAULT_COM_SPEEDUP) times.
+    /// [`DEFAULT_SPEEDUP`](super::gait::DEFAULT_SPEEDUP) times faster.
     pub fn quasi_static() -> Self {
         Self { step: StepParams::quasi_static(), ik: IkParams::quasi_static(), gait: GaitParams::default() }
     }
