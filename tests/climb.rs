@@ -90,8 +90,8 @@ fn exp1_is_climbed_to_the_top_with_no_check_violated() {
 /// default step (a reference the default's figures are not made from) climbs the same cycles
 /// to the same footings, and each cycle's figures agree with the default's within what the
 /// checks resolve: the CoM margin within 1 mm, the touchdown within 1 mm, the slide within
-/// 0.5 mm, the friction ratio within 0.02 (a tenth of Exp. 1's). 2 ms against 1 ms fails it
-/// (the first cycle's margin 2.2 mm apart).
+/// 0.5 mm, the friction ratio within 0.02 (a tenth of Exp. 1's). 2 ms against 1 ms fails
+/// it.
 #[test]
 fn the_default_physics_step_gives_the_figures_of_half_of_it() {
     let p = ClimbParams::default();

@@ -1,7 +1,7 @@
 //! What the simulated robot runs under ([`SimParams`]): its servos, force/torque sensors and
-//! IMU, the stabilizer, the checks, its own estimate, the physics step, and the plan's and the
-//! loop's figures the execution needs. A climb's whole parameter set (`crate::params::ClimbParams`) hands
-//! these down.
+//! IMU, the stabilizer, the checks, its own estimate, the physics step, and the plan's and
+//! the loop's figures the execution needs. A climb's whole parameter set
+//! (`crate::params::ClimbParams`) hands these down.
 
 use super::checks::CheckParams;
 use super::sensors::SensorParams;
@@ -36,13 +36,12 @@ pub struct SimParams {
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PhysicsParams {
-    /// MuJoCo's time step, seconds. Default [`TIMESTEP_S`], 1 ms: the coarsest step at which
-    /// what the checks measure has converged. Against half of it (0.5 ms) `regress smoke`
-    /// gives every verdict the same, friction ratios within 0.01 and CoM margins within
-    /// 0.2 mm but one refused case's (2.5 mm). At 2 ms (MuJoCo's own default) physics costs
-    /// half, but the friction ratios rise by 0.02-0.10 over the same suite and `ci-0121`
-    /// fails, a foot being set down sliding at its cone's edge (CHANGELOG, fiftieth
-    /// session). For a convergence check of one's own: halve it and compare.
+    /// MuJoCo's time step, seconds. Default [`TIMESTEP_S`], 1 ms: the coarsest step tried at
+    /// which what the checks measure has converged. At half of it `regress smoke`'s verdicts
+    /// and figures agree with the default's; at twice it (MuJoCo's own default) physics costs half, but a
+    /// foot being set down slides at its cone's edge and the friction ratios rise
+    /// (BENCHMARKS.md, the physics step's row). For a convergence check of one's own: halve
+    /// it and compare.
     pub step_s: f64,
 }
 
