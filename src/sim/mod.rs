@@ -24,7 +24,6 @@ pub use world::{SimError, World};
 use crate::cancel::Cancel;
 use crate::climb::{self, Bench, ClimbError, ClimbReport, LoopParams, Observer};
 use crate::scenario::Scenario;
-use crate::scene::mjcf::WorldOptions;
 use crate::scene::Scene;
 use crate::sensor::{SensorError, Sweep};
 use plant::Plant;
@@ -63,9 +62,8 @@ pub fn climb_scenario(
 ) -> Result<ClimbReport, SetupError> {
     let scene = Scene::from_scenario(scenario)?;
     let model = crate::robot::hrp4::model()?;
-    let options = WorldOptions { step_s: sim.physics.step_s, ..Default::default() };
-    let world =
-        RefCell::new(World::with_plant_options(&scene, &Plant::of_scenario(&model, scenario), &options)?);
+    let plant = Plant::of_scenario(&model, scenario);
+    let world = RefCell::new(World::with_plant_options(&scene, &plant, &sim.physics.world_options())?);
     let track = RefCell::new(head_track::HeadTrack::new(&scenario.lidar));
     let mut source = SimSource::new(&world, &scenario.lidar, scenario.seed)?;
     debug_assert!(p.plan == &sim.plan && p.run == &sim.run, "the loop and the robot under one plan");

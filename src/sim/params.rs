@@ -9,7 +9,7 @@ use crate::climb::RunParams;
 use crate::control::StabilizerParams;
 use crate::estimate::EstimateParams;
 use crate::planning::PlanParams;
-use crate::scene::mjcf::TIMESTEP_S;
+use crate::scene::mjcf::{WorldOptions, TIMESTEP_S};
 
 /// The simulated robot's parameters.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -52,6 +52,11 @@ impl Default for PhysicsParams {
 }
 
 impl PhysicsParams {
+    /// How a world is built to run under these (its boxes laid out as by default).
+    pub fn world_options(&self) -> WorldOptions {
+        WorldOptions { step_s: self.step_s, ..Default::default() }
+    }
+
     /// The longest step allowed, seconds: the stabilizer's period at 200 Hz, which ticks
     /// between physics steps.
     pub const MAX_STEP_S: f64 = 0.005;

@@ -4,7 +4,6 @@
 //! the sensor saw), and executed in MuJoCo on that world with every check.
 
 use super::execute::{execute, settle};
-use super::plant::Plant;
 use super::{SetupError, SimParams, World};
 use crate::cancel::Cancel;
 use crate::climb::{climbed, take_view, Event, Execution, LoopParams, Observer, ViewInput};
@@ -13,7 +12,6 @@ use crate::perception::step_map::StepMap;
 use crate::perception::surroundings::Surroundings;
 use crate::perception::PlaneSegment;
 use crate::planning::{Plan, PlanError, PlanRequest};
-use crate::scene::mjcf::WorldOptions;
 use crate::scene::{PerceivedTop, Scene};
 
 /// What a rehearsal did.
@@ -52,8 +50,7 @@ pub fn rehearse(
         steps.iter().map(|s| PerceivedTop { corners: *s.corners(), height_m: s.height_m() }).collect();
     let scene = Scene::rehearsal("hardware rehearsal", &tops, p.run.rehearsal_friction);
     let model = crate::robot::hrp4::model()?;
-    let options = WorldOptions { step_s: sim.physics.step_s, ..Default::default() };
-    let mut world = World::with_plant_options(&scene, &Plant::nominal(&model), &options)?;
+    let mut world = World::for_scene_options(&scene, &sim.physics.world_options())?;
     settle(&mut world, p.run.settle_s);
     let q0 = world.configuration().to_vec();
     // The plan's input as the loop (and replay) make it: the steps above the feet, a partly

@@ -88,8 +88,13 @@ impl World {
     /// half-sitting with its feet at the scene's start. This is the one place that chooses
     /// the robot.
     pub fn for_scene(scene: &Scene) -> Result<Self, SimError> {
+        Self::for_scene_options(scene, &WorldOptions::default())
+    }
+
+    /// [`World::for_scene`] built as `options` say.
+    pub fn for_scene_options(scene: &Scene, options: &WorldOptions) -> Result<Self, SimError> {
         let model = hrp4::model()?;
-        Self::with_plant(scene, &Plant::nominal(&model))
+        Self::with_plant_options(scene, &Plant::nominal(&model), options)
     }
 
     /// [`World::for_scene`] with the robot's body `plant` (drawn for the bench's model).
