@@ -62,7 +62,7 @@ struct ComEstimate {
 impl ComEstimate {
     /// Where a point of the kinematics (world, shifted) is when the body leans as the IMU
     /// says: turned about the support sole.
-    fn leaning(&self, point: &Point3<f64>) -> Point3<f64> {
+    fn leaned(&self, point: &Point3<f64>) -> Point3<f64> {
         self.lean.map_or(*point, |(pivot, lean)| leaning(point, &pivot, &lean))
     }
 }
@@ -251,7 +251,7 @@ impl<'m> Stabilizer<'m> {
             (Point3::from(held.translation.vector), self.tilt.lean(&base_pose(&self.q_est).rotation))
         });
         let mut estimate = ComEstimate { encoders, leaning: encoders, shift, lean };
-        estimate.leaning = estimate.leaning(&encoders);
+        estimate.leaning = estimate.leaned(&encoders);
         Ok(estimate)
     }
 
@@ -319,15 +319,14 @@ impl<'m> Stabilizer<'m> {
                     // no more than the approach's speed there, on below it to meet a lower
                     // ground. It begins where the sole hangs that high as the body leans (the
                     // IMU's lean about the support sole): a body leaning toward the swing
-                    // lowers the sole under its set point, and the ground met it before the
-                    // approach, at the swing's speed (an `hrp4-like` body leaning 1.6 deg,
-                    // about 6 mm at the sole: met 14 mm above the planned landing at
-                    // 0.23 m/s, regression `a-lean-hung-the-swing-sole-low`). Its speeds
-                    // go by the set point's height: a lean growing on would slow the
-                    // landing the leaning body waits for.
+                    // lowers the sole under its set point, and the ground would meet it before
+                    // the approach, at the swing's speed (regression
+                    // `a-lean-hung-the-swing-sole-low`). Its speeds go by the set point's
+                    // height: a lean growing on would slow the landing the leaning body waits
+                    // for.
                     let final_z = last.translation.z;
                     let z = target.translation.z;
-                    let hang = (sole_at[k].z - estimate.leaning(&Point3::from(sole_at[k])).z).max(0.0);
+                    let hang = (sole_at[k].z - estimate.leaned(&Point3::from(sole_at[k])).z).max(0.0);
                     if tau >= descent
                         && (z - hang - final_z < self.p.approach_height_m || self.approach_z.is_some())
                     {
