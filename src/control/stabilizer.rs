@@ -16,7 +16,7 @@ use crate::planning::motion::{com_target, lifting, swing_target, Targets, Tracke
 use crate::planning::{Foot, Plan, PlanError, PlanParams};
 use crate::robot::model::{base_pose, RobotModel, Q_JOINTS};
 use crate::robot::{hrp4, Kinematics};
-use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Isometry3, Point3, Vector3, Vector6};
 use std::time::Instant;
 
 /// What one tick wanted and measured, for recording and plots.
@@ -55,16 +55,6 @@ struct ComEstimate {
     leaning: Point3<f64>,
     /// The shift to add to any frame of the stabilizer's kinematics to have it in the world.
     shift: Vector3<f64>,
-    /// The lean the IMU sees and the support sole it turns about (`None` without a support).
-    lean: Option<(Point3<f64>, UnitQuaternion<f64>)>,
-}
-
-impl ComEstimate {
-    /// Where a point of the kinematics (world, shifted) is when the body leans as the IMU
-    /// says: turned about the support sole.
-    fn leaned(&self, point: &Point3<f64>) -> Point3<f64> {
-        self.lean.map_or(*point, |(pivot, lean)| leaning(point, &pivot, &lean))
-    }
 }
 
 /// The stabilizer over one plan.
@@ -247,12 +237,15 @@ impl<'m> Stabilizer<'m> {
         // world's: with the robot's own estimate on, a tilt between the two frames (none
         // on level ground) would count as lean. Without a support (every foot seeking the
         // ground) there is no pivot and no lean is taken: the estimate jumps when one lands.
-        let lean = anchor.map(|(_, held)| {
-            (Point3::from(held.translation.vector), self.tilt.lean(&base_pose(&self.q_est).rotation))
-        });
-        let mut estimate = ComEstimate { encoders, leaning: encoders, shift, lean };
-        estimate.leaning = estimate.leaned(&encoders);
-        Ok(estimate)
+        let leaning = match anchor {
+            Some((_, held)) => leaning(
+                &encoders,
+                &Point3::from(held.translation.vector),
+                &self.tilt.lean(&base_pose(&self.q_est).rotation),
+            ),
+            None => encoders,
+        };
+        Ok(ComEstimate { encoders, leaning, shift })
     }
 
     /// Where the stabilizer is on the plan's clock, seconds. It runs with the robot's clock
@@ -286,8 +279,7 @@ impl<'m> Stabilizer<'m> {
             .collect();
         // Measured ground wrenches, the feet's orientations from the encoders.
         let anchor = supports.first().map(|(f, pose)| (f.index(), *pose));
-        let estimate = self.estimate_com(m, anchor, dt)?;
-        let (com_encoders, com, shift) = (estimate.encoders, estimate.leaning, estimate.shift);
+        let ComEstimate { encoders: com_encoders, leaning: com, shift } = self.estimate_com(m, anchor, dt)?;
         let measured: [SoleWrench; 2] = [0, 1].map(|k| {
             let rotation = self.estimate.link_pose(self.sensors[k].link).rotation;
             self.sensors[k].ground_wrench(&m.ft[k], &rotation)
@@ -317,18 +309,10 @@ impl<'m> Stabilizer<'m> {
                     let (mut target, mut twist) = (self.lifted[k].scaled(1.0 - tau).apply(&pose), twist);
                     // The approach: the last `approach_height_m` above the planned height at
                     // no more than the approach's speed there, on below it to meet a lower
-                    // ground. It begins where the sole hangs that high as the body leans (the
-                    // IMU's lean about the support sole): a body leaning toward the swing
-                    // lowers the sole under its set point, and the ground would meet it before
-                    // the approach, at the swing's speed (regression
-                    // `a-lean-hung-the-swing-sole-low`). Its speeds go by the set point's
-                    // height: a lean growing on would slow the landing the leaning body waits
-                    // for.
+                    // ground.
                     let final_z = last.translation.z;
                     let z = target.translation.z;
-                    let hang = (sole_at[k].z - estimate.leaned(&Point3::from(sole_at[k])).z).max(0.0);
-                    if tau >= descent
-                        && (z - hang - final_z < self.p.approach_height_m || self.approach_z.is_some())
+                    if tau >= descent && (z - final_z < self.p.approach_height_m || self.approach_z.is_some())
                     {
                         let speed = self.p.approach_speed_at(self.approach_z.unwrap_or(z) - final_z);
                         let slowest = self.approach_z.map_or(z, |a| a - speed * dt);
