@@ -742,6 +742,61 @@ fn a_segment_slowed_for_its_turn_is_the_same_path_asking_a_smaller_moment() {
     assert!(slow_nm < fast_nm / k, "slowed x {k}, the moment fell from {fast_nm:.2} to {slow_nm:.2} N m");
 }
 
+/// Each segment is charged (`Tracking::segment_yaw_moments_nm`, what the planner slows a
+/// segment by) at least the moment about the vertical of every 0.1 s window whose motion it
+/// takes part in: a window over a boundary is the two segments' motion, and charged to the
+/// later alone, slowing that one cannot bring it down (a first form of a slower swing
+/// approach had `envelope-0101` refused: its segment 4, slowed twice, still asked
+/// 10.7 N m against 9.7, from a window holding segment 3's end; CHANGELOG, fifty-first
+/// session). The windows here are taken again from the plan's samples, each holding the
+/// segments of the ticks it spans.
+#[test]
+fn every_segment_a_turning_window_spans_is_charged_its_moment() {
+    use stairbench::robot::momentum::{centroidal_angular_momentum, RATE_WINDOW_S};
+    let (model, rects, q0) = exp1_turned_from_the_flight();
+    let p = PlanParams::default();
+    let plan = PlanRequest::new(&model, &q0, &rects, &p).climb().unwrap();
+    let charged = &plan.tracking.segment_yaw_moments_nm;
+    let samples = &plan.trajectory.samples;
+    let mut kin = Kinematics::new(&model);
+    let mut poses = Vec::with_capacity(samples.len());
+    for s in samples {
+        kin.update(&s.q).unwrap();
+        poses.push(kin.link_poses().to_vec());
+    }
+    // The momentum over each tick (sample j - 1 to j), and the windows of n ticks.
+    let dt = samples[1].t_s - samples[0].t_s;
+    let l: Vec<Vector3<f64>> = (1..samples.len())
+        .map(|j| centroidal_angular_momentum(&model, &poses[j - 1], &poses[j], dt))
+        .collect();
+    let n = (RATE_WINDOW_S / dt - 1e-6).ceil() as usize;
+    let (mut largest, mut short) = (0.0f64, Vec::new());
+    for j in n..l.len() {
+        let yaw_nm = ((l[j].z - l[j - n].z) / (n as f64 * dt)).abs();
+        largest = largest.max(yaw_nm);
+        // Tick j is sample j + 1's; the window's first momentum is tick j - n's.
+        let mut spanned: Vec<usize> = samples[j - n + 1..=j + 1].iter().map(|s| s.segment).collect();
+        spanned.dedup();
+        for si in spanned {
+            if charged.get(si).copied().unwrap_or(0.0) < yaw_nm - 1e-9 {
+                short.push((samples[j + 1].t_s, si, yaw_nm, charged.get(si).copied()));
+            }
+        }
+    }
+    println!(
+        "largest window {largest:.3} N m (the plan's {:.3}); charged {charged:.2?}",
+        plan.tracking.max_yaw_moment_nm
+    );
+    assert!(
+        (largest - plan.tracking.max_yaw_moment_nm).abs() < 1e-6,
+        "the windows taken again differ from the plan's"
+    );
+    assert!(
+        short.is_empty(),
+        "segments charged less than a window they span (t, segment, window, charged): {short:.3?}"
+    );
+}
+
 /// A plan whose turn about the vertical its slowing rounds cannot bring within the plan's
 /// bound is refused, with the moment it still asks, not kept with its moment in its
 /// tracking and nothing said.

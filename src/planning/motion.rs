@@ -296,8 +296,8 @@ pub struct Tracking {
     /// ... about the vertical, N m: the turn the support soles hold by friction.
     #[serde(default)]
     pub max_yaw_moment_nm: f64,
-    /// The largest moment about the vertical asked in each segment (the window ending in
-    /// it), N m.
+    /// The largest moment about the vertical asked in each segment, N m: of every window
+    /// whose motion it takes part in (a window over a boundary counts for both segments).
     #[serde(skip)]
     pub segment_yaw_moments_nm: Vec<f64>,
 }
@@ -884,6 +884,8 @@ pub fn track_until(
     // The link poses of the tick before, for the body's angular momentum over each tick.
     let mut before = tracker.kinematics().link_poses().to_vec();
     let mut moments = MomentRates::default();
+    // The segment of each tick so far.
+    let mut tick_segments: Vec<usize> = Vec::new();
     let mut stopped = None;
     for (si, seg) in segments.iter().enumerate() {
         let k = slowed.get(si).copied().unwrap_or(1.0);
@@ -904,12 +906,20 @@ pub fn track_until(
             tracker.tick(&targets, dt).map_err(|error| PlanError::Ik { t_s: t, segment: si, error })?;
             stats.ik_time_s += started.elapsed().as_secs_f64();
             let poses = tracker.kinematics().link_poses();
-            if let Some(rate) =
+            tick_segments.push(si);
+            if let Some((rate, since_s)) =
                 moments.add(t - dt / 2.0, centroidal_angular_momentum(model, &before, poses, dt))
             {
+                // Charged to every segment the window spans, from the one of the tick its
+                // first momentum was taken over (at that tick's middle): a window over a
+                // boundary is both segments' motion, and slowing the later alone may not
+                // bring it down.
+                let first_tick = (since_s / dt - 0.5).round().max(0.0) as usize;
+                let first = tick_segments.get(first_tick).copied().unwrap_or(si);
                 stats.segment_yaw_moments_nm.resize(segments.len(), 0.0);
-                let m = &mut stats.segment_yaw_moments_nm[si];
-                *m = m.max(rate.z.abs());
+                for m in &mut stats.segment_yaw_moments_nm[first.min(si)..=si] {
+                    *m = m.max(rate.z.abs());
+                }
             }
             before.copy_from_slice(poses);
             tracker.note_posture(targets.loaded(), &mut stats);

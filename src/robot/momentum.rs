@@ -76,15 +76,16 @@ pub struct MomentRates {
 impl MomentRates {
     /// The angular momentum `l` (kg m^2/s, world, z up) at time `t_s`, after those given
     /// before (in order of time); its rate of change over the window that ends now, N m,
-    /// once a window has passed.
-    pub fn add(&mut self, t_s: f64, l: Vector3<f64>) -> Option<Vector3<f64>> {
+    /// and the time of the momentum the window starts from, once a window has passed.
+    pub fn add(&mut self, t_s: f64, l: Vector3<f64>) -> Option<(Vector3<f64>, f64)> {
         // Keep the newest momentum at least a window old, and those after it.
         let since = t_s - RATE_WINDOW_S * (1.0 - 1e-9);
         while self.recent.len() > 1 && self.recent[1].0 <= since {
             self.recent.pop_front();
         }
-        let rate = self.recent.front().filter(|(t0, _)| *t0 <= since).map(|&(t0, l0)| (l - l0) / (t_s - t0));
-        if let Some(rate) = rate {
+        let rate =
+            self.recent.front().filter(|(t0, _)| *t0 <= since).map(|&(t0, l0)| ((l - l0) / (t_s - t0), t0));
+        if let Some((rate, _)) = rate {
             self.max_tipping_nm = self.max_tipping_nm.max(rate.xy().norm());
             self.max_yaw_nm = self.max_yaw_nm.max(rate.z.abs());
         }
