@@ -143,10 +143,12 @@ pub struct StabilizerParams {
     /// compliant ankles rolls out over its support sole until the CoM leaves it: the `robust`
     /// suite's softest ankle bush (500 N m/rad) at x 1.33 the quasi-static timing leaned 50 mm
     /// out at lift-off and fell in single support. Default -0.3, by trial on that case at
-    /// x 1.33: -0.15 to -0.5
-    /// climb it; +0.3, +1, +3, -1 and -3 fall at once (test
+    /// x 1.33 when it was chosen: -0.15 to -0.5
+    /// climbed it; +0.3, +1, +3, -1 and -3 fell at once (test
     /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`, which holds the sign
-    /// and that the body falls without it).
+    /// and that the body falls without it). Not a setting for every timing: that body falls
+    /// with it at x 1 to x 1.26 the quasi-static, and no rate tried holds it at every timing
+    /// (CHANGELOG, fifty-second session).
     pub lean_follow_rate_per_s: f64,
 }
 
