@@ -745,11 +745,8 @@ fn a_segment_slowed_for_its_turn_is_the_same_path_asking_a_smaller_moment() {
 /// Each segment is charged (`Tracking::segment_yaw_moments_nm`, what the planner slows a
 /// segment by) at least the moment about the vertical of every 0.1 s window whose motion it
 /// takes part in: a window over a boundary is the two segments' motion, and charged to the
-/// later alone, slowing that one cannot bring it down (a first form of a slower swing
-/// approach had `envelope-0101` refused: its segment 4, slowed twice, still asked
-/// 10.7 N m against 9.7, from a window holding segment 3's end; CHANGELOG, fifty-first
-/// session). The windows here are taken again from the plan's samples, each holding the
-/// segments of the ticks it spans.
+/// later alone, slowing that one may not bring it down. The windows here are taken again
+/// from the plan's samples, each holding the segments of the ticks it spans.
 #[test]
 fn every_segment_a_turning_window_spans_is_charged_its_moment() {
     use stairbench::robot::momentum::{centroidal_angular_momentum, RATE_WINDOW_S};
