@@ -883,9 +883,8 @@ pub fn track_until(
     let mut worst_com_segment = 0;
     // The link poses of the tick before, for the body's angular momentum over each tick.
     let mut before = tracker.kinematics().link_poses().to_vec();
+    // Each momentum labelled with its tick's segment.
     let mut moments = MomentRates::default();
-    // The segment of each tick so far.
-    let mut tick_segments: Vec<usize> = Vec::new();
     let mut stopped = None;
     for (si, seg) in segments.iter().enumerate() {
         let k = slowed.get(si).copied().unwrap_or(1.0);
@@ -906,16 +905,12 @@ pub fn track_until(
             tracker.tick(&targets, dt).map_err(|error| PlanError::Ik { t_s: t, segment: si, error })?;
             stats.ik_time_s += started.elapsed().as_secs_f64();
             let poses = tracker.kinematics().link_poses();
-            tick_segments.push(si);
-            if let Some((rate, since_s)) =
-                moments.add(t - dt / 2.0, centroidal_angular_momentum(model, &before, poses, dt))
+            if let Some((rate, first)) =
+                moments.add(t - dt / 2.0, centroidal_angular_momentum(model, &before, poses, dt), si)
             {
-                // Charged to every segment the window spans, from the one of the tick its
-                // first momentum was taken over (at that tick's middle): a window over a
-                // boundary is both segments' motion, and slowing the later alone may not
-                // bring it down.
-                let first_tick = (since_s / dt - 0.5).round().max(0.0) as usize;
-                let first = tick_segments.get(first_tick).copied().unwrap_or(si);
+                // Charged to every segment the window spans, from the one its first
+                // momentum was taken in: a window over a boundary is both segments'
+                // motion, and slowing the later alone may not bring it down.
                 stats.segment_yaw_moments_nm.resize(segments.len(), 0.0);
                 for m in &mut stats.segment_yaw_moments_nm[first.min(si)..=si] {
                     *m = m.max(rate.z.abs());

@@ -62,11 +62,13 @@ pub const RATE_WINDOW_S: f64 = 0.1;
 
 /// The moments a motion's angular momentum asks of the contacts, largest over a motion, each
 /// the momentum's change over [`RATE_WINDOW_S`]: fed its momentum at successive instants
-/// ([`MomentRates::add`]).
+/// ([`MomentRates::add`]), each with a label of the caller's (the part of the motion it is
+/// in), so a window's rate can be charged to every part it spans.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct MomentRates {
-    /// The momenta given within the window (and the last before it), oldest first.
-    recent: std::collections::VecDeque<(f64, Vector3<f64>)>,
+    /// The momenta given within the window (and the last before it), oldest first, with
+    /// their times and labels.
+    recent: std::collections::VecDeque<(f64, Vector3<f64>, usize)>,
     /// Largest rate of change of the angular momentum about a horizontal axis, N m.
     pub max_tipping_nm: f64,
     /// Largest rate of change about the vertical (the turn the soles hold by friction), N m.
@@ -74,22 +76,26 @@ pub struct MomentRates {
 }
 
 impl MomentRates {
-    /// The angular momentum `l` (kg m^2/s, world, z up) at time `t_s`, after those given
-    /// before (in order of time); its rate of change over the window that ends now, N m,
-    /// and the time of the momentum the window starts from, once a window has passed.
-    pub fn add(&mut self, t_s: f64, l: Vector3<f64>) -> Option<(Vector3<f64>, f64)> {
+    /// The angular momentum `l` (kg m^2/s, world, z up) at time `t_s`, labelled `label`,
+    /// after those given before (in order of time); its rate of change over the window that
+    /// ends now, N m, and the label of the momentum the window starts from, once a window
+    /// has passed.
+    pub fn add(&mut self, t_s: f64, l: Vector3<f64>, label: usize) -> Option<(Vector3<f64>, usize)> {
         // Keep the newest momentum at least a window old, and those after it.
         let since = t_s - RATE_WINDOW_S * (1.0 - 1e-9);
         while self.recent.len() > 1 && self.recent[1].0 <= since {
             self.recent.pop_front();
         }
-        let rate =
-            self.recent.front().filter(|(t0, _)| *t0 <= since).map(|&(t0, l0)| ((l - l0) / (t_s - t0), t0));
+        let rate = self
+            .recent
+            .front()
+            .filter(|(t0, _, _)| *t0 <= since)
+            .map(|&(t0, l0, first)| ((l - l0) / (t_s - t0), first));
         if let Some((rate, _)) = rate {
             self.max_tipping_nm = self.max_tipping_nm.max(rate.xy().norm());
             self.max_yaw_nm = self.max_yaw_nm.max(rate.z.abs());
         }
-        self.recent.push_back((t_s, l));
+        self.recent.push_back((t_s, l, label));
         rate
     }
 }
@@ -151,7 +157,7 @@ mod tests {
         for k in 0..=30 {
             let t = k as f64 * dt;
             let blip = if k == 15 { Vector3::new(0.5, 0.0, 0.5) } else { Vector3::zeros() };
-            r.add(t, Vector3::new(3.0, 4.0, -2.0) * t + blip);
+            r.add(t, Vector3::new(3.0, 4.0, -2.0) * t + blip, 0);
         }
         // Over a window the step adds (5, 0, 5) N m to the steady rate as it comes, (8, 4, 3),
         // and takes it away as it leaves, (-2, 4, -7); over a tick it would be 50 N m.
@@ -159,8 +165,8 @@ mod tests {
         assert!((r.max_yaw_nm - 7.0).abs() < 1e-9, "{}", r.max_yaw_nm);
         // Nothing before a whole window has passed.
         let mut short = MomentRates::default();
-        assert!(short.add(0.0, Vector3::zeros()).is_none());
-        assert!(short.add(0.05, Vector3::new(1.0, 1.0, 1.0)).is_none());
+        assert!(short.add(0.0, Vector3::zeros(), 0).is_none());
+        assert!(short.add(0.05, Vector3::new(1.0, 1.0, 1.0), 0).is_none());
         assert_eq!((short.max_tipping_nm, short.max_yaw_nm), (0.0, 0.0));
     }
 }
