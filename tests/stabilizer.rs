@@ -491,50 +491,54 @@ fn a_contact_moved_by_centimetres_is_reached_without_an_infeasible_ik() {
     assert!((reached - moved.translation.vector).norm() < 1e-3, "sole at {reached:?}, wanted {moved:?}");
 }
 
-/// The robust suite's softest ankle bush (`robust-0053`, 500 N m/rad) climbed with the plan
-/// x 1.33 faster than the quasi-static timing: the body rolls out over its compliant support ankle in single support
-/// (50 mm at a lift-off before the lean compensation, then on until the CoM left the sole).
-/// With the compensation as set the climb is clean; without it the body falls in single
-/// support; with its sign turned it falls too (at the end of the first cycle, seen while it
-/// stands for the next sweep: before standing was watched, the loop planned on from the
-/// floor and reported a refusal).
+/// The robust suite's softest ankle bush (`robust-0053`, 500 N m/rad): the body rolls over
+/// its compliant support ankle in single support and sways on it. With the sway's washout at
+/// 0.2 (`lean_washout_gain`; off by default, see its doc) the climb is clean at x 1, x 1.33
+/// and x 2 the quasi-static timing (x 2 the default). Without it the body falls at x 1, the
+/// lean's integral alone leaning it out; with neither compensation it falls at x 1.33, and
+/// with the integral's sign turned too.
 #[test]
 fn the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole() {
     let s = Scenario::load(std::path::Path::new("tests/fixtures/soft-ankle-bush.toml")).unwrap();
-    let climb = |gain_per_s: f64| {
+    let climb = |faster: f64, rate_per_s: f64, washout_gain: f64| {
         let p = ClimbParams {
-            plan: stairbench::planning::PlanParams::quasi_static().faster(1.33),
+            plan: stairbench::planning::PlanParams::quasi_static().faster(faster),
             stabilizer: StabilizerParams {
-                lean_follow_rate_per_s: gain_per_s,
+                lean_follow_rate_per_s: rate_per_s,
+                lean_washout_gain: washout_gain,
                 ..StabilizerParams::default()
             },
             ..ClimbParams::default()
         };
         climb_scenario(&s, p.loop_params(), &p.sim(), &mut Nobody, &Cancel::never()).unwrap()
     };
-    let gain = StabilizerParams::default().lean_follow_rate_per_s;
-    let kept = climb(gain);
-    for c in &kept.cycles {
-        println!(
-            "cycle {}: margin {:?} m, violations {:?}",
-            c.cycle, c.execution.min_margin_m, c.execution.violations
-        );
+    let fell = |c: &stairbench::climb::ClimbReport| {
+        matches!(c.stop, Some(StopReason::Fell { .. } | StopReason::FellStanding { .. }))
+    };
+    let (rate, washout) = (StabilizerParams::default().lean_follow_rate_per_s, 0.2);
+    for faster in [1.0, 1.33, 2.0] {
+        let kept = climb(faster, rate, washout);
+        for c in &kept.cycles {
+            println!(
+                "x {faster}: cycle {}: margin {:?} m, violations {:?}",
+                c.cycle, c.execution.min_margin_m, c.execution.violations
+            );
+        }
+        assert!(kept.success && kept.steps_climbed == kept.steps_total, "x {faster}: {:?}", kept.stop);
     }
-    assert!(kept.success && kept.steps_climbed == kept.steps_total, "{:?}", kept.stop);
-    let without = climb(0.0);
-    println!("without: {:?}", without.stop);
+    let unwashed = climb(1.0, rate, 0.0);
+    println!("x 1 without the washout: {:?}", unwashed.stop);
     assert!(
-        matches!(without.stop, Some(StopReason::Fell { .. } | StopReason::FellStanding { .. })),
-        "without the compensation this body fell at x 1.33; if it climbs now, say why: {:?}",
-        without.stop
+        fell(&unwashed),
+        "without the washout this body fell at x 1; if it climbs now, say why: {:?}",
+        unwashed.stop
     );
-    let turned = climb(-gain);
-    println!("sign turned: {:?}", turned.stop);
-    assert!(
-        matches!(turned.stop, Some(StopReason::Fell { .. } | StopReason::FellStanding { .. })),
-        "the lean compensation's sign matters: turned, the body should fall, and be seen to: {:?}",
-        turned.stop
-    );
+    let without = climb(1.33, 0.0, 0.0);
+    println!("x 1.33 without either: {:?}", without.stop);
+    assert!(fell(&without), "without the compensation this body fell at x 1.33: {:?}", without.stop);
+    let turned = climb(1.33, -rate, 0.0);
+    println!("x 1.33, the integral's sign turned: {:?}", turned.stop);
+    assert!(fell(&turned), "turned, the body should fall, and be seen to: {:?}", turned.stop);
 }
 
 /// A plan ends at rest; the body does not: it lags the plan's last weight shift. The

@@ -3,7 +3,8 @@
 //! foot force difference control). A rate per unit of error, clamped, with a leak back to
 //! the plan so that offsets never accumulate. In single support the support sole's roll and
 //! pitch also follow the body's lean the IMU sees, at a signed rate (`follow_lean`; a
-//! compliant ankle lets the body roll out over the sole).
+//! compliant ankle lets the body roll out over the sole), and its sway, washed out
+//! (`follow_sway`).
 
 use super::measurement::SoleWrench;
 use super::params::StabilizerParams;
@@ -74,6 +75,17 @@ pub fn follow_lean(offset: &mut FootOffset, lean_sole_rad: &Vector3<f64>, p: &St
         |x, lean: f64| integrate(x, g * lean, p.cop_max_rate_rad_s, p.cop_max_rad, p.leak_time_s, dt_s);
     offset.roll_rad = step(offset.roll_rad, lean_sole_rad.x);
     offset.pitch_rad = step(offset.pitch_rad, lean_sole_rad.y);
+}
+
+/// A sole's tilt that follows the body's sway, `[roll, pitch]` about the sole's axes, rad:
+/// moved by `lean_washout_gain` times the lean's change since the last tick
+/// (`lean_change_rad`, a rotation vector in the sole's axes; zero for a sole not in single
+/// support) and washing out with `lean_washout_time_s`, within `cop_max_rad`.
+pub fn follow_sway(tilt_rad: &mut [f64; 2], lean_change_rad: &Vector3<f64>, p: &StabilizerParams, dt_s: f64) {
+    let washed = (1.0 - dt_s / p.lean_washout_time_s).max(0.0);
+    for (t, change) in tilt_rad.iter_mut().zip([lean_change_rad.x, lean_change_rad.y]) {
+        *t = (*t * washed + p.lean_washout_gain * change).clamp(-p.cop_max_rad, p.cop_max_rad);
+    }
 }
 
 /// Vertical force difference control in double support: the feet's height difference

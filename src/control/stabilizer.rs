@@ -71,6 +71,11 @@ pub struct Stabilizer<'m> {
     starts_s: Vec<f64>,
     segment: usize,
     offsets: [FootOffset; 2],
+    /// Each sole's tilt following the body's sway, `[roll, pitch]`, rad
+    /// ([`admittance::follow_sway`]), on top of `offsets`.
+    sway_rad: [[f64; 2]; 2],
+    /// The body's lean the tick before (a rotation vector, world), for its change.
+    lean_before: Option<Vector3<f64>>,
     held: [Option<Isometry3<f64>>; 2],
     landing: [bool; 2],
     lifted: [FootOffset; 2],
@@ -123,6 +128,8 @@ impl<'m> Stabilizer<'m> {
             starts_s,
             segment: 0,
             offsets: [FootOffset::default(); 2],
+            sway_rad: [[0.0; 2]; 2],
+            lean_before: None,
             held: [None; 2],
             landing: [false; 2],
             lifted: [FootOffset::default(); 2],
@@ -200,10 +207,13 @@ impl<'m> Stabilizer<'m> {
     }
 
     /// A support foot's target: where it landed (or, before it has, its planned pose) with
-    /// the admittance's offsets.
+    /// the admittance's offsets and the sway's tilt.
     fn corrected(&self, foot: Foot, planned: &Isometry3<f64>) -> Isometry3<f64> {
         let k = foot.index();
-        self.offsets[k].apply(self.held[k].as_ref().unwrap_or(planned))
+        let [roll_rad, pitch_rad] = self.sway_rad[k];
+        let o = self.offsets[k];
+        let offset = FootOffset { roll_rad: o.roll_rad + roll_rad, pitch_rad: o.pitch_rad + pitch_rad, ..o };
+        offset.apply(self.held[k].as_ref().unwrap_or(planned))
     }
 
     /// Where foot `k` met the ground: its measured position (`at`, world), its planned
@@ -351,16 +361,25 @@ impl<'m> Stabilizer<'m> {
         // No distribution (the CoM outside what the feet down can hold): the offsets only
         // leak back to the plan this tick, and the record says so.
         let mut wanted_by_foot = [None; 2];
+        let lean = self.tilt.lean(&base_pose(&self.q_est).rotation).scaled_axis();
+        let lean_change = self.lean_before.map_or(Vector3::zeros(), |before| lean - before);
+        self.lean_before = Some(lean);
+        let mut swaying = None;
         let infeasible = match self.distributor.distribute(&contacts, &wanted_net, &com_ref, &self.p) {
             Ok(wanted) => {
                 for ((f, _), w) in supports.iter().zip(&wanted) {
                     wanted_by_foot[f.index()] = Some(*w);
                 }
                 self.admit(&supports, &measured, &wanted_by_foot, dt);
-                if let ([(f, pose)], true) = (supports.as_slice(), self.p.lean_follow_rate_per_s != 0.0) {
-                    let lean = self.tilt.lean(&base_pose(&self.q_est).rotation).scaled_axis();
-                    let lean_sole = pose.rotation.inverse() * lean;
-                    admittance::follow_lean(&mut self.offsets[f.index()], &lean_sole, &self.p, dt);
+                if let [(f, pose)] = supports.as_slice() {
+                    let k = f.index();
+                    if self.p.lean_follow_rate_per_s != 0.0 {
+                        let lean_sole = pose.rotation.inverse() * lean;
+                        admittance::follow_lean(&mut self.offsets[k], &lean_sole, &self.p, dt);
+                    }
+                    let change_sole = pose.rotation.inverse() * lean_change;
+                    admittance::follow_sway(&mut self.sway_rad[k], &change_sole, &self.p, dt);
+                    swaying = Some(k);
                 }
                 None
             }
@@ -372,6 +391,10 @@ impl<'m> Stabilizer<'m> {
             }
             Err(DistributionError::Solver(e)) => return Err(e),
         };
+        // A sole not in single support this tick: its sway's tilt only washes out.
+        for k in (0..2).filter(|&k| swaying != Some(k)) {
+            admittance::follow_sway(&mut self.sway_rad[k], &Vector3::zeros(), &self.p, dt);
+        }
         let (com_next, com_v_next) = com_target(seg, tau);
         let com_v_next = if hold { Vector3::zeros() } else { com_v_next };
         self.t_s = t_s + step_s;
