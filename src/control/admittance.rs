@@ -80,7 +80,9 @@ pub fn follow_lean(offset: &mut FootOffset, lean_sole_rad: &Vector3<f64>, p: &St
 /// A sole's tilt that follows the body's sway, `[roll, pitch]` about the sole's axes, rad:
 /// moved by `lean_washout_gain` times the lean's change since the last tick
 /// (`lean_change_rad`, a rotation vector in the sole's axes; zero for a sole not in single
-/// support) and washing out with `lean_washout_time_s`, within `cop_max_rad`.
+/// support, or whose distribution failed) and decaying by 1/e per `lean_washout_time_s`,
+/// within `cop_max_rad` (and with the admittance's offsets, within it too: the stabilizer
+/// clamps their sum).
 pub fn follow_sway(tilt_rad: &mut [f64; 2], lean_change_rad: &Vector3<f64>, p: &StabilizerParams, dt_s: f64) {
     let washed = (1.0 - dt_s / p.lean_washout_time_s).max(0.0);
     for (t, change) in tilt_rad.iter_mut().zip([lean_change_rad.x, lean_change_rad.y]) {

@@ -155,22 +155,18 @@ pub struct StabilizerParams {
     /// `lean_follow_rate_per_s`, in the sole's axes), washing out to the plan with time
     /// constant `lean_washout_time_s`: the sole follows the lean's sway, not a lean that
     /// stands. Dimensionless; 0 turns it off. A body on 500 N m/rad ankle bushes sways on
-    /// them at about 0.35 Hz, and with `lean_follow_rate_per_s` alone fell at x 1 to x 1.26
-    /// the quasi-static timing: with this at 0.2 it climbs at x 1 to x 2.6 (0.3 also; 0.1
-    /// falls at x 1.33), test `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`.
-    /// A stiff body sways too (about 1.25 Hz, 0.01-0.02 rad, on its servos' compliance), and
-    /// a gain feeds that back: at 0.4 five `robust` bodies tried (0 to 30 ms of servo
-    /// latency) met the ground at friction ratios of 0.54-1.27 (0.18-0.75 at 0.2), at 1 21
-    /// of the suite's 56 fell. At 0.2 every suite passes (`robust` 49 of 56 as at 0), but
-    /// the friction ratio's tail on stiff bodies rises (`envelope`'s 90th percentile 0.20 ->
-    /// 0.40) and three edge tests of `tests/stabilizer.rs` fail (a touchdown on a higher step
-    /// at 0.70 of its 0.7 friction, a lower step's CoM 0.1 mm out of its polygon, and a body
-    /// already still at a plan's end without the end hold); at 0.15 one of them. Default 0,
-    /// off, until it is selective (CHANGELOG, fifty-third session).
+    /// them at about 0.35 Hz and, with `lean_follow_rate_per_s` alone, falls at x 1 to
+    /// x 1.26 the quasi-static timing; at 0.2 this holds it at x 1 to x 2.6 (test
+    /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`). A stiff body sways
+    /// too (about 1.25 Hz, 0.01-0.02 rad, on its servos' compliance), and the same gain
+    /// feeds that back: its touchdowns meet the ground at higher friction ratios. Default 0,
+    /// off, until the gain follows the body's compliance (figures: CHANGELOG, fifty-third
+    /// session).
     pub lean_washout_gain: f64,
-    /// Time constant of `lean_washout_gain`'s washout, seconds: a lean that stands this long
-    /// is left to `lean_follow_rate_per_s`. Default 0.75, about a quarter of the soft
-    /// ankle's sway period; 0.4 and 1.5 climb the soft-ankle case at every timing too.
+    /// Time constant of `lean_washout_gain`'s washout, seconds: the tilt for a lean that
+    /// stands decays by 1/e in this time, leaving that lean to `lean_follow_rate_per_s`.
+    /// Default 0.75, about a quarter of the soft ankle's sway period; 0.4 and 1.5 hold the
+    /// soft-ankle case at every timing too.
     pub lean_washout_time_s: f64,
 }
 
@@ -220,20 +216,12 @@ impl Default for StabilizerParams {
 }
 
 impl StabilizerParams {
-    /// Refuses approach settings that cannot land a foot, naming the field: the speeds
-    /// finite, the landing speed above zero (a foot that never comes down waits out
-    /// `max_hold_s` in the air), the entry speed at least the landing speed, the height
-    /// finite and not negative; the lean's washout finite, its time above zero.
+    /// Refuses settings that cannot run, naming the field: approach settings that cannot
+    /// land a foot (the speeds finite, the landing speed above zero: a foot that never comes
+    /// down waits out `max_hold_s` in the air; the entry speed at least the landing speed;
+    /// the height finite and not negative), and a sway washout whose gain is not finite or
+    /// whose time is not a finite time above zero.
     pub fn validate(&self) -> Result<(), String> {
-        if !(self.lean_washout_gain.is_finite()
-            && self.lean_washout_time_s > 0.0
-            && self.lean_washout_time_s.is_finite())
-        {
-            return Err(format!(
-                "stabilizer.lean_washout_gain must be finite and lean_washout_time_s a finite time > 0, got {} and {}",
-                self.lean_washout_gain, self.lean_washout_time_s
-            ));
-        }
         if !(self.approach_speed_m_s > 0.0 && self.approach_speed_m_s.is_finite()) {
             return Err(format!(
                 "stabilizer.approach_speed_m_s must be a finite speed > 0, got {}",
@@ -252,6 +240,18 @@ impl StabilizerParams {
             return Err(format!(
                 "stabilizer.approach_height_m must be a finite height >= 0, got {}",
                 self.approach_height_m
+            ));
+        }
+        if !self.lean_washout_gain.is_finite() {
+            return Err(format!(
+                "stabilizer.lean_washout_gain must be finite, got {}",
+                self.lean_washout_gain
+            ));
+        }
+        if !(self.lean_washout_time_s > 0.0 && self.lean_washout_time_s.is_finite()) {
+            return Err(format!(
+                "stabilizer.lean_washout_time_s must be a finite time > 0, got {}",
+                self.lean_washout_time_s
             ));
         }
         Ok(())
@@ -314,5 +314,17 @@ mod tests {
         assert!(with(|p| p.approach_entry_speed_m_s = f64::INFINITY).is_err());
         assert!(with(|p| p.approach_height_m = -0.01).is_err_and(|e| e.contains("approach_height_m")));
         assert!(with(|p| p.approach_entry_speed_m_s = p.approach_speed_m_s).is_ok());
+    }
+
+    #[test]
+    fn a_sway_washout_that_cannot_run_is_refused() {
+        let with = |gain: f64, time_s: f64| {
+            StabilizerParams { lean_washout_gain: gain, lean_washout_time_s: time_s, ..Default::default() }
+                .validate()
+        };
+        assert!(with(0.2, 0.75).is_ok());
+        assert!(with(f64::NAN, 0.75).is_err_and(|e| e.contains("lean_washout_gain")));
+        assert!(with(0.2, 0.0).is_err_and(|e| e.contains("lean_washout_time_s")));
+        assert!(with(0.2, f64::INFINITY).is_err_and(|e| e.contains("lean_washout_time_s")));
     }
 }

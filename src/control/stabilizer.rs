@@ -1,7 +1,8 @@
 //! The stabilizer's tick: read the sensors, estimate the CoM, distribute the wanted net
 //! wrench over the feet the plan has in contact, move each foot's reference by admittance,
-//! stop a landing foot where it meets the ground and set it down by its normal force, and
-//! solve the QP IK online toward the corrected targets. The joint angles it returns are the
+//! stop a landing foot where it meets the ground and set it down by its normal force, tilt
+//! the single support's sole with the body's sway where that is on, and solve the QP IK
+//! online toward the corrected targets. The joint angles it returns are the
 //! servos' set points.
 
 use super::admittance::{self, FootOffset};
@@ -194,6 +195,10 @@ impl<'m> Stabilizer<'m> {
             if let Some(sw) = &self.segments[self.segment].swing {
                 let k = sw.foot.index();
                 let mut lift = self.offsets[k];
+                // The sway's tilt lifts with the foot and fades over its swing as the offsets do.
+                let [roll_rad, pitch_rad] = std::mem::take(&mut self.sway_rad[k]);
+                lift.roll_rad += roll_rad;
+                lift.pitch_rad += pitch_rad;
                 if let Some(held) = self.held[k] {
                     lift.translation_m += held.translation.vector - sw.path[0].translation.vector;
                 }
@@ -210,9 +215,16 @@ impl<'m> Stabilizer<'m> {
     /// the admittance's offsets and the sway's tilt.
     fn corrected(&self, foot: Foot, planned: &Isometry3<f64>) -> Isometry3<f64> {
         let k = foot.index();
-        let [roll_rad, pitch_rad] = self.sway_rad[k];
         let o = self.offsets[k];
-        let offset = FootOffset { roll_rad: o.roll_rad + roll_rad, pitch_rad: o.pitch_rad + pitch_rad, ..o };
+        let offset = match self.sway_rad[k] {
+            [0.0, 0.0] => o,
+            [roll_rad, pitch_rad] => {
+                let m = self.p.cop_max_rad;
+                let (roll_rad, pitch_rad) =
+                    ((o.roll_rad + roll_rad).clamp(-m, m), (o.pitch_rad + pitch_rad).clamp(-m, m));
+                FootOffset { roll_rad, pitch_rad, ..o }
+            }
+        };
         offset.apply(self.held[k].as_ref().unwrap_or(planned))
     }
 
@@ -377,9 +389,11 @@ impl<'m> Stabilizer<'m> {
                         let lean_sole = pose.rotation.inverse() * lean;
                         admittance::follow_lean(&mut self.offsets[k], &lean_sole, &self.p, dt);
                     }
-                    let change_sole = pose.rotation.inverse() * lean_change;
-                    admittance::follow_sway(&mut self.sway_rad[k], &change_sole, &self.p, dt);
-                    swaying = Some(k);
+                    if self.p.lean_washout_gain != 0.0 {
+                        let change_sole = pose.rotation.inverse() * lean_change;
+                        admittance::follow_sway(&mut self.sway_rad[k], &change_sole, &self.p, dt);
+                        swaying = Some(k);
+                    }
                 }
                 None
             }
@@ -391,9 +405,12 @@ impl<'m> Stabilizer<'m> {
             }
             Err(DistributionError::Solver(e)) => return Err(e),
         };
-        // A sole not in single support this tick: its sway's tilt only washes out.
-        for k in (0..2).filter(|&k| swaying != Some(k)) {
-            admittance::follow_sway(&mut self.sway_rad[k], &Vector3::zeros(), &self.p, dt);
+        // A sole not in single support this tick (or whose distribution failed): its
+        // sway's tilt only washes out.
+        for (k, tilt) in self.sway_rad.iter_mut().enumerate() {
+            if swaying != Some(k) && *tilt != [0.0; 2] {
+                admittance::follow_sway(tilt, &Vector3::zeros(), &self.p, dt);
+            }
         }
         let (com_next, com_v_next) = com_target(seg, tau);
         let com_v_next = if hold { Vector3::zeros() } else { com_v_next };

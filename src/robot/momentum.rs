@@ -169,4 +169,15 @@ mod tests {
         assert!(short.add(0.05, Vector3::new(1.0, 1.0, 1.0), 0).is_none());
         assert_eq!((short.max_tipping_nm, short.max_yaw_nm), (0.0, 0.0));
     }
+
+    #[test]
+    fn a_windows_rate_names_the_label_its_first_momentum_was_given() {
+        let mut r = MomentRates::default();
+        let dt = 0.01;
+        for k in 0..=30 {
+            let got = r.add(k as f64 * dt, Vector3::zeros(), k);
+            // The window starts from the newest momentum at least a window old: 10 ticks back.
+            assert_eq!(got.map(|(_, first)| first), (k >= 10).then(|| k - 10), "tick {k}");
+        }
+    }
 }
