@@ -100,6 +100,21 @@ impl TiltFilter {
             .and_then(|up| UnitQuaternion::rotation_between(&(believed * up), &Vector3::z()))
             .unwrap_or_else(UnitQuaternion::identity)
     }
+
+    /// The lean beyond what the encoders see, about a support sole: [`TiltFilter::lean`]
+    /// of the base as the encoders hold it from that sole, the sole lying as `sole_lies`
+    /// (world from sole, as planned) and seen by the encoders at `sole_seen` under the
+    /// commanded base `commanded` (world from base, both). A servo that gives under load
+    /// shows in its encoder and is not in it; a compliance between the encoders and the
+    /// ground (an ankle bush, a sole's rubber) is.
+    pub fn unseen_lean(
+        &self,
+        commanded: &UnitQuaternion<f64>,
+        sole_seen: &UnitQuaternion<f64>,
+        sole_lies: &UnitQuaternion<f64>,
+    ) -> UnitQuaternion<f64> {
+        self.lean(&(sole_lies * sole_seen.inverse() * commanded))
+    }
 }
 
 /// The acceleration of a point from its positions at a steady period: the second difference
@@ -228,6 +243,27 @@ mod tests {
         let com = leaning(&(pivot + Vector3::new(0.0, 0.0, 0.75)), &pivot, &lean);
         let expected = pivot + Vector3::new(0.75 * 0.05f64.sin(), 0.0, 0.75 * 0.05f64.cos());
         assert!((com - expected).norm() < 1e-9, "{com} against {expected}");
+    }
+
+    /// A body pitched 0.04 rad forward on a support sole lying level: where its ankle's
+    /// servo gave (the encoders read the bend), none of the lean is unseen; where an ankle
+    /// bush between the encoders and the sole gave, all of it is. The lean against the
+    /// commanded base counts both.
+    #[test]
+    fn the_unseen_lean_is_what_the_encoders_do_not_read() {
+        let bend = UnitQuaternion::from_euler_angles(0.0, 0.04, 0.0);
+        let commanded = UnitQuaternion::from_euler_angles(0.0, 0.0, 0.3);
+        let level = UnitQuaternion::from_euler_angles(0.0, 0.0, 0.3);
+        let mut f = TiltFilter::new(0.5, 0.1);
+        f.update(&at_rest(&(bend * commanded)), 0.005);
+        // The servo gave: under the commanded base the encoders put the sole pitched back.
+        let servo = f.unseen_lean(&commanded, &(bend.inverse() * level), &level);
+        // The bush gave: the encoders read the joints as commanded, the sole level.
+        let bush = f.unseen_lean(&commanded, &level, &level);
+        let whole = f.lean(&commanded);
+        assert!(servo.angle() < 1e-9, "{}", servo.angle());
+        assert!((bush.angle() - 0.04).abs() < 1e-9, "{}", bush.angle());
+        assert!((whole.angle() - 0.04).abs() < 1e-9, "{}", whole.angle());
     }
 
     #[test]

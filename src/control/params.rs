@@ -151,17 +151,20 @@ pub struct StabilizerParams {
     /// `lean_washout_gain` at 0.2 holds it there.
     pub lean_follow_rate_per_s: f64,
     /// Sway damping in single support: the support sole's commanded roll and pitch move by
-    /// this gain times each change of the body's lean (the IMU's, as for
-    /// `lean_follow_rate_per_s`, in the sole's axes), washing out to the plan with time
-    /// constant `lean_washout_time_s`: the sole follows the lean's sway, not a lean that
-    /// stands. Dimensionless; 0 turns it off. A body on 500 N m/rad ankle bushes sways on
-    /// them at about 0.35 Hz and, with `lean_follow_rate_per_s` alone, falls at x 1 to
-    /// x 1.26 the quasi-static timing; at 0.2 this holds it at x 1 to x 2.6 (test
-    /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`). A stiff body sways
-    /// too (about 1.25 Hz, 0.01-0.02 rad, on its servos' compliance), and the same gain
-    /// feeds that back: its touchdowns meet the ground at higher friction ratios. Default 0,
-    /// off, until the gain follows the body's compliance (figures: CHANGELOG, fifty-third
-    /// session).
+    /// this gain times each change of the lean the encoders do not read
+    /// ([`super::attitude::TiltFilter::unseen_lean`]: the IMU's lean against the base the
+    /// encoders hold from that sole, in the sole's axes), washing out to the plan with time
+    /// constant `lean_washout_time_s`: the sole follows the sway, not a lean that stands.
+    /// Dimensionless; 0 turns it off. A body on 500 N m/rad ankle bushes sways on them at
+    /// about 0.35 Hz and, with `lean_follow_rate_per_s` alone, falls at x 1 to x 1.26 the
+    /// quasi-static timing; at 0.2 (and 0.5) this holds it at x 1 to x 2.6 (test
+    /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`). A servo that gives
+    /// shows in its encoder and is not fed back; but a stiff body still leans 0.008 rad RMS
+    /// (Exp. 1's single supports) where its encoders do not see it (the contacts' own
+    /// compliance), a third of the soft ankle's, and at 0.2 its touchdowns meet the ground
+    /// at higher friction ratios (`envelope`'s 90th percentile 0.20 -> 0.23) and a landed
+    /// foot stays light up to 0.33 s. Default 0, off (figures: CHANGELOG, fifty-third and
+    /// fifty-fourth sessions).
     pub lean_washout_gain: f64,
     /// Time constant of `lean_washout_gain`'s washout, seconds: the tilt for a lean that
     /// stands decays by 1/e in this time, leaving that lean to `lean_follow_rate_per_s`.

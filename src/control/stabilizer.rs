@@ -29,7 +29,8 @@ pub struct TickRecord {
     pub wanted: [Option<SoleWrench>; 2],
     /// The measured ground wrench per foot.
     pub measured: [SoleWrench; 2],
-    /// The admittance offsets per foot.
+    /// What each foot's target was moved by: the admittance's offsets with the sway's tilt
+    /// ([`admittance::follow_sway`]).
     pub offsets: [FootOffset; 2],
     /// Where each foot landed, when the stabilizer holds it there instead of its planned
     /// place (world, metres).
@@ -75,8 +76,9 @@ pub struct Stabilizer<'m> {
     /// Each sole's tilt following the body's sway, `[roll, pitch]`, rad
     /// ([`admittance::follow_sway`]), on top of `offsets`.
     sway_rad: [[f64; 2]; 2],
-    /// The body's lean the tick before (a rotation vector, world), for its change.
-    lean_before: Option<Vector3<f64>>,
+    /// The support sole and the lean the encoders do not see about it the tick before (a
+    /// rotation vector, world; [`TiltFilter::unseen_lean`]), for its change.
+    lean_before: Option<(usize, Vector3<f64>)>,
     held: [Option<Isometry3<f64>>; 2],
     landing: [bool; 2],
     lifted: [FootOffset; 2],
@@ -215,8 +217,14 @@ impl<'m> Stabilizer<'m> {
     /// the admittance's offsets and the sway's tilt.
     fn corrected(&self, foot: Foot, planned: &Isometry3<f64>) -> Isometry3<f64> {
         let k = foot.index();
+        self.applied_offset(k).apply(self.held[k].as_ref().unwrap_or(planned))
+    }
+
+    /// Foot `k`'s admittance offsets with its sway's tilt, within `cop_max_rad`: what its
+    /// target is moved by.
+    fn applied_offset(&self, k: usize) -> FootOffset {
         let o = self.offsets[k];
-        let offset = match self.sway_rad[k] {
+        match self.sway_rad[k] {
             [0.0, 0.0] => o,
             [roll_rad, pitch_rad] => {
                 let m = self.p.cop_max_rad;
@@ -224,8 +232,7 @@ impl<'m> Stabilizer<'m> {
                     ((o.roll_rad + roll_rad).clamp(-m, m), (o.pitch_rad + pitch_rad).clamp(-m, m));
                 FootOffset { roll_rad, pitch_rad, ..o }
             }
-        };
-        offset.apply(self.held[k].as_ref().unwrap_or(planned))
+        }
     }
 
     /// Where foot `k` met the ground: its measured position (`at`, world), its planned
@@ -370,13 +377,11 @@ impl<'m> Stabilizer<'m> {
         // The wanted net wrench: quasi-static, with the CoM feedback.
         let (wanted_net, com_ref) = self.wanted_net(com, seg, tau, t_s, hold, dt);
         let contacts = self.contacts(&supports, &com_ref)?;
-        // No distribution (the CoM outside what the feet down can hold): the offsets only
-        // leak back to the plan this tick, and the record says so.
         let mut wanted_by_foot = [None; 2];
         let lean = self.tilt.lean(&base_pose(&self.q_est).rotation).scaled_axis();
-        let lean_change = self.lean_before.map_or(Vector3::zeros(), |before| lean - before);
-        self.lean_before = Some(lean);
         let mut swaying = None;
+        // No distribution (the CoM outside what the feet down can hold): the offsets only
+        // leak back to the plan this tick, and the record says so.
         let infeasible = match self.distributor.distribute(&contacts, &wanted_net, &com_ref, &self.p) {
             Ok(wanted) => {
                 for ((f, _), w) in supports.iter().zip(&wanted) {
@@ -390,7 +395,19 @@ impl<'m> Stabilizer<'m> {
                         admittance::follow_lean(&mut self.offsets[k], &lean_sole, &self.p, dt);
                     }
                     if self.p.lean_washout_gain != 0.0 {
-                        let change_sole = pose.rotation.inverse() * lean_change;
+                        // The sway the encoders do not read (see `TiltFilter::unseen_lean`),
+                        // the sole lying as planned.
+                        let lies =
+                            seg.support.iter().find(|(g, _)| g == f).map_or(pose.rotation, |s| s.1.rotation);
+                        let seen = self.estimate.frame_pose(self.soles[k]).rotation;
+                        let commanded = base_pose(&self.q_est).rotation;
+                        let unseen = self.tilt.unseen_lean(&commanded, &seen, &lies).scaled_axis();
+                        let change = match self.lean_before {
+                            Some((before_k, before)) if before_k == k => unseen - before,
+                            _ => Vector3::zeros(),
+                        };
+                        self.lean_before = Some((k, unseen));
+                        let change_sole = pose.rotation.inverse() * change;
                         admittance::follow_sway(&mut self.sway_rad[k], &change_sole, &self.p, dt);
                         swaying = Some(k);
                     }
@@ -407,6 +424,9 @@ impl<'m> Stabilizer<'m> {
         };
         // A sole not in single support this tick (or whose distribution failed): its
         // sway's tilt only washes out.
+        if swaying.is_none() {
+            self.lean_before = None;
+        }
         for (k, tilt) in self.sway_rad.iter_mut().enumerate() {
             if swaying != Some(k) && *tilt != [0.0; 2] {
                 admittance::follow_sway(tilt, &Vector3::zeros(), &self.p, dt);
@@ -427,7 +447,7 @@ impl<'m> Stabilizer<'m> {
             t_s,
             wanted: wanted_by_foot,
             measured,
-            offsets: self.offsets,
+            offsets: [0, 1].map(|k| self.applied_offset(k)),
             held_m: [0, 1].map(|k| self.held[k].map(|h| h.translation.vector)),
             infeasible,
             com_error_m: com - com_ref,

@@ -912,7 +912,8 @@ pub fn track_until(
                 // momentum was taken in: a window over a boundary is both segments'
                 // motion, and slowing the later alone may not bring it down.
                 stats.segment_yaw_moments_nm.resize(segments.len(), 0.0);
-                for m in &mut stats.segment_yaw_moments_nm[first.min(si)..=si] {
+                debug_assert!(first <= si, "a window's first momentum is from a later segment");
+                for m in &mut stats.segment_yaw_moments_nm[first..=si] {
                     *m = m.max(rate.z.abs());
                 }
             }
