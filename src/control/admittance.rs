@@ -78,8 +78,9 @@ pub fn follow_lean(offset: &mut FootOffset, lean_sole_rad: &Vector3<f64>, p: &St
 }
 
 /// A sole's tilt that follows the body's sway, `[roll, pitch]` about the sole's axes, rad:
-/// moved by `lean_washout_gain` times the lean's change since the last tick
-/// (`lean_change_rad`, a rotation vector in the sole's axes; zero for a sole not in single
+/// moved by `lean_washout_gain` times the change since the last tick of the lean the
+/// encoders do not read (`lean_change_rad`, [`super::attitude::TiltFilter::unseen_lean`], a
+/// rotation vector in the sole's axes; zero for a sole not in single
 /// support, or whose distribution failed) and decaying by 1/e per `lean_washout_time_s`,
 /// within `cop_max_rad` (and with the admittance's offsets, within it too: the stabilizer
 /// clamps their sum).

@@ -103,10 +103,10 @@ impl TiltFilter {
 
     /// The lean beyond what the encoders see, about a support sole: [`TiltFilter::lean`]
     /// of the base as the encoders hold it from that sole, the sole lying as `sole_lies`
-    /// (world from sole, as planned) and seen by the encoders at `sole_seen` under the
-    /// commanded base `commanded` (world from base, both). A servo that gives under load
-    /// shows in its encoder and is not in it; a compliance between the encoders and the
-    /// ground (an ankle bush, a sole's rubber) is.
+    /// (as planned) and seen by the encoders at `sole_seen` under the commanded base
+    /// `commanded` (all world from body; the commanded base cancels, as it only placed
+    /// `sole_seen`). A servo that gives under load shows in its encoder and is not in it; a
+    /// compliance between the encoders and the ground (an ankle bush, a sole's rubber) is.
     pub fn unseen_lean(
         &self,
         commanded: &UnitQuaternion<f64>,
@@ -245,25 +245,30 @@ mod tests {
         assert!((com - expected).norm() < 1e-9, "{com} against {expected}");
     }
 
-    /// A body pitched 0.04 rad forward on a support sole lying level: where its ankle's
-    /// servo gave (the encoders read the bend), none of the lean is unseen; where an ankle
-    /// bush between the encoders and the sole gave, all of it is. The lean against the
-    /// commanded base counts both.
+    /// A body bent 0.04 rad from its commanded base on a support sole lying on a sloped
+    /// tread: where a servo gave (the encoders read the bend), none of the lean is unseen;
+    /// where an ankle bush between the encoders and the sole gave, all of it is. The lean
+    /// against the commanded base counts both.
     #[test]
     fn the_unseen_lean_is_what_the_encoders_do_not_read() {
-        let bend = UnitQuaternion::from_euler_angles(0.0, 0.04, 0.0);
-        let commanded = UnitQuaternion::from_euler_angles(0.0, 0.0, 0.3);
-        let level = UnitQuaternion::from_euler_angles(0.0, 0.0, 0.3);
+        // About an axis off the world's, on a sloped tread, the base commanded tilted.
+        let bend = UnitQuaternion::from_scaled_axis(Vector3::new(0.3, 1.0, 0.2).normalize() * 0.04);
+        let commanded = UnitQuaternion::from_euler_angles(0.02, 0.0, 0.3);
+        let tread = UnitQuaternion::from_euler_angles(0.0, 0.05, 0.1);
+        let truly = bend * commanded;
         let mut f = TiltFilter::new(0.5, 0.1);
-        f.update(&at_rest(&(bend * commanded)), 0.005);
-        // The servo gave: under the commanded base the encoders put the sole pitched back.
-        let servo = f.unseen_lean(&commanded, &(bend.inverse() * level), &level);
-        // The bush gave: the encoders read the joints as commanded, the sole level.
-        let bush = f.unseen_lean(&commanded, &level, &level);
+        f.update(&at_rest(&truly), 0.005);
+        // The servo gave: the encoders read the joints as they are, the base truly where
+        // the IMU has it; put under the commanded base, the sole lies off the tread.
+        let servo = f.unseen_lean(&commanded, &(commanded * truly.inverse() * tread), &tread);
+        // The bush gave: the encoders read the joints as commanded, the sole on the tread.
+        let bush = f.unseen_lean(&commanded, &tread, &tread);
         let whole = f.lean(&commanded);
+        // What of the bend an up can show: its tilt (its turn about the vertical, none).
+        let tilt = (bend * Vector3::z()).angle(&Vector3::z());
         assert!(servo.angle() < 1e-9, "{}", servo.angle());
-        assert!((bush.angle() - 0.04).abs() < 1e-9, "{}", bush.angle());
-        assert!((whole.angle() - 0.04).abs() < 1e-9, "{}", whole.angle());
+        assert!((bush.angle() - tilt).abs() < 1e-9, "{} against {tilt}", bush.angle());
+        assert!((whole.angle() - tilt).abs() < 1e-9, "{} against {tilt}", whole.angle());
     }
 
     #[test]

@@ -148,28 +148,29 @@ pub struct StabilizerParams {
     /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`, which holds the sign
     /// and that the body falls without it). Not a setting for every timing: that body falls
     /// with it alone at x 1 to x 1.26 the quasi-static (no rate holds it at every timing);
-    /// `lean_washout_gain` at 0.2 holds it there.
+    /// `lean_washout_gain` holds it there.
     pub lean_follow_rate_per_s: f64,
     /// Sway damping in single support: the support sole's commanded roll and pitch move by
     /// this gain times each change of the lean the encoders do not read
-    /// ([`super::attitude::TiltFilter::unseen_lean`]: the IMU's lean against the base the
-    /// encoders hold from that sole, in the sole's axes), washing out to the plan with time
-    /// constant `lean_washout_time_s`: the sole follows the sway, not a lean that stands.
-    /// Dimensionless; 0 turns it off. A body on 500 N m/rad ankle bushes sways on them at
-    /// about 0.35 Hz and, with `lean_follow_rate_per_s` alone, falls at x 1 to x 1.26 the
-    /// quasi-static timing; at 0.2 (and 0.5) this holds it at x 1 to x 2.6 (test
-    /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`). A servo that gives
-    /// shows in its encoder and is not fed back; but a stiff body still leans 0.008 rad RMS
-    /// (Exp. 1's single supports) where its encoders do not see it (the contacts' own
-    /// compliance), a third of the soft ankle's, and at 0.2 its touchdowns meet the ground
-    /// at higher friction ratios (`envelope`'s 90th percentile 0.20 -> 0.23) and a landed
-    /// foot stays light up to 0.33 s. Default 0, off (figures: CHANGELOG, fifty-third and
-    /// fifty-fourth sessions).
+    /// ([`super::attitude::TiltFilter::unseen_lean`], in the sole's axes), washing out to
+    /// the plan with time constant `lean_washout_time_s`: the sole follows the sway, not a
+    /// lean that stands. Dimensionless; 0 turns it off. A body on 500 N m/rad ankle bushes
+    /// sways on them at about 0.35 Hz and, with `lean_follow_rate_per_s` alone, falls at
+    /// x 1 to x 1.26 the quasi-static timing; at 0.1 (to 0.5) this holds it at x 1 to x 2.6,
+    /// at 0.05 it falls at x 1 to x 1.33 (`stairbench run tests/fixtures/soft-ankle-bush.toml
+    /// --speedup S`; test `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`).
+    /// A stiff body leans too where its encoders do not see it (0.008 rad RMS in Exp. 1's
+    /// single supports: the contacts' own compliance, a third of the soft ankle's); at 0.1
+    /// its friction ratios rise a little (`envelope`'s 90th percentile 0.202 -> 0.203,
+    /// `regressions`' largest 0.40 -> 0.47), at 0.2 more (0.23; and a landed foot light
+    /// 0.33 s, over test `a_landed_foot_stays_on_the_ground_until_its_weight_comes`' 0.3).
+    /// Default 0.1, the least of those that hold the soft ankle at every timing (figures:
+    /// CHANGELOG, fifty-fourth session).
     pub lean_washout_gain: f64,
     /// Time constant of `lean_washout_gain`'s washout, seconds: the tilt for a lean that
     /// stands decays by 1/e in this time, leaving that lean to `lean_follow_rate_per_s`.
     /// Default 0.75, about a quarter of the soft ankle's sway period; 0.4 and 1.5 hold the
-    /// soft-ankle case at every timing too.
+    /// soft-ankle case at every timing too (at a gain of 0.2).
     pub lean_washout_time_s: f64,
 }
 
@@ -212,7 +213,7 @@ impl Default for StabilizerParams {
             tilt_filter_time_s: 2.0,
             tilt_accel_tolerance: 0.1,
             lean_follow_rate_per_s: -0.3,
-            lean_washout_gain: 0.0,
+            lean_washout_gain: 0.1,
             lean_washout_time_s: 0.75,
         }
     }

@@ -29,8 +29,8 @@ pub struct TickRecord {
     pub wanted: [Option<SoleWrench>; 2],
     /// The measured ground wrench per foot.
     pub measured: [SoleWrench; 2],
-    /// What each foot's target was moved by: the admittance's offsets with the sway's tilt
-    /// ([`admittance::follow_sway`]).
+    /// Each foot's offset after this tick: the admittance's with the sway's tilt
+    /// ([`admittance::follow_sway`]), clamped as applied.
     pub offsets: [FootOffset; 2],
     /// Where each foot landed, when the stabilizer holds it there instead of its planned
     /// place (world, metres).
@@ -78,7 +78,7 @@ pub struct Stabilizer<'m> {
     sway_rad: [[f64; 2]; 2],
     /// The support sole and the lean the encoders do not see about it the tick before (a
     /// rotation vector, world; [`TiltFilter::unseen_lean`]), for its change.
-    lean_before: Option<(usize, Vector3<f64>)>,
+    unseen_lean_before_rad: Option<(usize, Vector3<f64>)>,
     held: [Option<Isometry3<f64>>; 2],
     landing: [bool; 2],
     lifted: [FootOffset; 2],
@@ -132,7 +132,7 @@ impl<'m> Stabilizer<'m> {
             segment: 0,
             offsets: [FootOffset::default(); 2],
             sway_rad: [[0.0; 2]; 2],
-            lean_before: None,
+            unseen_lean_before_rad: None,
             held: [None; 2],
             landing: [false; 2],
             lifted: [FootOffset::default(); 2],
@@ -378,7 +378,8 @@ impl<'m> Stabilizer<'m> {
         let (wanted_net, com_ref) = self.wanted_net(com, seg, tau, t_s, hold, dt);
         let contacts = self.contacts(&supports, &com_ref)?;
         let mut wanted_by_foot = [None; 2];
-        let lean = self.tilt.lean(&base_pose(&self.q_est).rotation).scaled_axis();
+        let commanded = base_pose(&self.q_est).rotation;
+        let lean = self.tilt.lean(&commanded).scaled_axis();
         let mut swaying = None;
         // No distribution (the CoM outside what the feet down can hold): the offsets only
         // leak back to the plan this tick, and the record says so.
@@ -396,17 +397,16 @@ impl<'m> Stabilizer<'m> {
                     }
                     if self.p.lean_washout_gain != 0.0 {
                         // The sway the encoders do not read (see `TiltFilter::unseen_lean`),
-                        // the sole lying as planned.
-                        let lies =
-                            seg.support.iter().find(|(g, _)| g == f).map_or(pose.rotation, |s| s.1.rotation);
+                        // the sole lying as planned: where it landed, else as its segment has it.
+                        let planned = seg.support.iter().find(|(g, _)| g == f).map(|s| s.1.rotation);
+                        let lies = self.held[k].map(|h| h.rotation).or(planned).unwrap_or(pose.rotation);
                         let seen = self.estimate.frame_pose(self.soles[k]).rotation;
-                        let commanded = base_pose(&self.q_est).rotation;
                         let unseen = self.tilt.unseen_lean(&commanded, &seen, &lies).scaled_axis();
-                        let change = match self.lean_before {
+                        let change = match self.unseen_lean_before_rad {
                             Some((before_k, before)) if before_k == k => unseen - before,
                             _ => Vector3::zeros(),
                         };
-                        self.lean_before = Some((k, unseen));
+                        self.unseen_lean_before_rad = Some((k, unseen));
                         let change_sole = pose.rotation.inverse() * change;
                         admittance::follow_sway(&mut self.sway_rad[k], &change_sole, &self.p, dt);
                         swaying = Some(k);
@@ -422,11 +422,12 @@ impl<'m> Stabilizer<'m> {
             }
             Err(DistributionError::Solver(e)) => return Err(e),
         };
+        // Out of single support, the unseen lean's change starts again at the next one.
+        if swaying.is_none() {
+            self.unseen_lean_before_rad = None;
+        }
         // A sole not in single support this tick (or whose distribution failed): its
         // sway's tilt only washes out.
-        if swaying.is_none() {
-            self.lean_before = None;
-        }
         for (k, tilt) in self.sway_rad.iter_mut().enumerate() {
             if swaying != Some(k) && *tilt != [0.0; 2] {
                 admittance::follow_sway(tilt, &Vector3::zeros(), &self.p, dt);

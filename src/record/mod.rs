@@ -137,7 +137,7 @@ fn topics() -> Vec<(&'static str, String, String)> {
             "/control",
             own(
                 "stairbench.ControlTick",
-                "A stabilizer tick: per foot the wanted and measured ground wrench, the admittance offsets; the CoM's error, the lean and tilt the IMU sees",
+                "A stabilizer tick: per foot the wanted and measured ground wrench, the admittance offsets with the sway's tilt; the CoM's error, the lean and tilt the IMU sees",
             ),
         ),
         ("/run/cycle", own("stairbench.Cycle", "One scan-plan-execute cycle's report")),
