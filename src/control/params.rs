@@ -160,12 +160,13 @@ pub struct StabilizerParams {
     /// at 0.05 it falls at x 1 to x 1.33 (`stairbench run tests/fixtures/soft-ankle-bush.toml
     /// --speedup S`; test `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`).
     /// A stiff body leans too where its encoders do not see it (0.008 rad RMS in Exp. 1's
-    /// single supports: the contacts' own compliance, a third of the soft ankle's); at 0.1
-    /// its friction ratios rise a little (`envelope`'s 90th percentile 0.202 -> 0.203,
-    /// `regressions`' largest 0.40 -> 0.47), at 0.2 more (0.23; and a landed foot light
-    /// 0.33 s, over test `a_landed_foot_stays_on_the_ground_until_its_weight_comes`' 0.3).
-    /// Default 0.1, the least of those that hold the soft ankle at every timing (figures:
-    /// CHANGELOG, fifty-fourth session).
+    /// single supports: the contacts' own compliance, a third of the soft ankle's), and the
+    /// gain feeds that back too: its friction ratios rise a little at 0.1 (`envelope`'s 90th
+    /// percentile 0.203 against 0.202 at 0; `regressions`' largest 0.47 against 0.40), more
+    /// at 0.2 (0.23; a landed foot light 0.33 s, over the 0.3 of test
+    /// `a_landed_foot_stays_on_the_ground_until_its_weight_comes`). Default 0.1, the least
+    /// gain measured that holds the soft ankle at every timing (figures: CHANGELOG,
+    /// fifty-fourth session).
     pub lean_washout_gain: f64,
     /// Time constant of `lean_washout_gain`'s washout, seconds: the tilt for a lean that
     /// stands decays by 1/e in this time, leaving that lean to `lean_follow_rate_per_s`.
