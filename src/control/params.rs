@@ -154,27 +154,18 @@ pub struct StabilizerParams {
     /// this gain times each change of the lean the encoders do not read
     /// ([`super::attitude::TiltFilter::unseen_lean`], in the sole's axes), washing out to
     /// the plan with time constant `lean_washout_time_s`: the sole follows the sway, not a
-    /// lean that stands. Dimensionless; 0 turns it off. A body on 500 N m/rad ankle bushes
-    /// sways on them at about 0.35 Hz and, with `lean_follow_rate_per_s` alone, falls at
-    /// x 1 to x 1.26 the quasi-static timing; at 0.1 (to 0.5) this holds it at x 1 to x 2.6,
-    /// at 0.05 it falls at x 1 to x 1.33 (`stairbench run tests/fixtures/soft-ankle-bush.toml
-    /// --speedup S`; test `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`).
-    /// A stiff body leans too where its encoders do not see it (0.008 rad RMS in Exp. 1's
-    /// single supports: the contacts' own compliance, a third of the soft ankle's), and the
-    /// gain feeds that back too: its friction ratios rise a little at 0.1 (`envelope`'s 90th
-    /// percentile 0.203 against 0.202 at 0; `regressions`' largest 0.47 against 0.40), more
-    /// at 0.2 (0.23; a landed foot light 0.33 s, over the 0.3 of test
-    /// `a_landed_foot_stays_on_the_ground_until_its_weight_comes`). Default 0, off: at 0.1
-    /// every suite passes, but Exp. 1's first touchdown at the default physics step lands
-    /// 1.2 mm from where it lands at half and a quarter of it (which agree within 0.1 mm;
-    /// test `the_default_physics_step_gives_the_figures_of_half_of_it` allows 1 mm), so the
-    /// feedback reads the simulated contact's own give more finely than the step resolves
-    /// (figures: CHANGELOG, fifty-fourth session).
+    /// lean that stands. Dimensionless; 0 turns it off. A body on soft ankle bushes sways on
+    /// them and, with `lean_follow_rate_per_s` alone, falls at slow timings; 0.1 is the
+    /// least gain that holds one at every timing (test
+    /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`). Default 0, off: a
+    /// stiff body's unseen lean is the simulated contact's own give, and fed back at 0.1 it
+    /// moves Exp. 1's touchdowns by more at the 1 ms physics step than at finer ones (test
+    /// `the_default_physics_step_gives_the_figures_of_half_of_it`). Figures: CHANGELOG,
+    /// fifty-third and fifty-fourth sessions.
     pub lean_washout_gain: f64,
     /// Time constant of `lean_washout_gain`'s washout, seconds: the tilt for a lean that
     /// stands decays by 1/e in this time, leaving that lean to `lean_follow_rate_per_s`.
-    /// Default 0.75, about a quarter of the soft ankle's sway period; 0.4 and 1.5 hold the
-    /// soft-ankle case at every timing too (at a gain of 0.2).
+    /// Default 0.75, about a quarter of the soft ankle's sway period (0.35 Hz).
     pub lean_washout_time_s: f64,
 }
 
