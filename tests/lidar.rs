@@ -191,11 +191,13 @@ fn tilt_is_quantized_and_moves_during_each_row() {
     assert!(fit_err < 1e-3, "fitted tilt error {:.2} mm", fit_err * 1e3);
 }
 
-/// The world's own fast caster (`BoxRays`, the static boxes culled by their bounding spheres)
+/// The world's own fast caster (`BoxRays`, the static boxes culled by their bounds)
 /// gives `mj_ray`'s answers bit for bit, geom and distance: on the lidar's own beams, on rays
-/// from anywhere in the room in any direction, and on rays aimed at every box's corners and
-/// edges' midpoints (where a box meets the next and the nearer geom id must win the tie), in
-/// worlds with nosings, handrails, walls and objects on the treads.
+/// from anywhere in the room in any direction, on rays aimed at every box's corners and
+/// edges' midpoints (where a box meets the next and the nearer geom id must win the tie), and
+/// on rays along the world's axes from those points (directions with zero components, from
+/// origins on a box's faces), in worlds with nosings, handrails, walls and objects on the
+/// treads.
 #[test]
 fn the_worlds_box_caster_answers_as_mj_ray() {
     use rand::{Rng, SeedableRng};
@@ -237,6 +239,13 @@ fn the_worlds_box_caster_answers_as_mj_ray() {
                 let target = b.pose() * Point3::from(at);
                 if let Some(d) = (target - head).try_normalize(1e-9) {
                     rays.push((head, d));
+                }
+                // Along the world's axes from the box's surface and centre: directions with
+                // components of 0, from origins on its faces' planes.
+                for axis in 0..6 {
+                    let mut d = Vector3::zeros();
+                    d[axis % 3] = if axis < 3 { 1.0 } else { -1.0 };
+                    rays.push((target, d));
                 }
             }
         }

@@ -1,9 +1,11 @@
 //! The lidar's rays against a world made of static boxes, as MuJoCo's `mj_ray` casts them and
 //! with its answers (distance and geom), faster: the boxes are read once (a static box never
-//! moves), and a box whose bounding sphere lies wholly beyond the nearest hit found so far is
-//! not tested. Each box is tested with `mj_ray`'s own arithmetic (its bounding-sphere test,
-//! then each face), so the distances are the same numbers; ties go to the lower geom id, as
-//! `mj_ray`'s do. A world with any other geom a ray may meet is left to `mj_ray`. Same numbers
+//! moves), and a box the ray does not enter (its world-aligned bounding box, grown by
+//! [`CULL_SLACK_M`]) before the nearest hit found so far is not tested: a room's walls and
+//! ceiling, which every ray's bounding sphere test passes, are passed over by a ray that met
+//! a tread first. Each box is tested in geom order with `mj_ray`'s own arithmetic (its
+//! bounding-sphere test, then each face), so the distances are the same numbers; ties go to
+//! the lower geom id, as `mj_ray`'s do. A world with any other geom a ray may meet is left to `mj_ray`. Same numbers
 //! as long as the MuJoCo library computes without fused multiply-adds, as Rust does (an x86-64
 //! build without `-mfma`, as the one this bench fetches; tests/lidar.rs checks it).
 
@@ -13,18 +15,20 @@ use std::sync::Arc;
 
 /// MuJoCo's `mjMINVAL`: the smallest value it divides by.
 const MIN_VAL: f64 = 1e-15;
-/// Slack of the bounding-sphere cull, metres: far above the rounding of a distance.
+/// Slack of the cull, metres: each box's bounds are grown by it, far above the rounding of a
+/// distance, so a box the cull passes over is one `mj_ray`'s arithmetic finds no nearer.
 const CULL_SLACK_M: f64 = 1e-6;
 
 /// One static box: its centre, rotation (row-major, MuJoCo's `geom_xmat`), half sizes, squared
-/// bounding radius, bounding radius, and geom id.
+/// bounding radius, its world-aligned bounds grown by [`CULL_SLACK_M`] (lowest, highest), and
+/// geom id.
 #[derive(Debug, Clone)]
 struct RayBox {
     pos_m: [f64; 3],
     mat: [f64; 9],
     half_m: [f64; 3],
     radius_m2: f64,
-    radius_m: f64,
+    bounds_m: [[f64; 3]; 2],
     geom: usize,
 }
 
@@ -58,16 +62,12 @@ impl BoxRays {
             if model.geom_type()[g] != MjtGeomBase::mjGEOM_BOX || !is_static {
                 return None;
             }
-            let s = size[g];
+            let (s, pos, mat) = (size[g], xpos[g], xmat[g]);
             let radius_m2 = s[0] * s[0] + s[1] * s[1] + s[2] * s[2];
-            boxes.push(RayBox {
-                pos_m: xpos[g],
-                mat: xmat[g],
-                half_m: s,
-                radius_m2,
-                radius_m: radius_m2.sqrt(),
-                geom: g,
-            });
+            // The rotated box's reach along each world axis (row i of the rotation).
+            let reach = |i: usize| (0..3).map(|j| mat[3 * i + j].abs() * s[j]).sum::<f64>() + CULL_SLACK_M;
+            let bounds_m = [[0, 1, 2].map(|i| pos[i] - reach(i)), [0, 1, 2].map(|i| pos[i] + reach(i))];
+            boxes.push(RayBox { pos_m: pos, mat, half_m: s, radius_m2, bounds_m, geom: g });
         }
         Some(Self { boxes })
     }
@@ -75,18 +75,14 @@ impl BoxRays {
     /// The nearest box the ray from `pnt` along `vec` meets: its distance in units of `vec`'s
     /// length and its geom id.
     pub fn ray(&self, pnt: &[f64; 3], vec: &[f64; 3]) -> Option<(f64, usize)> {
-        let vec_sqr = vec[0] * vec[0] + vec[1] * vec[1] + vec[2] * vec[2];
+        let inv = vec.map(|v| 1.0 / v);
         let mut best: Option<(f64, usize)> = None;
         for b in &self.boxes {
-            if let Some((d, _)) = best {
-                // The box's nearest point is its centre's distance less its radius away.
-                let reach = (d * vec_sqr.sqrt() + b.radius_m + CULL_SLACK_M).powi(2);
-                let dif = [b.pos_m[0] - pnt[0], b.pos_m[1] - pnt[1], b.pos_m[2] - pnt[2]];
-                if dif[0] * dif[0] + dif[1] * dif[1] + dif[2] * dif[2] > reach {
-                    continue;
-                }
+            let beyond = best.map_or(f64::INFINITY, |(d, _)| d);
+            if !b.entered_before(pnt, &inv, beyond) {
+                continue;
             }
-            let x = b.ray(pnt, vec, best.map_or(f64::INFINITY, |(d, _)| d));
+            let x = b.ray(pnt, vec, beyond);
             if x >= 0.0 && best.is_none_or(|(d, _)| x < d) {
                 best = Some((x, b.geom));
             }
@@ -96,6 +92,25 @@ impl BoxRays {
 }
 
 impl RayBox {
+    /// Whether the ray from `pnt` with `inv` the inverse of each component of its direction
+    /// enters the grown bounds ahead and before `beyond` (in units of the direction's
+    /// length): the slab test. Grown by [`CULL_SLACK_M`], the bounds are entered at least
+    /// that much before the box itself, so a box `mj_ray` finds nearer than `beyond` always
+    /// passes. A component of 0 gives infinite slabs: none where `pnt` lies between the
+    /// bounds, an empty one where it does not (and where it lies on a bound, a NaN that may
+    /// empty it: rightly, the box itself lies [`CULL_SLACK_M`] inside, unmet).
+    #[inline(always)]
+    fn entered_before(&self, pnt: &[f64; 3], inv: &[f64; 3], beyond: f64) -> bool {
+        let [lo, hi] = &self.bounds_m;
+        let (mut enter, mut leave) = (0.0f64, beyond);
+        for i in 0..3 {
+            let (a, b) = ((lo[i] - pnt[i]) * inv[i], (hi[i] - pnt[i]) * inv[i]);
+            enter = enter.max(a.min(b));
+            leave = leave.min(a.max(b));
+        }
+        enter <= leave
+    }
+
     /// `mj_ray`'s distance to this box, negative for none and for one no nearer than
     /// `beyond`: the bounding sphere first, then the nearest face ahead whose rectangle holds
     /// the crossing.
