@@ -91,6 +91,22 @@ pub fn follow_sway(tilt_rad: &mut [f64; 2], lean_change_rad: &Vector3<f64>, p: &
     }
 }
 
+/// The unseen lean `unseen_rad` (a rotation vector) low-passed with time constant `filter_s`
+/// (0: taken raw): `filtered_rad` moves toward it by one tick of `dt_s`, and that move is
+/// returned, the change [`follow_sway`] takes. A lean that changes for a tick and comes back
+/// (the contact's give under a stiff body) moves it by `dt_s / (filter_s + dt_s)` of that
+/// and back; one that stands is followed whole within a few `filter_s`.
+pub fn low_passed_change(
+    filtered_rad: &mut Vector3<f64>,
+    unseen_rad: &Vector3<f64>,
+    filter_s: f64,
+    dt_s: f64,
+) -> Vector3<f64> {
+    let change = (unseen_rad - *filtered_rad) * (dt_s / (filter_s + dt_s));
+    *filtered_rad += change;
+    change
+}
+
 /// Vertical force difference control in double support: the feet's height difference
 /// follows the error of their normal force difference (a foot carrying less than wanted
 /// goes down, the other up, by the same amount).
@@ -283,6 +299,34 @@ mod tests {
             landing(&mut off, &none, &none, [0.0, p.landing_preload_n], &p, dt);
         }
         assert!(off.translation_m.z >= -p.max_seek_m - 1e-12);
+    }
+
+    /// A lean that changes for one tick and comes back moves the low-passed lean by a share
+    /// of it and back, where taken raw it moves the sole by all of it and back; a lean that
+    /// stands is followed whole within a few time constants.
+    #[test]
+    fn the_sway_follows_a_lean_that_stands_not_a_ticks_transient() {
+        let (dt, filter_s) = (0.005, 0.03);
+        let step = Vector3::new(0.01, -0.02, 0.0);
+        let (mut raw, mut filtered) = (Vector3::zeros(), Vector3::zeros());
+        let (mut raw_most, mut filtered_most) = (0.0f64, 0.0f64);
+        for lean in [step, Vector3::zeros(), Vector3::zeros()] {
+            low_passed_change(&mut raw, &lean, 0.0, dt);
+            low_passed_change(&mut filtered, &lean, filter_s, dt);
+            raw_most = raw_most.max(raw.norm());
+            filtered_most = filtered_most.max(filtered.norm());
+        }
+        assert!(raw.norm() < 1e-15 && filtered.norm() < filtered_most, "both come back");
+        assert!((raw_most - step.norm()).abs() < 1e-15, "raw: the whole transient, {raw_most}");
+        let share = dt / (filter_s + dt);
+        assert!((filtered_most - share * step.norm()).abs() < 1e-15, "filtered: {filtered_most}");
+        // A lean that stands: its changes sum to it, within 1 % after five time constants.
+        let (mut filtered, mut followed) = (Vector3::zeros(), Vector3::zeros());
+        for _ in 0..(5.0 * filter_s / dt).ceil() as usize {
+            followed += low_passed_change(&mut filtered, &step, filter_s, dt);
+        }
+        assert!((followed - step).norm() < 0.01 * step.norm(), "{followed} against {step}");
+        assert_eq!(followed, filtered);
     }
 
     #[test]

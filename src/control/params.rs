@@ -152,23 +152,34 @@ pub struct StabilizerParams {
     pub lean_follow_rate_per_s: f64,
     /// Sway damping in single support: the support sole's commanded roll and pitch move by
     /// this gain times each change of the lean the encoders do not read
-    /// ([`super::attitude::TiltFilter::unseen_lean`], in the sole's axes), washing out to
-    /// the plan with time constant `lean_washout_time_s`: the sole follows the sway, not a
-    /// lean that stands. Dimensionless; 0 turns it off. A body on soft ankle bushes sways on
-    /// them and, with `lean_follow_rate_per_s` alone, falls at slow timings; 0.1 is the
-    /// least gain that holds one at every timing (test
-    /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`). Default 0, off: a
-    /// stiff body's unseen lean is the simulated contact's own give, and fed back at 0.1 it
-    /// moves Exp. 1's touchdowns by more at the 1 ms physics step than at finer ones (test
-    /// `the_default_physics_step_gives_the_figures_of_half_of_it`). Figures: CHANGELOG,
-    /// fifty-third and fifty-fourth sessions.
+    /// ([`super::attitude::TiltFilter::unseen_lean`], in the sole's axes, low-passed by
+    /// `lean_washout_filter_s`), washing out to the plan with time constant
+    /// `lean_washout_time_s`: the sole follows the sway, not a lean that stands.
+    /// Dimensionless; 0 turns it off. A body on soft ankle bushes sways on them and, with
+    /// `lean_follow_rate_per_s` alone, falls at slow timings (test
+    /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`, at 0.15). Default
+    /// 0, off: on at 0.15 every suite's figures were not yet clean (CHANGELOG, fifty-fifth
+    /// session).
     pub lean_washout_gain: f64,
     /// Time constant of `lean_washout_gain`'s washout, seconds: the tilt for a lean that
     /// stands decays by 1/e in this time, leaving that lean to `lean_follow_rate_per_s`.
     /// Default 0.75, about a quarter of the soft ankle's sway period (0.35 Hz).
     pub lean_washout_time_s: f64,
+    /// Time constant of the low-pass the unseen lean goes through before its changes move
+    /// the sole (`lean_washout_gain`), seconds; 0 takes it raw. The sway it damps is slow (a
+    /// soft ankle's 0.35 Hz, which 0.03 s delays by 4 deg); under a stiff body the unseen
+    /// lean is the simulated contact's own give, which changes within a few physics steps,
+    /// and fed back raw it made Exp. 1's touchdowns depend on the step (test
+    /// `the_default_physics_step_gives_the_figures_of_half_of_it`). Default
+    /// [`LEAN_WASHOUT_FILTER_S`].
+    pub lean_washout_filter_s: f64,
 }
 
+/// Default `StabilizerParams::lean_washout_filter_s`, seconds: at 0.03 s and a gain of 0.15
+/// a soft ankle's body climbs at x 1 to x 2.6 the quasi-static timing (a gain of 0.1 fell
+/// at x 1.33 behind filters of 0.02 and 0.05 s), and Exp. 1 at the 1 ms physics step gives
+/// the figures of 0.5 ms.
+const LEAN_WASHOUT_FILTER_S: f64 = 0.03;
 /// Default `StabilizerParams::approach_speed_m_s`, m/s.
 const APPROACH_SPEED_M_S: f64 = 0.025;
 /// Default `StabilizerParams::landing_preload_n`, N.
@@ -210,6 +221,7 @@ impl Default for StabilizerParams {
             lean_follow_rate_per_s: -0.3,
             lean_washout_gain: 0.0,
             lean_washout_time_s: 0.75,
+            lean_washout_filter_s: LEAN_WASHOUT_FILTER_S,
         }
     }
 }
@@ -251,6 +263,12 @@ impl StabilizerParams {
             return Err(format!(
                 "stabilizer.lean_washout_time_s must be a finite time > 0, got {}",
                 self.lean_washout_time_s
+            ));
+        }
+        if !(self.lean_washout_filter_s >= 0.0 && self.lean_washout_filter_s.is_finite()) {
+            return Err(format!(
+                "stabilizer.lean_washout_filter_s must be a finite time >= 0, got {}",
+                self.lean_washout_filter_s
             ));
         }
         Ok(())
@@ -325,5 +343,11 @@ mod tests {
         assert!(with(f64::NAN, 0.75).is_err_and(|e| e.contains("lean_washout_gain")));
         assert!(with(0.2, 0.0).is_err_and(|e| e.contains("lean_washout_time_s")));
         assert!(with(0.2, f64::INFINITY).is_err_and(|e| e.contains("lean_washout_time_s")));
+        let filtered = |filter_s: f64| {
+            StabilizerParams { lean_washout_filter_s: filter_s, ..Default::default() }.validate()
+        };
+        assert!(filtered(0.0).is_ok());
+        assert!(filtered(-0.01).is_err_and(|e| e.contains("lean_washout_filter_s")));
+        assert!(filtered(f64::NAN).is_err_and(|e| e.contains("lean_washout_filter_s")));
     }
 }

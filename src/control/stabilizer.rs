@@ -17,7 +17,7 @@ use crate::planning::motion::{com_target, lifting, swing_target, Targets, Tracke
 use crate::planning::{Foot, Plan, PlanError, PlanParams};
 use crate::robot::model::{base_pose, RobotModel, Q_JOINTS};
 use crate::robot::{hrp4, Kinematics};
-use nalgebra::{Isometry3, Point3, Vector3, Vector6};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3, Vector6};
 use std::time::Instant;
 
 /// What one tick wanted and measured, for recording and plots.
@@ -76,8 +76,8 @@ pub struct Stabilizer<'m> {
     /// Each sole's tilt following the body's sway, `[roll, pitch]`, rad
     /// ([`admittance::follow_sway`]), on top of `offsets`.
     sway_rad: [[f64; 2]; 2],
-    /// The support sole and the lean the encoders do not see about it the tick before (a
-    /// rotation vector, world; [`TiltFilter::unseen_lean`]), for its change.
+    /// The support sole and the lean the encoders do not see about it, low-passed, as of the
+    /// tick before (a rotation vector, world; [`TiltFilter::unseen_lean`]), for its change.
     unseen_lean_before_rad: Option<(usize, Vector3<f64>)>,
     held: [Option<Isometry3<f64>>; 2],
     landing: [bool; 2],
@@ -396,19 +396,7 @@ impl<'m> Stabilizer<'m> {
                         admittance::follow_lean(&mut self.offsets[k], &lean_sole, &self.p, dt);
                     }
                     if self.p.lean_washout_gain != 0.0 {
-                        // The sway the encoders do not read (see `TiltFilter::unseen_lean`),
-                        // the sole lying as planned: where it landed, else as its segment has it.
-                        let planned = seg.support.iter().find(|(g, _)| g == f).map(|s| s.1.rotation);
-                        let lies = self.held[k].map(|h| h.rotation).or(planned).unwrap_or(pose.rotation);
-                        let seen = self.estimate.frame_pose(self.soles[k]).rotation;
-                        let unseen = self.tilt.unseen_lean(&commanded, &seen, &lies).scaled_axis();
-                        let change = match self.unseen_lean_before_rad {
-                            Some((before_k, before)) if before_k == k => unseen - before,
-                            _ => Vector3::zeros(),
-                        };
-                        self.unseen_lean_before_rad = Some((k, unseen));
-                        let change_sole = pose.rotation.inverse() * change;
-                        admittance::follow_sway(&mut self.sway_rad[k], &change_sole, &self.p, dt);
+                        self.follow_sway(*f, pose, seg, &commanded, dt);
                         swaying = Some(k);
                     }
                 }
@@ -457,6 +445,37 @@ impl<'m> Stabilizer<'m> {
             wall_s: started.elapsed().as_secs_f64(),
         };
         Ok(self.tracker.q())
+    }
+
+    /// The sway's washout on `foot`, the single support's sole at `pose` in segment `seg`,
+    /// under the commanded base rotation `commanded`: the sole's tilt follows the change of
+    /// the lean the encoders do not read (see `TiltFilter::unseen_lean`), the sole lying as
+    /// planned (where it landed, else as its segment has it), low-passed from its value as
+    /// the single support begins: the change of the sway, not of the contact's give.
+    fn follow_sway(
+        &mut self,
+        foot: Foot,
+        pose: &Isometry3<f64>,
+        seg: &Segment,
+        commanded: &UnitQuaternion<f64>,
+        dt: f64,
+    ) {
+        let k = foot.index();
+        let planned = seg.support.iter().find(|(g, _)| *g == foot).map(|s| s.1.rotation);
+        let lies = self.held[k].map(|h| h.rotation).or(planned).unwrap_or(pose.rotation);
+        let seen = self.estimate.frame_pose(self.soles[k]).rotation;
+        let unseen = self.tilt.unseen_lean(commanded, &seen, &lies).scaled_axis();
+        let change = match &mut self.unseen_lean_before_rad {
+            Some((before_k, filtered)) if *before_k == k => {
+                admittance::low_passed_change(filtered, &unseen, self.p.lean_washout_filter_s, dt)
+            }
+            before => {
+                *before = Some((k, unseen));
+                Vector3::zeros()
+            }
+        };
+        let change_sole = pose.rotation.inverse() * change;
+        admittance::follow_sway(&mut self.sway_rad[k], &change_sole, &self.p, dt);
     }
 
     /// The net wrench the feet should apply now (quasi-static, with the CoM's feedback) for
