@@ -158,8 +158,8 @@ pub struct StabilizerParams {
     /// Dimensionless; 0 turns it off. A body on soft ankle bushes sways on them and, with
     /// `lean_follow_rate_per_s` alone, falls at slow timings (test
     /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`, at 0.15). Default
-    /// 0, off: on at 0.15 every suite's figures were not yet clean (CHANGELOG, fifty-fifth
-    /// session).
+    /// 0, off: at 0.15 `ci`'s friction tail rises and one regression's estimate strays
+    /// (CHANGELOG, fifty-fifth session).
     pub lean_washout_gain: f64,
     /// Time constant of `lean_washout_gain`'s washout, seconds: the tilt for a lean that
     /// stands decays by 1/e in this time, leaving that lean to `lean_follow_rate_per_s`.
@@ -169,8 +169,8 @@ pub struct StabilizerParams {
     /// the sole (`lean_washout_gain`), seconds; 0 takes it raw. The sway it damps is slow (a
     /// soft ankle's 0.35 Hz, which 0.03 s delays by 4 deg); under a stiff body the unseen
     /// lean is the simulated contact's own give, which changes within a few physics steps,
-    /// and fed back raw it made Exp. 1's touchdowns depend on the step (test
-    /// `the_default_physics_step_gives_the_figures_of_half_of_it`). Default
+    /// and fed back raw it made Exp. 1's figures depend on the step (test
+    /// `the_sway_washout_gives_the_figures_of_half_the_physics_step`). Default
     /// [`LEAN_WASHOUT_FILTER_S`].
     pub lean_washout_filter_s: f64,
 }

@@ -5,9 +5,10 @@
 //! ceiling, which every ray's bounding sphere test passes, are passed over by a ray that met
 //! a tread first. Each box is tested in geom order with `mj_ray`'s own arithmetic (its
 //! bounding-sphere test, then each face), so the distances are the same numbers; ties go to
-//! the lower geom id, as `mj_ray`'s do. A world with any other geom a ray may meet is left to `mj_ray`. Same numbers
-//! as long as the MuJoCo library computes without fused multiply-adds, as Rust does (an x86-64
-//! build without `-mfma`, as the one this bench fetches; tests/lidar.rs checks it).
+//! the lower geom id, as `mj_ray`'s do. A world with any other geom a ray may meet is left
+//! to `mj_ray`. Same numbers as long as the MuJoCo library computes without fused
+//! multiply-adds, as Rust does (an x86-64 build without `-mfma`, as the one this bench
+//! fetches; tests/lidar.rs checks it).
 
 use mujoco_rs::mujoco_c::mjNGROUP;
 use mujoco_rs::prelude::{MjData, MjModel, MjtGeomBase};
