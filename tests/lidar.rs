@@ -217,16 +217,12 @@ fn the_worlds_box_caster_answers_as_mj_ray() {
         assert!(world.casts_by_boxes(), "{file}: the world is static boxes");
         let mut rays: Vec<(Point3<f64>, Vector3<f64>)> = Vec::new();
         let lidar = head_lidar(&world, &s.lidar, s.seed).unwrap();
-        let (mount, model) = (lidar.mount_to_world(), lidar.lidar());
         for k in (0..lidar.sweep().rows()).step_by(11) {
-            let stamp_s = lidar.sweep().row_stamp_s(k);
-            for i in (0..model.beams()).step_by(5) {
-                let scanner = mount
-                    * model.scanner_in_mount(lidar.sweep().tilt_at(stamp_s + model.beam_time_offset_s(i)));
-                rays.push((scanner.translation.vector.into(), scanner.rotation * model.beam_direction(i)));
+            for i in (0..lidar.lidar().beams()).step_by(5) {
+                rays.push(lidar.beam_ray(k, i));
             }
         }
-        let head: Point3<f64> = mount.translation.vector.into();
+        let head: Point3<f64> = lidar.mount_to_world().translation.vector.into();
         for b in scene.boxes() {
             let h = b.half_extents_m();
             for c in 0..27 {

@@ -78,7 +78,7 @@ pub struct Stabilizer<'m> {
     sway_rad: [[f64; 2]; 2],
     /// The support sole and the lean the encoders do not see about it, low-passed, as of the
     /// tick before (a rotation vector, world; [`TiltFilter::unseen_lean`]), for its change.
-    unseen_lean_before_rad: Option<(usize, Vector3<f64>)>,
+    unseen_lean_filtered_rad: Option<(usize, Vector3<f64>)>,
     held: [Option<Isometry3<f64>>; 2],
     landing: [bool; 2],
     lifted: [FootOffset; 2],
@@ -132,7 +132,7 @@ impl<'m> Stabilizer<'m> {
             segment: 0,
             offsets: [FootOffset::default(); 2],
             sway_rad: [[0.0; 2]; 2],
-            unseen_lean_before_rad: None,
+            unseen_lean_filtered_rad: None,
             held: [None; 2],
             landing: [false; 2],
             lifted: [FootOffset::default(); 2],
@@ -412,7 +412,7 @@ impl<'m> Stabilizer<'m> {
         };
         // Out of single support, the unseen lean's change starts again at the next one.
         if swaying.is_none() {
-            self.unseen_lean_before_rad = None;
+            self.unseen_lean_filtered_rad = None;
         }
         // A sole not in single support this tick (or whose distribution failed): its
         // sway's tilt only washes out.
@@ -465,7 +465,7 @@ impl<'m> Stabilizer<'m> {
         let lies = self.held[k].map(|h| h.rotation).or(planned).unwrap_or(pose.rotation);
         let seen = self.estimate.frame_pose(self.soles[k]).rotation;
         let unseen = self.tilt.unseen_lean(commanded, &seen, &lies).scaled_axis();
-        let change = match &mut self.unseen_lean_before_rad {
+        let change = match &mut self.unseen_lean_filtered_rad {
             Some((before_k, filtered)) if *before_k == k => {
                 admittance::low_passed_change(filtered, &unseen, self.p.lean_washout_filter_s, dt)
             }

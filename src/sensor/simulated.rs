@@ -143,6 +143,15 @@ impl<'w, C: RayCaster> SimLidar<'w, C> {
             .collect()
     }
 
+    /// Beam `i` of row `k` as it is cast: its origin and unit direction (world), the servo
+    /// at the beam's own time stamp, the head where row `k` was cast from.
+    pub fn beam_ray(&self, k: usize, i: usize) -> (Point3<f64>, Vector3<f64>) {
+        let mount_to_world = self.motion.as_ref().map_or(&self.mount_to_world, |m| &m.truth[k]);
+        let tilt = self.sweep.tilt_at(self.sweep.row_stamp_s(k) + self.lidar.beam_time_offset_s(i));
+        let scanner = mount_to_world * self.lidar.scanner_in_mount(tilt);
+        (scanner.translation.vector.into(), scanner.rotation * self.directions[i])
+    }
+
     /// Casts row `k`, recording each beam's true hit in `hits` when given.
     fn cast_row(&self, k: usize, mut hits: Option<&mut Vec<Option<RayHit>>>) -> ScanRow {
         let stamp_s = self.sweep.row_stamp_s(k);
@@ -153,10 +162,7 @@ impl<'w, C: RayCaster> SimLidar<'w, C> {
         let mount_to_world = self.motion.as_ref().map_or(&self.mount_to_world, |m| &m.truth[k]);
         let mut ranges_m = Vec::with_capacity(beams);
         for i in 0..beams {
-            let tilt = self.sweep.tilt_at(stamp_s + self.lidar.beam_time_offset_s(i));
-            let scanner = mount_to_world * self.lidar.scanner_in_mount(tilt);
-            let origin = scanner.translation.vector.into();
-            let dir = scanner.rotation * self.directions[i];
+            let (origin, dir) = self.beam_ray(k, i);
             let hit = self.world.ray(&origin, &dir);
             let mut range = hit.map_or(0.0, |h| h.distance_m);
             if let Some(n) = &noise {

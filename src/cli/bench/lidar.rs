@@ -52,14 +52,9 @@ pub fn run(repeat: usize) -> Result<String> {
     let boxes_s = time(&|| lidar.rows(0..rows), Some(&one));
     let boxes_par_s = time(&|| lidar.rows(0..rows), None);
     // The casting alone: the sweep's rays, each beam at its own tilt, computed once.
-    let (mount, model, sweep) = (lidar.mount_to_world(), lidar.lidar(), lidar.sweep());
     let beams: Vec<(Point3<f64>, Vector3<f64>)> = (0..rows)
-        .flat_map(|k| (0..model.beams()).map(move |i| (k, i)))
-        .map(|(k, i)| {
-            let tilt = sweep.tilt_at(sweep.row_stamp_s(k) + model.beam_time_offset_s(i));
-            let scanner = mount * model.scanner_in_mount(tilt);
-            (scanner.translation.vector.into(), scanner.rotation * model.beam_direction(i))
-        })
+        .flat_map(|k| (0..lidar.lidar().beams()).map(move |i| (k, i)))
+        .map(|(k, i)| lidar.beam_ray(k, i))
         .collect();
     let cast = |caster: &dyn RayCaster| {
         median_s(repeat, || {
