@@ -32,6 +32,22 @@ fn agreed_median(values: impl Iterator<Item = f64>, agree_m: f64) -> Option<f64>
     (v.is_empty() || 2 * near > v.len()).then_some(m)
 }
 
+/// The median of the matched steps' side-edge shifts `edges` (each step's two: its low and
+/// high edge across) when the steps agree on it: more than half of them moved whole, both
+/// edges within `agree_m` of it. A drift moves every step of a view alike, both its edges
+/// with it; a step whose edges moved apart, or alike but unlike the others', was misread on
+/// a side at least. Counted by edges, two steps where one is misread whole (one edge
+/// over-read into a stairwell's gap, the other cut short by as much) and one edge of the
+/// other happens to move with it agree three to one: they moved the estimate 40 mm sideways
+/// (regression `swaying-view-of-a-stairwell-moved-the-estimate`, test
+/// `a_step_misread_whole_is_not_drift_across`). `None` when the steps do not agree, or for
+/// a NaN.
+fn agreed_by_whole_steps(edges: &[[f64; 2]], agree_m: f64) -> Option<f64> {
+    let m = median(edges.iter().flatten().copied());
+    let whole = edges.iter().filter(|e| e.iter().all(|x| (x - m).abs() <= agree_m)).count();
+    (2 * whole > edges.len()).then_some(m)
+}
+
 /// Parameters of the step map.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -139,15 +155,16 @@ impl StepMap {
     /// - along the ascent, from those steps' risers (where the flight is);
     /// - across it, from the treads' side edges, each edge of each matched step one vote (a
     ///   view's side edge is where its sight ended: a shadow, a post, the view's reach),
-    ///   agreeing within `register_min_m` of each other;
+    ///   agreeing within `register_min_m` of each other, more than half the steps with both
+    ///   edges among them;
     /// - in height, from the treads' heights.
     ///
     /// A turn under `register_min_rad` and a shift under `register_min_m` are left at zero,
     /// and so is a turn the side edges do not bear out (turned back, their spread across does
     /// not fall by half `register_min_m`: the treads' axes misread in place, one matched
     /// step, steps too close along the flight to tell);
-    /// side edges that disagree (half or fewer within half `register_min_m` of their
-    /// median) leave the view uncorrected across only; a view that matches nothing, whose
+    /// side edges that disagree (half or fewer of the steps with both edges within half
+    /// `register_min_m` of the edges' median) leave the view uncorrected across only; a view that matches nothing, whose
     /// matched steps disagree in height or along the ascent (half or fewer within
     /// `register_min_m` of the median: the whole view is then not trusted),
     /// asks for a turn over 10 times `register_min_rad` or a shift over `register_max_m`, or
@@ -214,10 +231,10 @@ impl StepMap {
                 (r.center().coords.dot(&across), axis_nearest(r, &along).width_m() / 2.0);
             [middle - half_width, middle + half_width]
         };
-        let votes = |pairs: &[(&PlaneSegment, PlaneSegment)], moved: &Isometry3<f64>| -> Vec<f64> {
+        let votes = |pairs: &[(&PlaneSegment, PlaneSegment)], moved: &Isometry3<f64>| -> Vec<[f64; 2]> {
             pairs
                 .iter()
-                .flat_map(|(k, s)| {
+                .map(|(k, s)| {
                     let (k, s) = (edges(k), edges(&s.clone().transformed(moved)));
                     [k[0] - s[0], k[1] - s[1]]
                 })
@@ -234,9 +251,9 @@ impl StepMap {
         // half of `register_min_m` within which edges agree: a side edge errs by a centimetre
         // or two, and steps close along the flight (one step, pieces of one tread) cannot tell
         // the two apart, and are not turned.
-        let spread = |v: Vec<f64>| {
-            let m = median(v.iter().copied());
-            median(v.iter().map(|x| (x - m).abs()))
+        let spread = |v: Vec<[f64; 2]>| {
+            let m = median(v.iter().flatten().copied());
+            median(v.iter().flatten().map(|x| (x - m).abs()))
         };
         let turn = match turn != 0.0
             && spread(votes(&pairs, &turned_by(turn))) + p.register_min_m / 2.0
@@ -254,10 +271,11 @@ impl StepMap {
         let d_along =
             keep(agreed_median(pairs.iter().filter(on_risers).map(|(k, s)| riser(k) - riser(s)), agree_m)?);
         // Across, the edges' votes agree within `register_min_m` of each other (half the
-        // radius of the other shifts): the two edges of a lone tread agree as its widths do.
+        // radius of the other shifts), more than half the steps moved whole
+        // ([`agreed_by_whole_steps`]): the two edges of a lone tread agree as its widths do.
         // Edges that disagree say nothing across; the risers and the heights still stand.
         let d_across =
-            agreed_median(votes(&pairs, &Isometry3::identity()).into_iter(), agree_m / 2.0).map_or(0.0, keep);
+            agreed_by_whole_steps(&votes(&pairs, &Isometry3::identity()), agree_m / 2.0).map_or(0.0, keep);
         let shift = along * d_along + across * d_across + Vector3::z() * dz;
         if [d_along, d_across, dz].iter().any(|d| d.abs() > p.register_max_m) {
             return None;
@@ -720,6 +738,54 @@ mod tests {
         drifted[2].1 -= 0.05;
         let dy = map.register(&across(drifted), &origin, &p).expect("a correction").translation.vector.y;
         assert!((dy - drift_m).abs() < 1e-9, "{dy}");
+    }
+
+    /// Regression `swaying-view-of-a-stairwell-moved-the-estimate` (cycle 14, from step 7):
+    /// step 8 and the landing of a flight between stairwell walls 5.8 cm off its sides. The
+    /// view read step 8 whole 4.5-4.9 cm across from the map (one edge over-read into the
+    /// gap, the other cut short), and the landing's near edge 3.4 cm, its far edge 0.8 cm:
+    /// three edges of four within a centimetre of their median, the estimate moved 40 mm by
+    /// them. One step of two moved whole is no drift across. Every step moved
+    /// whole, one edge of one step cut short besides, is drift still.
+    #[test]
+    fn a_step_misread_whole_is_not_drift_across() {
+        let p = StepMapParams::default();
+        let origin = Point3::new(3.55, -0.75, 2.25);
+        // (riser x, height, depth, side edges across) of steps 7 and 8 and the landing.
+        let truth = [
+            (3.46, 0.995, 0.31, [-0.86, 0.33]),
+            (3.77, 1.138, 0.31, [-0.8484, 0.3252]),
+            (4.08, 1.281, 1.5, [-0.8757, 0.3154]),
+        ];
+        // The steps from `truth[from]` on, with side edges `edges`.
+        let flight = |from: usize, edges: &[[f64; 2]]| -> Vec<PlaneSegment> {
+            truth[from..]
+                .iter()
+                .zip(&edges[from..])
+                .map(|(&(x, z, depth_m, _), &[lo, hi])| {
+                    level(
+                        Point3::new(x + depth_m / 2.0, (lo + hi) / 2.0, z),
+                        Vector3::x(),
+                        depth_m,
+                        hi - lo,
+                        800,
+                    )
+                    .with_front(FrontMark::Riser)
+                })
+                .collect()
+        };
+        let known = truth.map(|t| t.3);
+        let map = StepMap { known: flight(1, &known) };
+        let map3 = StepMap { known: flight(0, &known) };
+        let seen = [known[0], [-0.8035, 0.3744], [-0.8412, 0.3235]];
+        assert_eq!(map.register(&flight(1, &seen), &origin, &p), None);
+        // A drift of 3 cm across, the landing's far edge cut 5 cm short besides.
+        let drift_m = 0.03;
+        let mut drifted = known.map(|[lo, hi]| [lo - drift_m, hi - drift_m]);
+        drifted[2][1] -= 0.05;
+        assert_eq!(map.register(&flight(1, &drifted), &origin, &p), None, "one step of two moved whole");
+        let dy = map3.register(&flight(0, &drifted), &origin, &p).expect("a correction").translation.vector.y;
+        assert!((dy - drift_m).abs() < 1e-9, "two steps of three moved whole: {dy}");
     }
 
     /// Regression `riser-strays-moved-a-front-edge`: a view from step 2 whose treads' axes
