@@ -38,8 +38,8 @@ fn agreed_median(values: impl Iterator<Item = f64>, agree_m: f64) -> Option<f64>
 /// with it; a step whose edges moved apart, or alike but unlike the others', was misread on
 /// a side at least. Counted by edges, two steps where one is misread whole (one edge
 /// over-read into a stairwell's gap, the other cut short by as much) and one edge of the
-/// other happens to move with it agree three to one: they moved the estimate 40 mm sideways
-/// (regression `swaying-view-of-a-stairwell-moved-the-estimate`, test
+/// other happens to move with it agree three to one (regression
+/// `swaying-view-of-a-stairwell-moved-the-estimate`, test
 /// `a_step_misread_whole_is_not_drift_across`). `None` when the steps do not agree, or for
 /// a NaN.
 fn agreed_by_whole_steps(edges: &[[f64; 2]], agree_m: f64) -> Option<f64> {
@@ -164,9 +164,9 @@ impl StepMap {
     /// not fall by half `register_min_m`: the treads' axes misread in place, one matched
     /// step, steps too close along the flight to tell);
     /// side edges that disagree (half or fewer of the steps with both edges within half
-    /// `register_min_m` of the edges' median) leave the view uncorrected across only; a view that matches nothing, whose
-    /// matched steps disagree in height or along the ascent (half or fewer within
-    /// `register_min_m` of the median: the whole view is then not trusted),
+    /// `register_min_m` of the edges' median) leave the view uncorrected across only; a view
+    /// that matches nothing, whose matched steps disagree in height or along the ascent (half
+    /// or fewer within `register_min_m` of the median: the whole view is then not trusted),
     /// asks for a turn over 10 times `register_min_rad` or a shift over `register_max_m`, or
     /// would move the robot (at `viewpoint`, where the view was taken) by more than
     /// `register_max_m`, gives `None` (a mismatch, not drift). The turn is a plain median
@@ -745,8 +745,8 @@ mod tests {
     /// view read step 8 whole 4.5-4.9 cm across from the map (one edge over-read into the
     /// gap, the other cut short), and the landing's near edge 3.4 cm, its far edge 0.8 cm:
     /// three edges of four within a centimetre of their median, the estimate moved 40 mm by
-    /// them. One step of two moved whole is no drift across. Every step moved
-    /// whole, one edge of one step cut short besides, is drift still.
+    /// them. One step of two moved whole is no drift across. Two steps of three moved whole,
+    /// one edge of the third cut short, are drift still.
     #[test]
     fn a_step_misread_whole_is_not_drift_across() {
         let p = StepMapParams::default();
