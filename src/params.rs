@@ -153,6 +153,10 @@ mod tests {
             ("[physics]\nstep_s = nan\n", "physics.step_s"),
             // Above the stabilizer's period (2.5 ms at 400 Hz), within the engine's bound.
             ("[physics]\nstep_s = 0.004\n[stabilizer]\nrate_hz = 400.0\n", "physics.step_s"),
+            // Under twice the step, over a second, and not a number.
+            ("[physics]\nsole_friction_timeconst_s = 0.0015\n", "physics.sole_friction_timeconst_s"),
+            ("[physics]\nsole_friction_timeconst_s = 2.0\n", "physics.sole_friction_timeconst_s"),
+            ("[physics]\nsole_friction_timeconst_s = nan\n", "physics.sole_friction_timeconst_s"),
         ] {
             let e = base.with_overrides(&table(text)).expect_err(text);
             assert!(e.contains(field), "{text}: {e}");

@@ -113,7 +113,10 @@ fn the_sway_washout_gives_the_figures_of_half_the_physics_step() {
 /// cycle's figures within what the checks resolve (see the tests above).
 fn assert_half_the_step_agrees(p: &ClimbParams) {
     let half = ClimbParams {
-        physics: stairbench::sim::params::PhysicsParams { step_s: p.physics.step_s / 2.0 },
+        physics: stairbench::sim::params::PhysicsParams {
+            step_s: p.physics.step_s / 2.0,
+            ..p.physics.clone()
+        },
         ..p.clone()
     };
     let (a, b) = (climb(&Scenario::default(), p), climb(&Scenario::default(), &half));

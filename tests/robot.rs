@@ -318,3 +318,70 @@ fn angular_momentum_agrees_with_mujoco_at_200_moving_configurations() {
     assert!(largest > 0.5, "the random motions hardly moved: {largest}");
     assert!(worst < 1e-6 * largest.max(1.0), "angular momenta differ by {worst} (largest {largest})");
 }
+
+/// How far the right sole travels across (metres) while the robot, standing in half-sitting
+/// in the Exp. 1 world built with `options`, is pushed sideways at the pelvis by `push_n`
+/// for 3 s after a second to settle; with the largest ratio of the contacts' resultant
+/// across to what the floor's friction holds, over the push.
+fn sole_travel_under_a_push(options: &stairbench::scene::mjcf::WorldOptions, push_n: f64) -> (f64, f64) {
+    let m = model();
+    let scene = Scene::from_scenario(&Scenario::default()).unwrap();
+    let mut world = World::for_scene_options(&scene, options).unwrap();
+    let root = world.body_id(&m.root().name).unwrap();
+    let sole = world.site_id(R_SOLE).unwrap();
+    let dt = world.model().opt().timestep;
+    for _ in 0..(1.0 / dt) as usize {
+        world.data_mut().step();
+    }
+    let from = world.site_pose(sole).translation.vector;
+    let mut ratio = 0.0f64;
+    for _ in 0..(3.0 / dt) as usize {
+        world.data_mut().xfrc_applied_mut()[root][1] = push_n;
+        world.data_mut().step();
+        // The contacts' resultant in the world, against the floor's cone (every contact is
+        // a sole's on the floor).
+        let d = world.data();
+        let (mut total, mut mu) = (Vector3::zeros(), f64::INFINITY);
+        for (ci, c) in d.contact().iter().enumerate() {
+            let f = d.contact_force(ci);
+            let axis = |r: usize| Vector3::new(c.frame[3 * r], c.frame[3 * r + 1], c.frame[3 * r + 2]);
+            total += axis(0) * f[0] + axis(1) * f[1] + axis(2) * f[2];
+            mu = mu.min(c.friction[0]);
+        }
+        ratio = ratio.max(total.xy().norm() / (mu * total.z.abs()));
+    }
+    let to = world.site_pose(sole).translation.vector;
+    ((to - from).xy().norm(), ratio)
+}
+
+/// MuJoCo's friction holds a contact through its sliding speed alone (a reference
+/// acceleration `-b v`, `b` inversely proportional to the time constant), so under a steady
+/// push well inside the friction cone a sole creeps, and creeps about in proportion to that
+/// time constant: with `PhysicsParams::sole_friction_timeconst_s` at a quarter of the
+/// contacts' own 0.02 s, the soles (explicit pairs then) creep less than half as far, the
+/// push held the same way. The reference is MuJoCo's own automatic contacts (the default),
+/// which the pairs at 0.02 s reproduce.
+#[test]
+fn a_sole_held_with_a_shorter_friction_time_constant_creeps_less_under_a_steady_push() {
+    use stairbench::scene::mjcf::WorldOptions;
+    // A tenth of the robot's weight across: far inside the floor's friction (0.8).
+    let push_n = 40.0;
+    let (own_m, own_ratio) = sole_travel_under_a_push(&WorldOptions::default(), push_n);
+    let held = WorldOptions { sole_friction_timeconst_s: Some(0.005), ..Default::default() };
+    let (held_m, held_ratio) = sole_travel_under_a_push(&held, push_n);
+    println!(
+        "sole travel {:.1} um at the contacts' own time constant (friction ratio {:.2}), {:.1} um at 5 ms ({:.2})",
+        own_m * 1e6,
+        own_ratio,
+        held_m * 1e6,
+        held_ratio
+    );
+    assert!(own_ratio < 0.5 && held_ratio < 0.5, "the push must stay inside the cone");
+    assert!(own_m > 20e-6, "the default contacts creep measurably: {own_m} m");
+    assert!(held_m < 0.5 * own_m, "{held_m} m against {own_m} m");
+    // The pairs at the contacts' own time constant are the automatic contacts: the same
+    // travel, so what changed above is the time constant alone.
+    let same = WorldOptions { sole_friction_timeconst_s: Some(0.02), ..Default::default() };
+    let (same_m, _) = sole_travel_under_a_push(&same, push_n);
+    assert!((same_m - own_m).abs() < 1e-9, "{same_m} m against {own_m} m");
+}

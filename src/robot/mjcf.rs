@@ -11,7 +11,7 @@
 //! ankle); the nominal variation writes the model exactly.
 
 use super::model::{base_pose, RobotError, RobotModel, Shape, Q_JOINTS};
-use crate::scene::mjcf::{RobotFragment, ROBOT_GEOM_GROUP};
+use crate::scene::mjcf::{RobotFragment, ROBOT_GEOM_GROUP, SOLE_CONAFFINITY};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use std::fmt::Write;
 
@@ -166,7 +166,16 @@ pub fn fragment_varied(
         qs.join(" "),
         ctrl.join(" ")
     );
-    Ok(RobotFragment { body_xml: body.trim_end().to_string(), extras_xml: extras })
+    let sole_geoms = (0..links.len())
+        .filter(|&i| soles[i])
+        .flat_map(|i| (0..links[i].collisions.len()).map(move |k| geom_name(&links[i].name, k)))
+        .collect();
+    Ok(RobotFragment { body_xml: body.trim_end().to_string(), extras_xml: extras, sole_geoms })
+}
+
+/// The name of link `link`'s `k`-th collision geom.
+fn geom_name(link: &str, k: usize) -> String {
+    format!("{link}_geom{k}")
 }
 
 /// The model's tree and what the MJCF writer needs along it.
@@ -260,11 +269,12 @@ impl Tree<'_> {
                 }
                 Shape::Sphere(r) => ("sphere", format!("{r:?}")),
             };
-            let friction = if self.soles[i] { SOLE_FRICTION } else { BODY_FRICTION };
+            let (friction, conaffinity) =
+                if self.soles[i] { (SOLE_FRICTION, SOLE_CONAFFINITY) } else { (BODY_FRICTION, "1") };
             let _ = writeln!(
                 out,
-                r#"{inner}  <geom name="{}_geom{k}" type="{kind}" size="{size}" {} group="{ROBOT_GEOM_GROUP}" contype="2" conaffinity="1" condim="3" friction="{friction:?} 0.005 0.0001" rgba="0.75 0.78 0.85 1"/>"#,
-                link.name,
+                r#"{inner}  <geom name="{}" type="{kind}" size="{size}" {} group="{ROBOT_GEOM_GROUP}" contype="2" conaffinity="{conaffinity}" condim="3" friction="{friction:?} 0.005 0.0001" rgba="0.75 0.78 0.85 1"/>"#,
+                geom_name(&link.name, k),
                 fmt_pose(&col.placement)
             );
         }

@@ -20,11 +20,18 @@ pub const HEAD_SITE: &str = "head";
 /// world body (actuators, sensors, contact exclusions).
 #[derive(Debug, Clone, Default)]
 pub struct RobotFragment {
-    /// XML placed inside `<worldbody>`.
+    /// XML placed inside `<worldbody>`; its soles' geoms carry [`SOLE_CONAFFINITY`] for
+    /// their `conaffinity`, which the world fills ([`WorldOptions::sole_friction_timeconst_s`]).
     pub body_xml: String,
     /// XML placed after `</worldbody>`.
     pub extras_xml: String,
+    /// The names of the soles' collision geoms.
+    pub sole_geoms: Vec<String>,
 }
+
+/// The slot a robot fragment's sole geoms have for their `conaffinity`: 1 where MuJoCo
+/// finds their contacts with the world itself, 0 where the world lists them as pairs.
+pub const SOLE_CONAFFINITY: &str = "{{SOLE_CONAFFINITY}}";
 
 /// Physics time step of generated worlds by default, seconds (1 kHz; why:
 /// `crate::sim::params::PhysicsParams::step_s`).
@@ -37,11 +44,16 @@ pub struct WorldOptions {
     pub layout: BoxBodies,
     /// MuJoCo's time step, seconds.
     pub step_s: f64,
+    /// The time constant of the soles' friction against the world, seconds
+    /// (`crate::sim::params::PhysicsParams::sole_friction_timeconst_s`): `Some`, each sole
+    /// geom and world box is an explicit pair with it as `solreffriction`; `None`, MuJoCo
+    /// finds the soles' contacts as any other's.
+    pub sole_friction_timeconst_s: Option<f64>,
 }
 
 impl Default for WorldOptions {
     fn default() -> Self {
-        Self { layout: BoxBodies::default(), step_s: TIMESTEP_S }
+        Self { layout: BoxBodies::default(), step_s: TIMESTEP_S, sole_friction_timeconst_s: None }
     }
 }
 
@@ -104,12 +116,41 @@ pub fn world_xml_with(scene: &Scene, robot: &RobotFragment, options: &WorldOptio
         );
         geoms.push_str(close);
     }
+    let mut extras = robot.extras_xml.clone();
+    let conaffinity = match options.sole_friction_timeconst_s {
+        Some(tc) => {
+            extras.push_str(&sole_pairs(scene, &robot.sole_geoms, tc));
+            "0"
+        }
+        None => "1",
+    };
     WORLD_TEMPLATE
         .replace("{{NAME}}", &xml_escape(scene.name()))
         .replace("{{TIMESTEP_S}}", &options.step_s.to_string())
         .replace("{{WORLD_GEOMS}}", geoms.trim_end())
-        .replace("{{ROBOT_BODY}}", &robot.body_xml)
-        .replace("{{ROBOT_EXTRAS}}", &robot.extras_xml)
+        .replace("{{ROBOT_BODY}}", &robot.body_xml.replace(SOLE_CONAFFINITY, conaffinity))
+        .replace("{{ROBOT_EXTRAS}}", &extras)
+}
+
+/// Each of `soles` (geom names) against each of `scene`'s boxes as an explicit contact pair
+/// whose friction converges with time constant `timeconst_s`: what MuJoCo would make of the
+/// pair itself (the box's friction, condim 3, its default solver parameters, as the world
+/// geoms' priority gives them) but for `solreffriction`, which only a pair can set.
+fn sole_pairs(scene: &Scene, soles: &[String], timeconst_s: f64) -> String {
+    let mut out = String::from("\n  <contact>\n");
+    for sole in soles {
+        for b in scene.boxes() {
+            let mu = b.friction();
+            let _ = writeln!(
+                out,
+                r#"    <pair geom1="{}" geom2="{}" condim="3" friction="{mu} {mu} 0.005 0.0001 0.0001" solreffriction="{timeconst_s:?} 1"/>"#,
+                xml_escape(sole),
+                xml_escape(b.name())
+            );
+        }
+    }
+    out.push_str("  </contact>");
+    out
 }
 
 fn xml_escape(s: &str) -> String {

@@ -43,18 +43,35 @@ pub struct PhysicsParams {
     /// (BENCHMARKS.md, the physics step's row). For a convergence check of one's own: halve
     /// it and compare.
     pub step_s: f64,
+    /// The time constant with which the soles' friction against the world holds them, seconds;
+    /// `None` (the default) leaves MuJoCo's, the contacts' own 0.02 s. MuJoCo's friction has
+    /// no stiction: it drives a contact's sliding speed toward zero through a reference
+    /// acceleration `-b v`, `b = 2 / (dmax timeconst)`, so speed given to a sole bleeds off
+    /// over about `dmax timeconst / 2` (9.5 ms at 0.02 s) and a sole rocking on its soft
+    /// contact travels by what each rock gives it: `regressions-0047` walking slides 4.8
+    /// mm at 0.02 s, 1.5 mm at 0.005 s and 1.0 mm at 0.002 s, while neither `impratio`, the
+    /// noslip pass nor a friction coefficient of 3 moves it (CHANGELOG, fifty-seventh
+    /// session). Set, each sole geom and world box becomes an explicit contact pair with
+    /// this `solreffriction`, all else as MuJoCo would make it; at least twice the step
+    /// (MuJoCo's bound for a stable reference). Opt-in: a faster hold raises the friction
+    /// ratio a touchdown shows (that case's largest 0.18 -> 0.31 at 0.005 s).
+    pub sole_friction_timeconst_s: Option<f64>,
 }
 
 impl Default for PhysicsParams {
     fn default() -> Self {
-        Self { step_s: TIMESTEP_S }
+        Self { step_s: TIMESTEP_S, sole_friction_timeconst_s: None }
     }
 }
 
 impl PhysicsParams {
     /// How a world is built to run under these (its boxes laid out as by default).
     pub fn world_options(&self) -> WorldOptions {
-        WorldOptions { step_s: self.step_s, ..Default::default() }
+        WorldOptions {
+            step_s: self.step_s,
+            sole_friction_timeconst_s: self.sole_friction_timeconst_s,
+            ..Default::default()
+        }
     }
 
     /// The longest step allowed, seconds: the stabilizer's period at 200 Hz, which ticks
@@ -62,6 +79,9 @@ impl PhysicsParams {
     pub const MAX_STEP_S: f64 = 0.005;
     /// The shortest, seconds.
     pub const MIN_STEP_S: f64 = 1e-5;
+    /// The longest sole friction time constant, seconds (a sole that slides for seconds
+    /// before it holds is no sole).
+    pub const MAX_TIMECONST_S: f64 = 1.0;
 
     /// Checks the step lies in [[`Self::MIN_STEP_S`], [`Self::MAX_STEP_S`]] and at most the
     /// stabilizer's period `stabilizer_period_s`, naming the field.
@@ -74,6 +94,15 @@ impl PhysicsParams {
                 Self::MIN_STEP_S,
                 most
             ));
+        }
+        if let Some(tc) = self.sole_friction_timeconst_s {
+            if !(tc >= 2.0 * self.step_s && tc <= Self::MAX_TIMECONST_S) {
+                return Err(format!(
+                    "physics.sole_friction_timeconst_s = {tc} s: it must lie between twice the physics step ({} s) and {} s",
+                    2.0 * self.step_s,
+                    Self::MAX_TIMECONST_S
+                ));
+            }
         }
         Ok(())
     }
