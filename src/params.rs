@@ -1,7 +1,8 @@
 //! Every parameter of a climb, as a parameters file holds them (`run --params`, the MCAP
 //! attachment `params.toml`): perception (§4, Table 1), the step map, planning (§6), the
 //! simulated robot's servos and the checks that judge the execution, the robot's own
-//! estimate of its pose, the loop's own settings and the simulation's physics step. Fields
+//! estimate of its pose, the loop's own settings and the simulation's physics (its step, the
+//! soles' friction time constant). Fields
 //! left out keep their defaults; unknown fields are refused.
 
 use crate::climb::{LoopParams, RunParams};
@@ -39,7 +40,7 @@ pub struct ClimbParams {
     pub estimate: EstimateParams,
     /// Loop settings.
     pub run: RunParams,
-    /// The simulation's physics (its time step).
+    /// The simulation's physics (its time step, the soles' friction time constant).
     pub physics: PhysicsParams,
 }
 

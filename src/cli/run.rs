@@ -130,8 +130,12 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         println!("the body differs from the planner's model (seed {}): {}", scenario.seed, fields.join(", "));
     }
     if params.physics != PhysicsParams::default() {
+        let soles = params.physics.sole_friction_timeconst_s.map_or_else(
+            || "MuJoCo's own".to_string(),
+            |tc| format!("held with a time constant of {} ms", tc * 1e3),
+        );
         println!(
-            "physics step {} ms (the default {} ms: [physics] step_s)",
+            "physics step {} ms (the default {} ms: [physics] step_s); the soles' friction {soles} ([physics] sole_friction_timeconst_s)",
             params.physics.step_s * 1e3,
             PhysicsParams::default().step_s * 1e3
         );
@@ -219,6 +223,7 @@ pub fn run(a: RunArgs) -> Result<ExitCode> {
         json["s_per_stair_with_stand"] = serde_json::to_value(report.seconds_per_stair_with_stand())?;
         json["plant_preset"] = serde_json::to_value(scenario.plant.preset)?;
         json["physics_step_s"] = serde_json::to_value(params.physics.step_s)?;
+        json["sole_friction_timeconst_s"] = serde_json::to_value(params.physics.sole_friction_timeconst_s)?;
         if let Some((e, v)) = &verdict {
             json["verdict"] = serde_json::to_value(v)?;
             json["expect"] = serde_json::to_value(e)?;

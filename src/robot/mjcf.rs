@@ -11,7 +11,7 @@
 //! ankle); the nominal variation writes the model exactly.
 
 use super::model::{base_pose, RobotError, RobotModel, Shape, Q_JOINTS};
-use crate::scene::mjcf::{RobotFragment, ROBOT_GEOM_GROUP, SOLE_CONAFFINITY};
+use crate::scene::mjcf::{RobotFragment, ROBOT_GEOM_GROUP, SOLE_CONAFFINITY, SPIN_ROLL_FRICTION};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use std::fmt::Write;
 
@@ -269,11 +269,12 @@ impl Tree<'_> {
                 }
                 Shape::Sphere(r) => ("sphere", format!("{r:?}")),
             };
+            let [spin, roll] = SPIN_ROLL_FRICTION;
             let (friction, conaffinity) =
                 if self.soles[i] { (SOLE_FRICTION, SOLE_CONAFFINITY) } else { (BODY_FRICTION, "1") };
             let _ = writeln!(
                 out,
-                r#"{inner}  <geom name="{}" type="{kind}" size="{size}" {} group="{ROBOT_GEOM_GROUP}" contype="2" conaffinity="{conaffinity}" condim="3" friction="{friction:?} 0.005 0.0001" rgba="0.75 0.78 0.85 1"/>"#,
+                r#"{inner}  <geom name="{}" type="{kind}" size="{size}" {} group="{ROBOT_GEOM_GROUP}" contype="2" conaffinity="{conaffinity}" condim="3" friction="{friction:?} {spin} {roll}" rgba="0.75 0.78 0.85 1"/>"#,
                 geom_name(&link.name, k),
                 fmt_pose(&col.placement)
             );

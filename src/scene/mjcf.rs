@@ -13,11 +13,14 @@ pub const WORLD_TEMPLATE: &str = include_str!("../../scenes/world.xml");
 pub const WORLD_GEOM_GROUP: usize = 0;
 /// MuJoCo geom group of the robot's geoms (excluded from its own lidar's rays).
 pub const ROBOT_GEOM_GROUP: usize = 2;
+/// Every geom's torsional and rolling friction coefficients, the second and third of its
+/// `friction` (MuJoCo's defaults); the sliding one is the surface's.
+pub const SPIN_ROLL_FRICTION: [f64; 2] = [0.005, 0.0001];
 /// Name of the site that is the robot's head frame, where the lidar's servo is mounted.
 pub const HEAD_SITE: &str = "head";
 
 /// The robot's part of the MJCF: its body tree (inside `<worldbody>`) and what follows the
-/// world body (actuators, sensors, contact exclusions).
+/// world body (actuators, sensors, the initial keyframe).
 #[derive(Debug, Clone, Default)]
 pub struct RobotFragment {
     /// XML placed inside `<worldbody>`; its soles' geoms carry [`SOLE_CONAFFINITY`] for
@@ -25,7 +28,7 @@ pub struct RobotFragment {
     pub body_xml: String,
     /// XML placed after `</worldbody>`.
     pub extras_xml: String,
-    /// The names of the soles' collision geoms.
+    /// The names of the collision geoms of the links that carry the soles.
     pub sole_geoms: Vec<String>,
 }
 
@@ -102,7 +105,7 @@ pub fn world_xml_with(scene: &Scene, robot: &RobotFragment, options: &WorldOptio
         geoms.push_str(open);
         let _ = writeln!(
             geoms,
-            r#"{indent}<geom class="world" name="{}" pos="{} {} {}" euler="0 0 {}" size="{} {} {}" friction="{} 0.005 0.0001" rgba="{}"/>"#,
+            r#"{indent}<geom class="world" name="{}" pos="{} {} {}" euler="0 0 {}" size="{} {} {}" friction="{} {} {}" rgba="{}"/>"#,
             xml_escape(b.name()),
             p.x,
             p.y,
@@ -112,6 +115,8 @@ pub fn world_xml_with(scene: &Scene, robot: &RobotFragment, options: &WorldOptio
             h.y,
             h.z,
             b.friction(),
+            SPIN_ROLL_FRICTION[0],
+            SPIN_ROLL_FRICTION[1],
             rgba
         );
         geoms.push_str(close);
@@ -138,12 +143,13 @@ pub fn world_xml_with(scene: &Scene, robot: &RobotFragment, options: &WorldOptio
 /// geoms' priority gives them) but for `solreffriction`, which only a pair can set.
 fn sole_pairs(scene: &Scene, soles: &[String], timeconst_s: f64) -> String {
     let mut out = String::from("\n  <contact>\n");
+    let [spin, roll] = SPIN_ROLL_FRICTION;
     for sole in soles {
         for b in scene.boxes() {
             let mu = b.friction();
             let _ = writeln!(
                 out,
-                r#"    <pair geom1="{}" geom2="{}" condim="3" friction="{mu} {mu} 0.005 0.0001 0.0001" solreffriction="{timeconst_s:?} 1"/>"#,
+                r#"    <pair geom1="{}" geom2="{}" condim="3" friction="{mu} {mu} {spin} {roll} {roll}" solreffriction="{timeconst_s:?} 1"/>"#,
                 xml_escape(sole),
                 xml_escape(b.name())
             );

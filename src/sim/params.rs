@@ -1,5 +1,6 @@
 //! What the simulated robot runs under ([`SimParams`]): its servos, force/torque sensors and
-//! IMU, the stabilizer, the checks, its own estimate, the physics step, and the plan's and
+//! IMU, the stabilizer, the checks, its own estimate, the physics (its step, the soles'
+//! friction time constant), and the plan's and
 //! the loop's figures the execution needs. A climb's whole parameter set
 //! (`crate::params::ClimbParams`) hands these down.
 
@@ -47,14 +48,13 @@ pub struct PhysicsParams {
     /// `None` (the default) leaves MuJoCo's, the contacts' own 0.02 s. MuJoCo's friction has
     /// no stiction: it drives a contact's sliding speed toward zero through a reference
     /// acceleration `-b v`, `b = 2 / (dmax timeconst)`, so speed given to a sole bleeds off
-    /// over about `dmax timeconst / 2` (9.5 ms at 0.02 s) and a sole rocking on its soft
-    /// contact travels by what each rock gives it: `regressions-0047` walking slides 4.8
-    /// mm at 0.02 s, 1.5 mm at 0.005 s and 1.0 mm at 0.002 s, while neither `impratio`, the
-    /// noslip pass nor a friction coefficient of 3 moves it (CHANGELOG, fifty-seventh
-    /// session). Set, each sole geom and world box becomes an explicit contact pair with
-    /// this `solreffriction`, all else as MuJoCo would make it; at least twice the step
-    /// (MuJoCo's bound for a stable reference). Opt-in: a faster hold raises the friction
-    /// ratio a touchdown shows (that case's largest 0.18 -> 0.31 at 0.005 s).
+    /// over about `dmax timeconst / 2` (9.5 ms at 0.02 s), and a sole rocking on its soft
+    /// contact travels by what each rock gives it (the figures: CHANGELOG and BENCHMARKS).
+    /// Set, each sole geom and world box becomes an explicit contact pair with this
+    /// `solreffriction` (elliptic cones, as `scenes/world.xml` sets), all else as MuJoCo
+    /// would make the contact itself; pairs skip the broadphase, each tested every step.
+    /// At least twice the step (MuJoCo's bound for a stable reference). Opt-in: a faster
+    /// hold raises the friction ratio a touchdown shows.
     pub sole_friction_timeconst_s: Option<f64>,
 }
 
@@ -81,7 +81,7 @@ impl PhysicsParams {
     pub const MIN_STEP_S: f64 = 1e-5;
     /// The longest sole friction time constant, seconds (a sole that slides for seconds
     /// before it holds is no sole).
-    pub const MAX_TIMECONST_S: f64 = 1.0;
+    pub const MAX_SOLE_FRICTION_TIMECONST_S: f64 = 1.0;
 
     /// Checks the step lies in [[`Self::MIN_STEP_S`], [`Self::MAX_STEP_S`]] and at most the
     /// stabilizer's period `stabilizer_period_s`, naming the field.
@@ -96,11 +96,11 @@ impl PhysicsParams {
             ));
         }
         if let Some(tc) = self.sole_friction_timeconst_s {
-            if !(tc >= 2.0 * self.step_s && tc <= Self::MAX_TIMECONST_S) {
+            if !(tc >= 2.0 * self.step_s && tc <= Self::MAX_SOLE_FRICTION_TIMECONST_S) {
                 return Err(format!(
                     "physics.sole_friction_timeconst_s = {tc} s: it must lie between twice the physics step ({} s) and {} s",
                     2.0 * self.step_s,
-                    Self::MAX_TIMECONST_S
+                    Self::MAX_SOLE_FRICTION_TIMECONST_S
                 ));
             }
         }
