@@ -192,7 +192,8 @@ pub enum Check {
         /// The most allowed.
         limit_m: f64,
     },
-    /// A swinging foot hit something before its descent.
+    /// A swinging foot hit something other than a level face between its lift-off and its
+    /// landing.
     Strike {
         /// Which foot.
         foot: Foot,
@@ -200,9 +201,14 @@ pub enum Check {
         geom: String,
         /// Where, in its planned sole frame.
         at_m: [f64; 3],
-        /// Its planned height above its target at the time.
+        /// Its planned height above its target at the time (below it, negative, while it
+        /// lifts toward a higher tread).
         above_target_m: f64,
-        /// Contacts below this height above the target are landings, not strikes.
+        /// Its planned sole's distance from the nearer of its lift-off and its target.
+        #[serde(default)]
+        from_ends_m: f64,
+        /// Contacts within this distance of the lift-off or the target are the lift-off and
+        /// the landing, not strikes.
         limit_m: f64,
     },
     /// A part other than the soles touched the world (or the robot touched itself).
@@ -288,7 +294,7 @@ impl Check {
             Check::Touchdown { error_m, limit_m, .. } => m(*error_m, *limit_m, "m"),
             Check::Slip { slip_m, limit_m, .. } => m(*slip_m, *limit_m, "m"),
             Check::OffStep { overhang_m, limit_m, .. } => m(*overhang_m, *limit_m, "m"),
-            Check::Strike { above_target_m, limit_m, .. } => m(*above_target_m, *limit_m, "m"),
+            Check::Strike { from_ends_m, limit_m, .. } => m(*from_ends_m, *limit_m, "m"),
             Check::Collision { .. } => None,
             Check::Fall { tilt_rad, limit_tilt_rad, .. } => m(*tilt_rad, *limit_tilt_rad, "rad"),
             Check::Unstable { count, .. } => m(f64::from(*count), 0.0, "count"),
@@ -356,11 +362,12 @@ impl fmt::Display for Check {
             }
             Check::Strike { foot, geom, at_m, above_target_m, .. } => write!(
                 f,
-                "the swinging {foot:?} foot hits {geom} at ({:.3}, {:.3}, {:.3}) m in its planned sole frame, {:.1} mm above its target",
+                "the swinging {foot:?} foot hits {geom} at ({:.3}, {:.3}, {:.3}) m in its planned sole frame, {:.1} mm {} its target",
                 at_m[0],
                 at_m[1],
                 at_m[2],
-                above_target_m * 1e3
+                above_target_m.abs() * 1e3,
+                if *above_target_m < 0.0 { "below" } else { "above" }
             ),
             Check::Collision { geom, other } => write!(f, "{geom} touches {other}"),
             Check::Fall { base_z_m, tilt_rad, upright_tilt_rad, .. } => write!(

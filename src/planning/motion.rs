@@ -472,13 +472,14 @@ impl Targets<'_> {
     }
 }
 
-/// The swinging foot of `seg` at fraction `tau` while in its swing's first piece, the lift
-/// (right then left): the sole leaves the ground then, and in its first ticks it still
-/// bounces on it and carries weight.
+/// The swinging foot of `seg` at fraction `tau` while in its swing's lift, every piece but
+/// the last two (right then left): the sole leaves the ground then, and in its first ticks
+/// it still bounces on it and carries weight.
 pub fn lifting(seg: &Segment, tau: f64) -> [bool; 2] {
     let mut out = [false; 2];
     if let Some(sw) = &seg.swing {
-        out[sw.foot.index()] = sw.shares.first().is_some_and(|&lift| tau < lift);
+        let lift: f64 = sw.shares[..sw.shares.len().saturating_sub(2)].iter().sum();
+        out[sw.foot.index()] = tau < lift;
     }
     out
 }
@@ -1121,10 +1122,10 @@ mod tests {
         assert!(lifting_off >= p.min_knee_rad - 1e-6 && lifting_off < p.min_knee_rad + 0.01, "{lifting_off}");
     }
 
-    /// The swing's first piece is its lift: the swinging foot is lifting until it ends, no
-    /// foot of a segment without a swing ever is.
+    /// The swing's pieces before its last two are its lift: the swinging foot is lifting
+    /// until they end, no foot of a segment without a swing ever is.
     #[test]
-    fn a_foot_lifts_off_in_its_swings_first_piece() {
+    fn a_foot_lifts_off_until_its_swings_lift_ends() {
         let sw = Swing {
             foot: Foot::Left,
             path: vec![sole(0.0); 4],
@@ -1146,6 +1147,15 @@ mod tests {
         assert_eq!(lifting(&swinging, 0.1), [false, true]);
         assert_eq!(lifting(&swinging, 0.3), [false, false]);
         assert_eq!(lifting(&seg(None), 0.1), [false, false]);
+        // A lift backing away from a riser has three pieces: the foot lifts through them.
+        let backing = Swing {
+            foot: Foot::Right,
+            path: vec![sole(0.0); 6],
+            shares: vec![0.1, 0.1, 0.2, 0.3, 0.3],
+            natural_s: 2.0,
+        };
+        assert_eq!(lifting(&seg(Some(backing.clone())), 0.35), [true, false]);
+        assert_eq!(lifting(&seg(Some(backing)), 0.45), [false, false]);
     }
 
     #[test]

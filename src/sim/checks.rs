@@ -39,8 +39,11 @@ pub struct CheckParams {
     pub touchdown_yaw_tolerance_rad: f64,
     /// How far a landed sole may overhang its step's tread, metres.
     pub overhang_tolerance_m: f64,
-    /// A swinging foot touching the world while its planned sole is higher than this above
-    /// its target is a strike, metres.
+    /// A swinging foot touching the world other than on a level face while its planned sole
+    /// is farther than this from both its lift-off and its target is a strike, metres (a
+    /// distance, whatever the name): the sole's first and last centimetre are its lift-off
+    /// and its landing. Below its target too: a foot rising to a higher tread passes the
+    /// riser under that tread's nose.
     pub strike_height_m: f64,
     /// Normal force above which a foot counts as in contact, newtons.
     pub contact_force_n: f64,
@@ -198,9 +201,10 @@ pub fn slip_check(foot: Foot, at: &Vector3<f64>, from: &Vector3<f64>, p: &CheckP
 const LEVEL_CONTACT_COS: f64 = 0.9397;
 
 /// A contact at `at` (world, its normal `normal`) between the swinging `sw` and the world's
-/// geom `other`, the sole being planned at `planned`: a strike when the planned sole is above
-/// its target by more than the strike height, and was at lift-off too (so not a landing, not
-/// a lift), against a surface that is not level (a riser, a nose's edge, a wall: a sole that
+/// geom `other`, the sole being planned at `planned`: a strike when the planned sole is
+/// farther than the strike height from both its lift-off and its target (so not a lift-off,
+/// not a landing; below the target too, a lift rising past the riser under a higher tread),
+/// against a surface that is not level (a riser, a nose's edge, a wall: a sole that
 /// meets a level tread early, on a step higher than perceived, has landed; what that does is
 /// judged by the friction, slip and off-step checks).
 pub fn strike_check(
@@ -211,20 +215,20 @@ pub fn strike_check(
     other: &str,
     p: &CheckParams,
 ) -> Option<Check> {
-    let above = |pose: &Isometry3<f64>| planned.translation.z - pose.translation.z;
-    let above_target_m = above(&sw.path[sw.path.len() - 1]);
-    if above_target_m <= p.strike_height_m
-        || above(&sw.path[0]) <= p.strike_height_m
-        || normal.z.abs() >= LEVEL_CONTACT_COS
-    {
+    let (start, target) = (&sw.path[0], &sw.path[sw.path.len() - 1]);
+    let from = |pose: &Isometry3<f64>| (planned.translation.vector - pose.translation.vector).norm();
+    let from_ends_m = from(start).min(from(target));
+    if from_ends_m <= p.strike_height_m || normal.z.abs() >= LEVEL_CONTACT_COS {
         return None;
     }
+    let above_target_m = planned.translation.z - target.translation.z;
     let local = planned.inverse_transform_point(at);
     Some(Check::Strike {
         foot: sw.foot,
         geom: other.to_string(),
         at_m: [local.x, local.y, local.z],
         above_target_m,
+        from_ends_m,
         limit_m: p.strike_height_m,
     })
 }
@@ -788,6 +792,22 @@ mod tests {
             strike_check(&sw, &at(0.27, -0.1, 0.22), &hit, &level, "step_1", &p()),
             None,
             "early on the tread"
+        );
+
+        // Rising to a higher tread, the toe meets the riser under its nose while the planned
+        // sole is still below the target's height.
+        let rising = vec![at(0.0, -0.1, 0.0), at(0.0, -0.1, 0.25), at(0.27, -0.1, 0.25), at(0.27, -0.1, 0.2)];
+        let up = Swing { foot: Foot::Left, path: rising, shares: vec![0.4, 0.3, 0.3], natural_s: 2.0 };
+        let toe = Point3::new(0.13, -0.1, 0.06);
+        let c = strike_check(&up, &at(0.0, -0.1, 0.05), &toe, &riser, "step_2", &p())
+            .expect("a rising lift fires");
+        assert!(matches!(&c, Check::Strike { above_target_m, from_ends_m, .. }
+            if (above_target_m + 0.15).abs() < 1e-12 && (from_ends_m - 0.05).abs() < 1e-12));
+        assert!(c.to_string().contains("150.0 mm below its target"), "{c}");
+        assert_eq!(
+            strike_check(&up, &at(0.0, -0.1, 0.008), &toe, &riser, "step_2", &p()),
+            None,
+            "its lift-off"
         );
     }
 
