@@ -210,20 +210,15 @@ pub struct StepParams {
     /// `swing_clearance_m`, metres. Default 0: straight up. The toes keep at least
     /// `GaitParams::toe_clearance_m` (1.5 cm) behind that riser as perceived, a few
     /// millimetres less where the perception and the touchdown err, and a body whose servos
-    /// lag 20-30 ms carries the lifting sole about 1 cm forward with the rising CoM
-    /// (`robust-0017`: 9.8 mm, the trailing toe then 0.3 mm from the riser under the next
-    /// nose). 0.015 m, as much again as the toes' clearance, clears `robust`'s five latency
-    /// rows that strike it, and every other suite passes with it, but it costs 4.5 % more
-    /// time a stair (two more swing pieces) and a plan made x 1.5 faster strays 1.03 deg
-    /// from the same plan's path (the reach measured on the tracked lift lowers the hip),
-    /// so it is not the default yet (CHANGELOG, fifty-eighth session).
+    /// lag carries the lifting sole forward with the rising CoM (about 1 cm at 20-30 ms).
+    /// 0.015 m, as much again as the toes' clearance, keeps the toes off that riser; it adds
+    /// two swing pieces, each at least `min_piece_s` (CHANGELOG, fifty-eighth session, for
+    /// the suites with it and why it is off).
     pub lift_retreat_m: f64,
     /// How high such a sole first rises straight up before it backs away, metres, at most
     /// `swing_clearance_m` (0: it backs away from the lift-off). Default 0.015 m: the sole
-    /// is still unloading as it leaves, and backing away from the lift-off itself slid it
-    /// back along its tread, 40-60 N across it past the friction pyramid (`robust-0020` to
-    /// `-0022` with the soles' friction time constant at 5 ms; CHANGELOG, fifty-eighth
-    /// session).
+    /// is still unloading as it leaves, and backing away at once slides it back along its
+    /// tread under load (CHANGELOG, fifty-eighth session).
     pub lift_unload_m: f64,
     /// Least distance of a CoM waypoint from its polygons' edges.
     pub min_margin_m: f64,
