@@ -34,10 +34,12 @@ pub struct Swing {
     /// The moving foot.
     pub foot: Foot,
     /// Lift-off, the top of the lift, above the target, the target; a lift backing away from
-    /// a riser has two more poses before its top (see `swing_path`): every piece before the
-    /// last two is the lift.
+    /// a riser follows a curve, sampled in more poses before its top (see `swing_path`):
+    /// every piece before the last two is the lift ([`Swing::lift_pieces`]).
     pub path: Vec<Isometry3<f64>>,
-    /// Each piece's share of the segment's duration (sums to 1).
+    /// Each piece's share of the segment's duration (sums to 1). The lift's pieces are one
+    /// stretch of the time law, the foot not stopping between them, their shares in
+    /// proportion to their lengths; the others stop at their ends.
     pub shares: Vec<f64>,
     /// The swing's own duration at the foot's speed, seconds (the segment may be longer when
     /// the CoM has farther to go).
@@ -46,9 +48,10 @@ pub struct Swing {
 
 impl Swing {
     /// From `a` to `b`: lift to `p.swing_clearance_m` above the higher sole, cross, descend,
-    /// each piece at the foot's speed and no shorter than `p.min_piece_s`. Toward a higher
-    /// tread with the CoM moving (`com_at` not constant: the trailing foot), the lift backs
-    /// away from the riser ahead (`p.lift_retreat_m`, see [`swing_path`]). At the top of the
+    /// each at the foot's speed and no shorter than `p.min_piece_s`. Toward a higher tread
+    /// with the CoM moving (`com_at` not constant: the trailing foot), the lift backs away
+    /// from the riser ahead along a curve (`p.lift_retreat_m`, see [`swing_path`]), timed as
+    /// one stretch by its length, its pieces in proportion. At the top of the
     /// lift the sole is pitched toe down as far as its ankle cannot bend with the CoM at
     /// `com_at(fraction of the swing)` ([`toe_down`]).
     fn new(
@@ -62,19 +65,36 @@ impl Swing {
         let body_moves = (com_at(1.0) - com_at(0.0)).norm() > COM_STILL_M;
         let retreat_m = if body_moves { p.lift_retreat_m } else { 0.0 };
         let mut path = swing_path(a, b, p.swing_clearance_m, [retreat_m, p.lift_unload_m]);
-        let pieces: Vec<f64> = path
-            .windows(2)
-            .map(|w| {
-                ((w[1].translation.vector - w[0].translation.vector).norm() / p.foot_speed_m_s)
-                    .max(p.min_piece_s)
+        let lengths_m: Vec<f64> =
+            path.windows(2).map(|w| (w[1].translation.vector - w[0].translation.vector).norm()).collect();
+        let top = path.len() - 3;
+        let lift_m: f64 = lengths_m[..top].iter().sum();
+        let lift_s = (lift_m / p.foot_speed_m_s).max(p.min_piece_s);
+        let pieces: Vec<f64> = lengths_m
+            .iter()
+            .enumerate()
+            .map(|(k, len_m)| match k < top {
+                true if lift_m > 0.0 => lift_s * (len_m / lift_m),
+                true => lift_s / top as f64,
+                false => (len_m / p.foot_speed_m_s).max(p.min_piece_s),
             })
             .collect();
         let natural_s: f64 = pieces.iter().sum();
         let shares: Vec<f64> = pieces.iter().map(|x| x / natural_s).collect();
-        let top = path.len() - 3;
         let hip = com_at(shares[..top].iter().sum()) - Vector3::z() * body.com_above_hip_m;
         path[top] = toe_down(foot, &path[top], &hip, body, p);
         Self { foot, path, shares, natural_s }
+    }
+
+    /// How many of the path's first pieces are the lift: all but the last two (across and
+    /// the descent), none in a swing of two pieces or fewer.
+    pub fn lift_pieces(&self) -> usize {
+        self.shares.len().saturating_sub(2)
+    }
+
+    /// The lift's share of the segment's duration.
+    pub fn lift_share(&self) -> f64 {
+        self.shares[..self.lift_pieces()].iter().sum()
     }
 }
 
@@ -199,8 +219,8 @@ pub struct StepParams {
     pub foot_speed_m_s: f64,
     /// Shortest segment, seconds.
     pub min_segment_s: f64,
-    /// Shortest piece of a swing (lift, or its three pieces where it backs away from a
-    /// riser; across; descent), seconds: the foot lands slowly.
+    /// Shortest piece of a swing (the lift, whatever its path; across; descent), seconds: the
+    /// foot lands slowly.
     pub min_piece_s: f64,
     /// Height of the swing above the higher of lift-off and target (§6.1: clears the
     /// step's nose and edge).
@@ -211,9 +231,9 @@ pub struct StepParams {
     /// `GaitParams::toe_clearance_m` (1.5 cm) behind that riser as perceived, a few
     /// millimetres less where the perception and the touchdown err, and a body whose servos
     /// lag carries the lifting sole forward with the rising CoM (about 1 cm at 20-30 ms).
-    /// 0.015 m, as much again as the toes' clearance, keeps the toes off that riser; it adds
-    /// two swing pieces, each at least `min_piece_s` (CHANGELOG, fifty-eighth session, for
-    /// the suites with it and why it is off).
+    /// 0.015 m, as much again as the toes' clearance, keeps the toes off that riser; the lift
+    /// it lengthens by millimetres is still timed as one stretch (CHANGELOG, fifty-eighth
+    /// and fifty-ninth sessions, for the suites with it).
     pub lift_retreat_m: f64,
     /// How high such a sole first rises straight up before it backs away, metres, at most
     /// `swing_clearance_m` (0: it backs away from the lift-off). Default 0.015 m: the sole
@@ -590,9 +610,11 @@ fn check_fold(legs: &Legs, p: &StepParams, hip_above_ankle_m: f64, stance: usize
 
 /// Lift vertically to `clearance_m` above the higher of the two soles, move across, descend.
 /// Toward a tread higher by more than [`RISER_AHEAD_M`] (a riser between), with `retreat_m`
-/// above zero, the lift first rises `unload_m` straight up (no such pose at 0), then backs
-/// away by `retreat_m` against `b`'s heading (the riser's normal: the footholds yaw every
-/// sole with the staircase) as it rises through `clearance_m`, then on up.
+/// above zero, the lift first rises `unload_m` straight up, then backs away by `retreat_m`
+/// against `b`'s heading (the riser's normal: the footholds yaw every sole with the
+/// staircase) as it rises through `clearance_m`, then goes on up: a curve, vertical where it
+/// leaves and where it rejoins the straight parts (the retreat eased in, 3 f^2 - 2 f^3 of
+/// the rise's fraction `f`), sampled in [`RETREAT_PIECES`] pieces.
 fn swing_path(
     a: &Isometry3<f64>,
     b: &Isometry3<f64>,
@@ -606,23 +628,29 @@ fn swing_path(
     above.translation.z = top;
     let heading = b.rotation * Vector3::x();
     let rises = b.translation.z - a.translation.z > RISER_AHEAD_M;
-    match Vector3::new(heading.x, heading.y, 0.0).try_normalize(1e-9) {
-        Some(forward) if rises && retreat_m > 0.0 => {
+    let mut path = vec![*a];
+    if let Some(forward) = Vector3::new(heading.x, heading.y, 0.0).try_normalize(1e-9) {
+        if rises && retreat_m > 0.0 {
             let back = -forward * retreat_m;
-            let mut unloaded = *a;
-            unloaded.translation.z += unload_m;
-            let mut backed = *a;
-            backed.translation.vector += back + Vector3::z() * clearance_m;
-            lift.translation.vector += back;
-            let mut path = vec![*a, unloaded, backed, lift, above, *b];
-            if unload_m <= 0.0 {
-                path.remove(1);
+            let first = if unload_m > 0.0 { 0 } else { 1 };
+            for k in first..=RETREAT_PIECES {
+                let f = k as f64 / RETREAT_PIECES as f64;
+                let mut pose = *a;
+                pose.translation.vector +=
+                    back * ease(f).0 + Vector3::z() * (unload_m + (clearance_m - unload_m) * f);
+                path.push(pose);
             }
-            path
+            lift.translation.vector += back;
         }
-        _ => vec![*a, lift, above, *b],
     }
+    path.extend([lift, above, *b]);
+    path
 }
+
+/// How many pieces sample the curve of a lift backing away from a riser ([`swing_path`]):
+/// at eight its direction turns at most about 8 deg between two (0.015 m back over a 0.035 m
+/// rise).
+const RETREAT_PIECES: usize = 8;
 
 /// A swing's target higher than its lift-off by more than this has a riser between them,
 /// metres: a stair's rise is 10 cm or more, a floor perceived uneven by millimetres.
@@ -831,7 +859,8 @@ mod tests {
     }
 
     /// A sole lifting toward a higher tread while the CoM rises (the trailing foot) first
-    /// rises straight, then backs away from the riser ahead before it goes on up; the
+    /// rises straight, then backs away from the riser ahead along a curve before it goes on
+    /// up, the whole lift timed as one stretch; the
     /// leading foot's lift (the CoM still) and a swing along the floor go straight up.
     #[test]
     fn a_trailing_sole_backs_away_from_the_riser_ahead_as_it_lifts() {
@@ -851,32 +880,61 @@ mod tests {
         let (from, to) = (yawed(0.0, 0.1, 0.18), yawed(up_there.x, 0.1 + up_there.y, 0.36));
         let rising = |t: f64| Point3::new(0.3, 0.0, 0.9 + 0.1 * t);
         let sw = Swing::new(Foot::Left, &from, &to, rising, &body, &p);
-        assert_eq!(sw.path.len(), 6);
+        let top = RETREAT_PIECES + 2;
+        assert_eq!(sw.path.len(), top + 3);
+        assert_eq!(sw.lift_pieces(), top);
         let moved = |k: usize| sw.path[k].translation.vector - from.translation.vector;
-        // Straight up by the unload, then back along the heading while rising the clearance,
-        // level until the lift's top.
+        // Straight up by the unload, then back along the heading (never sideways, never
+        // forward, farther at each pose) while rising the clearance, level until the top.
         assert!(moved(1).xy().norm() < 1e-12 && (moved(1).z - p.lift_unload_m).abs() < 1e-12);
-        for k in [2, 3] {
-            assert!((moved(k).dot(&forward) + p.lift_retreat_m).abs() < 1e-12, "pose {k}: {:?}", moved(k));
+        for k in 2..top {
+            let (back, was) = (-moved(k).dot(&forward), -moved(k - 1).dot(&forward));
+            assert!(back > was && back <= p.lift_retreat_m + 1e-12, "pose {k}: {:?}", moved(k));
             assert!(moved(k).dot(&left).abs() < 1e-12, "pose {k}: {:?}", moved(k));
+            assert!(moved(k).z > moved(k - 1).z);
+            assert!(sw.path[k].rotation == from.rotation);
         }
-        assert!((moved(2).z - p.swing_clearance_m).abs() < 1e-12);
-        assert!(sw.path[1].rotation == from.rotation && sw.path[2].rotation == from.rotation);
+        assert!((moved(top - 1).dot(&forward) + p.lift_retreat_m).abs() < 1e-12);
+        assert!((moved(top - 1).z - p.swing_clearance_m).abs() < 1e-12);
+        // The curve leaves the straight rise and rejoins the straight rise above vertically:
+        // its first and last pieces lean less than its middle.
+        let lean = |k: usize| {
+            let d = moved(k + 1) - moved(k);
+            d.xy().norm().atan2(d.z)
+        };
+        assert!(lean(1) < lean(top / 2) / 3.0 && lean(top - 2) < lean(top / 2) / 3.0);
         // The lift's top: the clearance above the target, pitched toe down as `toe_down` asks
-        // with the hip where the CoM is when the lift ends (after its three pieces).
-        let mut top = from;
-        top.translation.vector += -forward * p.lift_retreat_m;
-        top.translation.z = 0.36 + p.swing_clearance_m;
-        let hip = rising(sw.shares[..3].iter().sum()) - Vector3::z() * body.com_above_hip_m;
-        let pitched = toe_down(Foot::Left, &top, &hip, &body, &p);
-        assert!(pitched != top, "the test's lift is pitched");
-        assert_eq!(sw.path[3], pitched);
-        assert_eq!(sw.path[5], to);
-        assert_eq!(sw.shares.len(), 5);
+        // with the hip where the CoM is when the lift ends.
+        let mut lift_top = from;
+        lift_top.translation.vector += -forward * p.lift_retreat_m;
+        lift_top.translation.z = 0.36 + p.swing_clearance_m;
+        let hip = rising(sw.lift_share()) - Vector3::z() * body.com_above_hip_m;
+        let pitched = toe_down(Foot::Left, &lift_top, &hip, &body, &p);
+        assert!(pitched != lift_top, "the test's lift is pitched");
+        assert_eq!(sw.path[top], pitched);
+        assert_eq!(sw.path[top + 2], to);
         assert!((sw.shares.iter().sum::<f64>() - 1.0).abs() < 1e-12);
-        // No straight part asked: it backs away from the lift-off.
+        // The lift is timed as one stretch at the foot's speed: its pieces' shares go as
+        // their lengths (the top before its pitch), and it takes no longer than a straight
+        // lift of its length would.
+        let mut level = sw.path.clone();
+        level[top] = lift_top;
+        let lengths: Vec<f64> = level
+            .windows(2)
+            .take(top)
+            .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
+            .collect();
+        let lift_m: f64 = lengths.iter().sum();
+        for (k, len) in lengths.iter().enumerate() {
+            assert!((sw.shares[k] / sw.lift_share() - len / lift_m).abs() < 1e-9, "piece {k}");
+        }
+        let lift_s = sw.lift_share() * sw.natural_s;
+        assert!((lift_s - (lift_m / p.foot_speed_m_s).max(p.min_piece_s)).abs() < 1e-9, "{lift_s}");
+        // No straight part asked: it backs away from the lift-off at once.
         let at_once = StepParams { lift_unload_m: 0.0, ..p.clone() };
-        assert_eq!(Swing::new(Foot::Left, &from, &to, rising, &body, &at_once).path.len(), 5);
+        let sw0 = Swing::new(Foot::Left, &from, &to, rising, &body, &at_once);
+        assert_eq!(sw0.path.len(), RETREAT_PIECES + 4);
+        assert!(sw0.path[1].translation.vector.xy() != from.translation.vector.xy());
         // The CoM held still (the leading foot's swing), and along the floor: straight up.
         let still = |_: f64| Point3::new(0.3, 0.0, 0.9);
         assert_eq!(Swing::new(Foot::Right, &from, &to, still, &body, &p).path.len(), 4);

@@ -330,22 +330,45 @@ pub struct NearestSurface {
 }
 
 /// The free foot's pose and twist at fraction `tau` of its swing; `duration_s` scales the twist.
+/// The lift's pieces are one stretch of the time law ([`Swing::shares`]), each other piece
+/// its own.
 fn along_path(sw: &Swing, tau: f64, duration_s: f64) -> (Isometry3<f64>, Vector6<f64>) {
+    let lift = sw.lift_pieces();
+    let stretches = std::iter::once(0..lift.max(1)).chain((lift.max(1)..sw.shares.len()).map(|k| k..k + 1));
     let mut start = 0.0;
-    let last = sw.shares.len() - 1;
-    for (k, w) in sw.path.windows(2).enumerate() {
-        let share = sw.shares[k];
-        if tau <= start + share || k == last {
-            let (s, ds) = ease((tau - start) / share);
-            let dt_piece = share * duration_s;
-            let p = w[0].translation.vector.lerp(&w[1].translation.vector, s);
-            let r = w[0].rotation.slerp(&w[1].rotation, s);
-            let v = (w[1].translation.vector - w[0].translation.vector) * ds / dt_piece;
-            let omega = (w[1].rotation * w[0].rotation.inverse()).scaled_axis() * ds / dt_piece;
+    for stretch in stretches {
+        let share: f64 = sw.shares[stretch.clone()].iter().sum();
+        if tau > start + share && stretch.end < sw.shares.len() {
+            start += share;
+            continue;
+        }
+        if share <= 0.0 {
+            return (sw.path[stretch.end], Vector6::zeros());
+        }
+        let (s, ds) = ease((tau - start) / share);
+        // The sole turns over the stretch as a whole, from its first pose's orientation to
+        // its last's (the lift's poses before its top are level).
+        let dt_stretch = share * duration_s;
+        let (r0, r1) = (sw.path[stretch.start].rotation, sw.path[stretch.end].rotation);
+        let r = r0.slerp(&r1, s);
+        let omega = (r1 * r0.inverse()).scaled_axis() * ds / dt_stretch;
+        // Its path: the stretch's pieces in turn, each over its share (`at`, a fraction of
+        // the stretch's path, and of the piece's `u`).
+        let mut at = s;
+        for k in stretch.clone() {
+            let piece = sw.shares[k] / share;
+            if at > piece && k + 1 < stretch.end {
+                at -= piece;
+                continue;
+            }
+            let (w0, w1) = (&sw.path[k], &sw.path[k + 1]);
+            let (u, dt_piece) =
+                if piece > 0.0 { ((at / piece).min(1.0), dt_stretch * piece) } else { (1.0, f64::INFINITY) };
+            let p = w0.translation.vector.lerp(&w1.translation.vector, u);
+            let v = (w1.translation.vector - w0.translation.vector) * ds / dt_piece;
             let pose = Isometry3::from_parts(Translation3::from(p), r);
             return (pose, Vector6::new(v.x, v.y, v.z, omega.x, omega.y, omega.z));
         }
-        start += share;
     }
     (sw.path[sw.path.len() - 1], Vector6::zeros())
 }
@@ -478,8 +501,7 @@ impl Targets<'_> {
 pub fn lifting(seg: &Segment, tau: f64) -> [bool; 2] {
     let mut out = [false; 2];
     if let Some(sw) = &seg.swing {
-        let lift: f64 = sw.shares[..sw.shares.len().saturating_sub(2)].iter().sum();
-        out[sw.foot.index()] = tau < lift;
+        out[sw.foot.index()] = tau < sw.lift_share();
     }
     out
 }
@@ -1147,7 +1169,8 @@ mod tests {
         assert_eq!(lifting(&swinging, 0.1), [false, true]);
         assert_eq!(lifting(&swinging, 0.3), [false, false]);
         assert_eq!(lifting(&seg(None), 0.1), [false, false]);
-        // A lift backing away from a riser has three pieces: the foot lifts through them.
+        // A lift backing away from a riser has more pieces, every one before the last two:
+        // the foot lifts through them.
         let backing = Swing {
             foot: Foot::Right,
             path: vec![sole(0.0); 6],
@@ -1156,6 +1179,75 @@ mod tests {
         };
         assert_eq!(lifting(&seg(Some(backing.clone())), 0.35), [true, false]);
         assert_eq!(lifting(&seg(Some(backing)), 0.45), [false, false]);
+    }
+
+    /// The lift's pieces are one stretch: the foot does not stop at the waypoints between
+    /// them, only at the lift's top and after each later piece, and the twist is the pose's
+    /// rate of change all along.
+    #[test]
+    fn a_swing_foot_moves_through_its_lifts_waypoints_without_stopping() {
+        let at = |x: f64, z: f64| Isometry3::translation(x, 0.0, z);
+        // The lift's top pitched toe down, as `toe_down` may.
+        let mut top = at(-0.01, 0.2);
+        top.rotation = nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.2, 0.0);
+        let path = vec![at(0.0, 0.0), at(0.0, 0.01), at(-0.01, 0.04), top, at(0.3, 0.2), at(0.3, 0.18)];
+        let lengths: Vec<f64> =
+            path.windows(2).map(|w| (w[1].translation.vector - w[0].translation.vector).norm()).collect();
+        let lift_m: f64 = lengths[..3].iter().sum();
+        let mut shares: Vec<f64> = lengths[..3].iter().map(|l| 0.5 * l / lift_m).collect();
+        shares.extend([0.3, 0.2]);
+        let sw = Swing { foot: Foot::Left, path, shares, natural_s: 2.0 };
+        assert_eq!(sw.lift_pieces(), 3);
+        let duration_s = 2.0;
+        let speed = |tau: f64| along_path(&sw, tau, duration_s).1.xyz().norm();
+        // At its inner waypoints the foot moves at no less than a third of the lift's mean
+        // speed (the time law's ends are the only stops); at the lift's top it stops.
+        let mean = lift_m / (0.5 * duration_s);
+        let when = |fraction: f64| {
+            let (mut lo, mut hi) = (0.0, 1.0);
+            for _ in 0..60 {
+                let mid = (lo + hi) / 2.0;
+                if ease(mid).0 < fraction {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            0.5 * lo
+        };
+        for tau in [when(sw.shares[0] / 0.5), when((sw.shares[0] + sw.shares[1]) / 0.5)] {
+            assert!(speed(tau) > mean / 3.0, "{} at {tau}", speed(tau));
+            let pose = along_path(&sw, tau, duration_s).0;
+            assert!(pose.translation.vector.z > 0.0 && pose.translation.vector.z < 0.2);
+        }
+        // All along the lift its speed is the time law's over the lift's whole length (its
+        // pieces' shares going as their lengths).
+        for i in 1..1000 {
+            let t = i as f64 / 1000.0;
+            let want = mean * ease(t).1;
+            assert!(
+                (speed(0.5 * t) - want).abs() < 1e-9,
+                "{} at {t} of the lift, {want} wanted",
+                speed(0.5 * t)
+            );
+        }
+        assert!(speed(0.5) < 1e-9 && speed(0.8) < 1e-9 && speed(0.0) < 1e-9);
+        // The twist against the pose's finite difference, and no jump in the pose.
+        let h = 1e-6;
+        for i in 1..1000 {
+            let tau = i as f64 / 1000.0;
+            let (before, after) =
+                (along_path(&sw, tau - h, duration_s).0, along_path(&sw, tau + h, duration_s).0);
+            let rate = (after.translation.vector - before.translation.vector) / (2.0 * h * duration_s);
+            let turn = (after.rotation * before.rotation.inverse()).scaled_axis() / (2.0 * h * duration_s);
+            let twist = along_path(&sw, tau, duration_s).1;
+            let (v, omega) = (twist.xyz(), nalgebra::Vector3::new(twist[3], twist[4], twist[5]));
+            assert!((rate - v).norm() < 1e-4 * (1.0 + v.norm()), "tau {tau}: {rate:?} against {v:?}");
+            assert!(
+                (turn - omega).norm() < 1e-4 * (1.0 + omega.norm()),
+                "tau {tau}: {turn:?} against {omega:?}"
+            );
+        }
     }
 
     #[test]
