@@ -64,7 +64,8 @@ impl Swing {
     ) -> Self {
         let body_moves = (com_at(1.0) - com_at(0.0)).norm() > COM_STILL_M;
         let retreat_m = if body_moves { p.lift_retreat_m } else { 0.0 };
-        let mut path = swing_path(a, b, p.swing_clearance_m, [retreat_m, p.lift_unload_m]);
+        let retreat = Retreat { by_m: retreat_m, unload_m: p.lift_unload_m, until_m: p.lift_retreat_until_m };
+        let mut path = swing_path(a, b, p.swing_clearance_m, &retreat);
         let lengths_m: Vec<f64> =
             path.windows(2).map(|w| (w[1].translation.vector - w[0].translation.vector).norm()).collect();
         let top = path.len() - 3;
@@ -80,9 +81,22 @@ impl Swing {
             })
             .collect();
         let natural_s: f64 = pieces.iter().sum();
-        let shares: Vec<f64> = pieces.iter().map(|x| x / natural_s).collect();
-        let hip = com_at(shares[..top].iter().sum()) - Vector3::z() * body.com_above_hip_m;
+        let mut shares: Vec<f64> = pieces.iter().map(|x| x / natural_s).collect();
+        let lift_share: f64 = shares[..top].iter().sum();
+        let hip = com_at(lift_share) - Vector3::z() * body.com_above_hip_m;
         path[top] = toe_down(foot, &path[top], &hip, body, p);
+        // The pitch raised the top: the lift's pieces share its time by their new lengths
+        // (its whole unchanged), so that the foot's speed has no jump at a waypoint.
+        if top > 1 {
+            let lengths_m: Vec<f64> = path[..=top]
+                .windows(2)
+                .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
+                .collect();
+            let lift_m: f64 = lengths_m.iter().sum();
+            for (share, len_m) in shares.iter_mut().zip(&lengths_m) {
+                *share = lift_share * (len_m / lift_m);
+            }
+        }
         Self { foot, path, shares, natural_s }
     }
 
@@ -226,17 +240,26 @@ pub struct StepParams {
     /// step's nose and edge).
     pub swing_clearance_m: f64,
     /// How far a sole lifting toward a higher tread while the CoM moves backs away from the
-    /// riser ahead (along the target sole's heading) as it rises through
-    /// `swing_clearance_m`, metres. Default 0: straight up. The toes keep at least
+    /// riser ahead (along the target sole's heading) as it rises from `lift_unload_m` to
+    /// `lift_retreat_until_m`, metres (0: straight up). Default 0.015 m. The toes keep at least
     /// `GaitParams::toe_clearance_m` (1.5 cm) behind that riser as perceived, a few
     /// millimetres less where the perception and the touchdown err, and a body whose servos
     /// lag carries the lifting sole forward with the rising CoM (about 1 cm at 20-30 ms).
-    /// 0.015 m, as much again as the toes' clearance, keeps the toes off that riser; the lift
-    /// it lengthens by millimetres is still timed as one stretch (CHANGELOG, fifty-eighth
-    /// and fifty-ninth sessions, for the suites with it).
+    /// 0.015 m, as much again as the toes' clearance, keeps the toes off that riser. The
+    /// lift, a few millimetres longer, is timed as one stretch and costs no time (CHANGELOG,
+    /// fifty-eighth and fifty-ninth sessions).
     pub lift_retreat_m: f64,
-    /// How high such a sole first rises straight up before it backs away, metres, at most
-    /// `swing_clearance_m` (0: it backs away from the lift-off). Default 0.015 m: the sole
+    /// Height above the lift-off by which such a sole has backed away the whole
+    /// `lift_retreat_m`, metres (the lift's top if lower), above `lift_unload_m`. The
+    /// retreat's acceleration goes as the inverse square of the height it is spread over,
+    /// and the stance sole pushes against it: over the swing's clearance alone (5 cm) the
+    /// stance sole's friction ratio rose from 0.18 to 0.27 in `smoke`; spread over the
+    /// riser's whole height (18 cm) the toe was 2 mm back 5 cm up, where a lagging body's
+    /// toe meets the riser (`robust-0020`, `-0021`: 30 ms servo latency). Default 0.12 m:
+    /// 4 mm back 5 cm up, the friction ratio as straight up (CHANGELOG, fifty-ninth session).
+    pub lift_retreat_until_m: f64,
+    /// How high such a sole first rises straight up before it backs away, metres, below
+    /// `lift_retreat_until_m` (0: it backs away from the lift-off). Default 0.015 m: the sole
     /// is still unloading as it leaves, and backing away at once slides it back along its
     /// tread under load (CHANGELOG, fifty-eighth session).
     pub lift_unload_m: f64,
@@ -303,7 +326,8 @@ impl StepParams {
             min_segment_s: 0.8,
             min_piece_s: 0.6,
             swing_clearance_m: 0.05,
-            lift_retreat_m: 0.0,
+            lift_retreat_m: 0.015,
+            lift_retreat_until_m: 0.12,
             lift_unload_m: 0.015,
             min_margin_m: 0.02,
             friction: super::contact::DEFAULT_FRICTION,
@@ -316,8 +340,8 @@ impl StepParams {
 
     /// Why these parameters cannot time a gait, if they cannot: a speed that is not positive
     /// and finite, a ZMP shift that is not positive, a shortest duration, the ankle's margin
-    /// or the lift's retreat or unload negative or not finite (a zero speed would make every
-    /// segment last forever), an unload above the swing's clearance.
+    /// or the lift's retreat, its height or its unload negative or not finite (a zero speed
+    /// would make every segment last forever), an unload not below the retreat's height.
     pub fn validate(&self) -> Result<(), String> {
         let speeds = [("com_speed_m_s", self.com_speed_m_s), ("foot_speed_m_s", self.foot_speed_m_s)];
         if let Some((name, v)) = speeds.iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
@@ -333,13 +357,14 @@ impl StepParams {
             ("ankle_flex_margin_rad", self.ankle_flex_margin_rad),
             ("lift_retreat_m", self.lift_retreat_m),
             ("lift_unload_m", self.lift_unload_m),
+            ("lift_retreat_until_m", self.lift_retreat_until_m),
         ];
         if let Some((name, v)) = non_negative.iter().find(|(_, v)| !(v.is_finite() && *v >= 0.0)) {
             return Err(format!("[step] {name} must be finite and not negative, got {v}"));
         }
-        if self.lift_unload_m > self.swing_clearance_m {
-            let (u, c) = (self.lift_unload_m, self.swing_clearance_m);
-            return Err(format!("[step] lift_unload_m ({u}) must not exceed swing_clearance_m ({c})"));
+        if self.lift_unload_m >= self.lift_retreat_until_m {
+            let (u, c) = (self.lift_unload_m, self.lift_retreat_until_m);
+            return Err(format!("[step] lift_unload_m ({u}) must be below lift_retreat_until_m ({c})"));
         }
         Ok(())
     }
@@ -608,18 +633,26 @@ fn check_fold(legs: &Legs, p: &StepParams, hip_above_ankle_m: f64, stance: usize
     Ok(())
 }
 
+/// How a lift backs away from the riser ahead (see [`swing_path`]), metres: by `by_m`
+/// (0: it does not), beginning `unload_m` above the lift-off, done `until_m` above it.
+struct Retreat {
+    by_m: f64,
+    unload_m: f64,
+    until_m: f64,
+}
+
 /// Lift vertically to `clearance_m` above the higher of the two soles, move across, descend.
-/// Toward a tread higher by more than [`RISER_AHEAD_M`] (a riser between), with `retreat_m`
-/// above zero, the lift first rises `unload_m` straight up, then backs away by `retreat_m`
-/// against `b`'s heading (the riser's normal: the footholds yaw every sole with the
-/// staircase) as it rises through `clearance_m`, then goes on up: a curve, vertical where it
-/// leaves and where it rejoins the straight parts (the retreat eased in, 3 f^2 - 2 f^3 of
-/// the rise's fraction `f`), sampled in [`RETREAT_PIECES`] pieces.
+/// Toward a tread higher by more than [`RISER_AHEAD_M`] (a riser between), with a retreat,
+/// the lift first rises `unload_m` straight up, then backs away by `by_m` against `b`'s
+/// heading (the riser's normal: the footholds yaw every sole with the staircase) as it
+/// rises to `until_m` (the lift's top if lower), then goes on up: a curve, vertical where
+/// it leaves and where it rejoins the straight parts (the retreat eased in, 3 f^2 - 2 f^3
+/// of the rise's fraction `f`), sampled in [`RETREAT_PIECES`] pieces.
 fn swing_path(
     a: &Isometry3<f64>,
     b: &Isometry3<f64>,
     clearance_m: f64,
-    [retreat_m, unload_m]: [f64; 2],
+    retreat: &Retreat,
 ) -> Vec<Isometry3<f64>> {
     let top = a.translation.z.max(b.translation.z) + clearance_m;
     let mut lift = *a;
@@ -630,17 +663,22 @@ fn swing_path(
     let rises = b.translation.z - a.translation.z > RISER_AHEAD_M;
     let mut path = vec![*a];
     if let Some(forward) = Vector3::new(heading.x, heading.y, 0.0).try_normalize(1e-9) {
-        if rises && retreat_m > 0.0 {
-            let back = -forward * retreat_m;
-            let first = if unload_m > 0.0 { 0 } else { 1 };
+        let until_m = retreat.until_m.min(top - a.translation.z);
+        if rises && retreat.by_m > 0.0 && until_m > retreat.unload_m {
+            let back = -forward * retreat.by_m;
+            let first = if retreat.unload_m > 0.0 { 0 } else { 1 };
             for k in first..=RETREAT_PIECES {
                 let f = k as f64 / RETREAT_PIECES as f64;
+                let up_m = retreat.unload_m + (until_m - retreat.unload_m) * f;
                 let mut pose = *a;
-                pose.translation.vector +=
-                    back * ease(f).0 + Vector3::z() * (unload_m + (clearance_m - unload_m) * f);
+                pose.translation.vector += back * ease(f).0 + Vector3::z() * up_m;
                 path.push(pose);
             }
             lift.translation.vector += back;
+            if until_m >= top - a.translation.z {
+                // The curve ends at the lift's top: no straight piece after it.
+                path.pop();
+            }
         }
     }
     path.extend([lift, above, *b]);
@@ -648,9 +686,8 @@ fn swing_path(
 }
 
 /// How many pieces sample the curve of a lift backing away from a riser ([`swing_path`]):
-/// at eight its direction turns at most about 8 deg between two (0.015 m back over a 0.035 m
-/// rise).
-const RETREAT_PIECES: usize = 8;
+/// at sixteen its direction turns at most a few degrees between two.
+const RETREAT_PIECES: usize = 16;
 
 /// A swing's target higher than its lift-off by more than this has a riser between them,
 /// metres: a stair's rise is 10 cm or more, a floor perceived uneven by millimetres.
@@ -858,14 +895,15 @@ mod tests {
         assert!((bend - want).abs() < 2e-3, "the ankle bends {bend:.4} rad, {want:.4} wanted");
     }
 
-    /// A sole lifting toward a higher tread while the CoM rises (the trailing foot) first
-    /// rises straight, then backs away from the riser ahead along a curve before it goes on
-    /// up, the whole lift timed as one stretch; the
-    /// leading foot's lift (the CoM still) and a swing along the floor go straight up.
+    /// By default a sole lifting toward a higher tread while the CoM rises (the trailing
+    /// foot) first rises straight, then backs away from the riser ahead along a curve before
+    /// it goes on up, the whole lift timed as one stretch; the leading foot's lift (the CoM
+    /// still) and a swing along the floor go straight up.
     #[test]
     fn a_trailing_sole_backs_away_from_the_riser_ahead_as_it_lifts() {
         let body = hrp4_like();
-        let p = StepParams { lift_retreat_m: 0.015, ..StepParams::default() };
+        let p = StepParams::default();
+        assert!(p.lift_retreat_m > 0.0 && p.lift_retreat_until_m < 0.18 + p.swing_clearance_m);
         let yawed = |x: f64, y: f64, z: f64| {
             Isometry3::from_parts(
                 Translation3::new(x, y, z),
@@ -885,7 +923,8 @@ mod tests {
         assert_eq!(sw.lift_pieces(), top);
         let moved = |k: usize| sw.path[k].translation.vector - from.translation.vector;
         // Straight up by the unload, then back along the heading (never sideways, never
-        // forward, farther at each pose) while rising the clearance, level until the top.
+        // forward, farther at each pose) while rising to the retreat's height, level until
+        // the top.
         assert!(moved(1).xy().norm() < 1e-12 && (moved(1).z - p.lift_unload_m).abs() < 1e-12);
         for k in 2..top {
             let (back, was) = (-moved(k).dot(&forward), -moved(k - 1).dot(&forward));
@@ -895,7 +934,7 @@ mod tests {
             assert!(sw.path[k].rotation == from.rotation);
         }
         assert!((moved(top - 1).dot(&forward) + p.lift_retreat_m).abs() < 1e-12);
-        assert!((moved(top - 1).z - p.swing_clearance_m).abs() < 1e-12);
+        assert!((moved(top - 1).z - p.lift_retreat_until_m).abs() < 1e-12);
         // The curve leaves the straight rise and rejoins the straight rise above vertically:
         // its first and last pieces lean less than its middle.
         let lean = |k: usize| {
@@ -915,19 +954,22 @@ mod tests {
         assert_eq!(sw.path[top + 2], to);
         assert!((sw.shares.iter().sum::<f64>() - 1.0).abs() < 1e-12);
         // The lift is timed as one stretch at the foot's speed: its pieces' shares go as
-        // their lengths (the top before its pitch), and it takes no longer than a straight
-        // lift of its length would.
+        // their lengths (the top pitched), and it takes as long as the foot's speed asks of
+        // its length before the pitch.
+        let lengths = |path: &[Isometry3<f64>]| -> Vec<f64> {
+            path.windows(2)
+                .take(top)
+                .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
+                .collect()
+        };
+        let pitched_m = lengths(&sw.path);
+        for (k, len) in pitched_m.iter().enumerate() {
+            let want = len / pitched_m.iter().sum::<f64>();
+            assert!((sw.shares[k] / sw.lift_share() - want).abs() < 1e-9, "piece {k}");
+        }
         let mut level = sw.path.clone();
         level[top] = lift_top;
-        let lengths: Vec<f64> = level
-            .windows(2)
-            .take(top)
-            .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
-            .collect();
-        let lift_m: f64 = lengths.iter().sum();
-        for (k, len) in lengths.iter().enumerate() {
-            assert!((sw.shares[k] / sw.lift_share() - len / lift_m).abs() < 1e-9, "piece {k}");
-        }
+        let lift_m: f64 = lengths(&level).iter().sum();
         let lift_s = sw.lift_share() * sw.natural_s;
         assert!((lift_s - (lift_m / p.foot_speed_m_s).max(p.min_piece_s)).abs() < 1e-9, "{lift_s}");
         // No straight part asked: it backs away from the lift-off at once.
@@ -942,10 +984,16 @@ mod tests {
         let floor = Swing::new(Foot::Left, &from, &ahead, rising, &body, &p);
         assert_eq!(floor.path.len(), 4);
         assert!(floor.path[1].translation.vector.xy() == from.translation.vector.xy());
-        // No retreat asked (the default): straight up. An unload above the clearance: refused.
-        let straight = StepParams::default();
+        // A lift lower than the retreat's height backs away all the way to its top.
+        let low = StepParams { lift_retreat_until_m: 0.5, ..p.clone() };
+        let all_the_way = Swing::new(Foot::Left, &from, &to, rising, &body, &low);
+        assert_eq!(all_the_way.path.len(), RETREAT_PIECES + 4);
+        let below_top = all_the_way.path[RETREAT_PIECES].translation.vector - from.translation.vector;
+        assert!(below_top.z < 0.18 + p.swing_clearance_m && -below_top.dot(&forward) < p.lift_retreat_m);
+        // No retreat asked: straight up. An unload not below the retreat's height: refused.
+        let straight = StepParams { lift_retreat_m: 0.0, ..p.clone() };
         assert_eq!(Swing::new(Foot::Left, &from, &to, rising, &body, &straight).path.len(), 4);
-        let high = StepParams { lift_unload_m: 0.06, ..p.clone() };
+        let high = StepParams { lift_unload_m: 0.12, ..p.clone() };
         assert!(high.validate().unwrap_err().contains("lift_unload_m"));
     }
 }
