@@ -254,11 +254,10 @@ pub struct StepParams {
     /// Height above the lift-off by which such a sole has backed away the whole
     /// `lift_retreat_m`, metres (the lift's top if lower), above `lift_unload_m`. The
     /// retreat's acceleration goes as the inverse square of the height it is spread over,
-    /// and the stance sole pushes against it: over the swing's clearance alone (5 cm) the
-    /// stance sole's friction ratio rose from 0.18 to 0.27 in `smoke`; spread over the
-    /// riser's whole height (18 cm) the toe was 2 mm back 5 cm up, where a lagging body's
-    /// toe meets the riser (`robust-0020`, `-0021`: 30 ms servo latency). Default 0.12 m:
-    /// 4 mm back 5 cm up, the friction ratio as straight up (CHANGELOG, fifty-ninth session).
+    /// and the stance sole pushes against it; spread too high, the toe has hardly backed
+    /// away where a lagging body's toe meets the riser, a few centimetres up. Default
+    /// 0.12 m: 4 mm back 5 cm up, the stance sole's friction as with a straight lift
+    /// (CHANGELOG, fifty-ninth session, for the runs).
     pub lift_retreat_until_m: f64,
     /// How high such a sole first rises straight up before it backs away, metres, below
     /// `lift_retreat_until_m` (0: it backs away from the lift-off). Default 0.015 m: the sole
