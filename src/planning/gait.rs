@@ -241,15 +241,14 @@ pub struct StepParams {
     pub swing_clearance_m: f64,
     /// How far a sole lifting toward a higher tread while the CoM moves backs away from the
     /// riser ahead (along the target sole's heading) as it rises from `lift_unload_m` to
-    /// `lift_retreat_until_m`, metres. Default 0: straight up. The toes keep at least
+    /// `lift_retreat_until_m`, metres (0: straight up). Default 0.015 m. The toes keep at least
     /// `GaitParams::toe_clearance_m` (1.5 cm) behind that riser as perceived, a few
     /// millimetres less where the perception and the touchdown err, and a body whose servos
-    /// lag carries the lifting sole forward with the rising CoM (about 1 cm at 20-30 ms).
+    /// lag carries the lifting sole forward with the rising CoM (about 1 cm at 20-30 ms;
+    /// regression `a-lagging-body-carried-the-trailing-toe-into-the-riser`).
     /// 0.015 m, as much again as the toes' clearance, keeps the toes off that riser. The
-    /// lift, a few millimetres longer, is timed as one stretch and costs no time. Not the
-    /// default: with the sway's washout on, a landing after it loads the sole with a
-    /// friction ratio that differs between the 1 and 0.5 ms physics steps (CHANGELOG,
-    /// fifty-eighth and fifty-ninth sessions).
+    /// lift, a few millimetres longer, is timed as one stretch and costs no time (CHANGELOG,
+    /// fifty-eighth to sixtieth sessions).
     pub lift_retreat_m: f64,
     /// Height above the lift-off by which such a sole has backed away the whole
     /// `lift_retreat_m`, metres (the lift's top if lower), above `lift_unload_m`. The
@@ -327,7 +326,7 @@ impl StepParams {
             min_segment_s: 0.8,
             min_piece_s: 0.6,
             swing_clearance_m: 0.05,
-            lift_retreat_m: 0.0,
+            lift_retreat_m: 0.015,
             lift_retreat_until_m: 0.12,
             lift_unload_m: 0.015,
             min_margin_m: 0.02,
@@ -896,15 +895,15 @@ mod tests {
         assert!((bend - want).abs() < 2e-3, "the ankle bends {bend:.4} rad, {want:.4} wanted");
     }
 
-    /// With a retreat asked, a sole lifting toward a higher tread while the CoM rises (the
-    /// trailing foot) first rises straight, then backs away from the riser ahead along a curve before
+    /// By default a sole lifting toward a higher tread while the CoM rises (the trailing
+    /// foot) first rises straight, then backs away from the riser ahead along a curve before
     /// it goes on up, the whole lift timed as one stretch; the leading foot's lift (the CoM
     /// still) and a swing along the floor go straight up.
     #[test]
     fn a_trailing_sole_backs_away_from_the_riser_ahead_as_it_lifts() {
         let body = hrp4_like();
-        let p = StepParams { lift_retreat_m: 0.015, ..StepParams::default() };
-        assert!(p.lift_retreat_until_m < 0.18 + p.swing_clearance_m);
+        let p = StepParams::default();
+        assert!(p.lift_retreat_m > 0.0 && p.lift_retreat_until_m < 0.18 + p.swing_clearance_m);
         let yawed = |x: f64, y: f64, z: f64| {
             Isometry3::from_parts(
                 Translation3::new(x, y, z),
