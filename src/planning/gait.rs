@@ -66,8 +66,7 @@ impl Swing {
         let retreat_m = if body_moves { p.lift_retreat_m } else { 0.0 };
         let retreat = Retreat { by_m: retreat_m, unload_m: p.lift_unload_m, until_m: p.lift_retreat_until_m };
         let mut path = swing_path(a, b, p.swing_clearance_m, &retreat);
-        let lengths_m: Vec<f64> =
-            path.windows(2).map(|w| (w[1].translation.vector - w[0].translation.vector).norm()).collect();
+        let lengths_m = piece_lengths_m(&path);
         let top = path.len() - 3;
         let lift_m: f64 = lengths_m[..top].iter().sum();
         let lift_s = (lift_m / p.foot_speed_m_s).max(p.min_piece_s);
@@ -88,10 +87,7 @@ impl Swing {
         // The pitch raised the top: the lift's pieces share its time by their new lengths
         // (its whole unchanged), so that the foot's speed has no jump at a waypoint.
         if top > 1 {
-            let lengths_m: Vec<f64> = path[..=top]
-                .windows(2)
-                .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
-                .collect();
+            let lengths_m = piece_lengths_m(&path[..=top]);
             let lift_m: f64 = lengths_m.iter().sum();
             for (share, len_m) in shares.iter_mut().zip(&lengths_m) {
                 *share = lift_share * (len_m / lift_m);
@@ -685,6 +681,11 @@ fn swing_path(
     path
 }
 
+/// The lengths of a path's pieces (each pose's origin to the next's), metres.
+pub(super) fn piece_lengths_m(path: &[Isometry3<f64>]) -> Vec<f64> {
+    path.windows(2).map(|w| (w[1].translation.vector - w[0].translation.vector).norm()).collect()
+}
+
 /// How many pieces sample the curve of a lift backing away from a riser ([`swing_path`]):
 /// at sixteen its direction turns at most a few degrees between two.
 const RETREAT_PIECES: usize = 16;
@@ -956,12 +957,7 @@ mod tests {
         // The lift is timed as one stretch at the foot's speed: its pieces' shares go as
         // their lengths (the top pitched), and it takes as long as the foot's speed asks of
         // its length before the pitch.
-        let lengths = |path: &[Isometry3<f64>]| -> Vec<f64> {
-            path.windows(2)
-                .take(top)
-                .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
-                .collect()
-        };
+        let lengths = |path: &[Isometry3<f64>]| piece_lengths_m(&path[..=top]);
         let pitched_m = lengths(&sw.path);
         for (k, len) in pitched_m.iter().enumerate() {
             let want = len / pitched_m.iter().sum::<f64>();

@@ -1034,6 +1034,7 @@ pub fn track_until(
 
 #[cfg(test)]
 mod tests {
+    use super::super::gait::piece_lengths_m;
     use super::*;
 
     fn sole(yaw_deg: f64) -> Isometry3<f64> {
@@ -1191,8 +1192,7 @@ mod tests {
         let mut top = at(-0.01, 0.2);
         top.rotation = nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.2, 0.0);
         let path = vec![at(0.0, 0.0), at(0.0, 0.01), at(-0.01, 0.04), top, at(0.3, 0.2), at(0.3, 0.18)];
-        let lengths: Vec<f64> =
-            path.windows(2).map(|w| (w[1].translation.vector - w[0].translation.vector).norm()).collect();
+        let lengths = piece_lengths_m(&path);
         let lift_m: f64 = lengths[..3].iter().sum();
         let mut shares: Vec<f64> = lengths[..3].iter().map(|l| 0.5 * l / lift_m).collect();
         shares.extend([0.3, 0.2]);
