@@ -105,9 +105,9 @@ fn the_default_physics_step_gives_the_figures_of_half_of_it() {
 /// own give, which changes within a few physics steps. Taken raw (`lean_washout_filter_s`
 /// 0) it moves cycle 2's CoM margin 2.2 mm between the 1 and 0.5 ms steps, and fails this;
 /// low-passed at the default 0.03 s the figures agree. All but the friction ratio: with the
-/// washout on, a landing sole chatters on its contact at 1-47 N, at its cone's edge below
-/// the checks' `friction_load_n`, and where the load crosses that while the sole is still
-/// held back the ratio is the step's chance. With the lift straight up, seeds 1 to 4 give
+/// washout on, a landing sole chatters on its contact for tens of milliseconds, at its
+/// cone's edge while its load is under the checks' `friction_load_n`, and whether the load
+/// crosses that while the sole is still held back is the step's chance. With the lift straight up, seeds 1 to 4 give
 /// cycle 4's or 5's ratio 0.06 to 0.23 apart between the steps; with the default retreat,
 /// Exp. 1's own draw gives cycle 5's 0.33 against 0.20 (CHANGELOG, sixtieth session).
 #[test]

@@ -160,7 +160,7 @@ pub struct StabilizerParams {
     /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`, at 0.15). Default
     /// 0, off: at 0.15 `ci`'s friction tail rises, `robust`'s servo-latency rows lose two
     /// cases (CHANGELOG), and the friction ratio a landing shows is the physics step's chance
-    /// (test `the_sway_washout_gives_the_figures_of_half_the_physics_step`).
+    /// (CHANGELOG, sixtieth session).
     pub lean_washout_gain: f64,
     /// Time constant of `lean_washout_gain`'s washout, seconds: the tilt for a lean that
     /// stands decays by 1/e in this time, leaving that lean to `lean_follow_rate_per_s`.

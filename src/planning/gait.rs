@@ -111,7 +111,7 @@ impl Swing {
 /// The swinging sole at the top of its lift (`lift`, level), pitched toe down by as much as
 /// its ankle would have to bend beyond `p.ankle_flex_margin_rad` short of its limit for the
 /// sole to stay level, with the hip pitch axis at `hip`, and raised so that its toe stays at
-/// `lift`'s height. A trailing foot lifted straight up from a tread behind the hip (a deep
+/// `lift`'s height. A trailing foot lifted from a tread behind the hip (a deep
 /// tread, the hip lowered for the leading leg's reach) otherwise asks its ankle more than
 /// the joint allows, and the IK, its ankle held at the limit, keeps the sole level by
 /// rolling the pelvis and bowing the chest in a few tenths of a second at its joint speed
@@ -681,11 +681,6 @@ fn swing_path(
     path
 }
 
-/// The lengths of a path's pieces (each pose's origin to the next's), metres.
-pub(super) fn piece_lengths_m(path: &[Isometry3<f64>]) -> Vec<f64> {
-    path.windows(2).map(|w| (w[1].translation.vector - w[0].translation.vector).norm()).collect()
-}
-
 /// How many pieces sample the curve of a lift backing away from a riser ([`swing_path`]):
 /// at sixteen its direction turns at most a few degrees between two.
 const RETREAT_PIECES: usize = 16;
@@ -697,6 +692,11 @@ const RISER_AHEAD_M: f64 = 0.05;
 /// The CoM moving less than this over a swing counts as still (the leading foot's swing,
 /// the CoM held over the trailing ankle), metres.
 const COM_STILL_M: f64 = 1e-3;
+
+/// The lengths of a path's pieces (each pose's origin to the next's), metres.
+pub(super) fn piece_lengths_m(path: &[Isometry3<f64>]) -> Vec<f64> {
+    path.windows(2).map(|w| (w[1].translation.vector - w[0].translation.vector).norm()).collect()
+}
 
 /// Checks every CoM waypoint against the polygons of both segments it joins, moving it
 /// toward the middle of their intersection when its margin is short.

@@ -1034,8 +1034,8 @@ pub fn track_until(
 
 #[cfg(test)]
 mod tests {
-    use super::super::gait::piece_lengths_m;
     use super::*;
+    use crate::planning::gait::piece_lengths_m;
 
     fn sole(yaw_deg: f64) -> Isometry3<f64> {
         Isometry3::rotation(nalgebra::Vector3::z() * yaw_deg.to_radians())
