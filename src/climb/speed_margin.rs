@@ -4,7 +4,14 @@
 //! climb with the plan's timing sped up ([`PlanParams::faster`]: its speeds, shortest
 //! durations and the IK's rates; the CoM's acceleration bound stays, so where it holds a
 //! segment the plan shortens by less than the factor); the factor is doubled until a climb
-//! fails, then bisected (geometrically) between the last pass and the first failure.
+//! fails, then bisected (geometrically) between the last pass and the first failure, each
+//! factor tried rounded to [`FACTOR_STEP`] so that it is printed as tried and
+//! `run --speedup` gives that climb again.
+//!
+//! The search takes a climb's outcome to change once along the factors; near the edge it
+//! need not (Exp. 1 at the default timing: x 1.82 and x 1.8337 climb, x 1.83 falls in its
+//! first floor cycle), so the margin is the largest factor found to pass between two tried,
+//! not a guarantee for every factor below it.
 //!
 //! A try passes when it keeps every check and the planned timing's outcome: to the top
 //! where that climbed. Where the case allows a refusal (its expected outcome `refuse` or
@@ -19,6 +26,16 @@
 use super::outcome::{StopReason, Violation};
 use super::ClimbReport;
 use crate::planning::PlanParams;
+
+/// The grid of the bisection's factors: hundredths, as `run` prints them.
+pub const FACTOR_STEP: f64 = 0.01;
+
+/// `f` on the grid of [`FACTOR_STEP`]: the nearest hundredth, as `--speedup` parses its
+/// decimal (a division, rounded once).
+fn on_grid(f: f64) -> f64 {
+    let per_unit = (1.0 / FACTOR_STEP).round();
+    (f * per_unit).round() / per_unit
+}
 
 /// One climb of the search.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -57,7 +74,7 @@ pub struct SpeedMargin {
 }
 
 /// Searches factors from 1 up to `max_factor` until the pass and fail factors are within
-/// `1 + resolution` of each other. `climb(plan)` runs one whole climb with the planner's
+/// `1 + resolution` of each other, or no factor of the grid ([`FACTOR_STEP`]) lies between. `climb(plan)` runs one whole climb with the planner's
 /// parameters `plan` (the given ones sped up); `on_try` sees each climb as it ends.
 /// `refusal_allowed`: the case may be refused (see the module's doc).
 pub fn speed_margin<E>(
@@ -100,6 +117,8 @@ pub fn speed_margin<E>(
         out.fails_at = Some(1.0);
         return Ok(out);
     }
+    // The largest factor tried is on the grid too (the hundredth at or below it).
+    let max_factor = on_grid(max_factor - FACTOR_STEP / 2.0).max(1.0);
     let (mut lo, mut hi) = (1.0_f64, None::<f64>);
     let mut f = 2.0_f64.min(max_factor);
     while f > lo {
@@ -113,7 +132,10 @@ pub fn speed_margin<E>(
     }
     if let Some(mut h) = hi {
         while h / lo > 1.0 + resolution {
-            let mid = (lo * h).sqrt();
+            let mid = on_grid((lo * h).sqrt());
+            if mid <= lo || mid >= h {
+                break;
+            }
             if attempt(mid, &mut out)? {
                 lo = mid;
             } else {
@@ -227,5 +249,25 @@ mod tests {
         assert!(m.planned_stopped_safely);
         assert!(m.passes_at.unwrap() < 3.0 && m.fails_at.unwrap() >= 3.0 - 1e-9);
         assert!(m.tries.iter().all(|t| t.passes == (t.factor < 3.0 - 1e-9)), "{:?}", m.tries);
+    }
+
+    /// The bisected factors are hundredths, each as `run` prints it and `--speedup` reads
+    /// it: climbs failing from x 1.83 are bracketed by x 1.68 and x 1.83 at the CLI's
+    /// resolution (unrounded, the bisection tried x 1.4142, 1.6818 and 1.8340), and a
+    /// resolution finer than the grid ends where no hundredth lies between the two.
+    #[test]
+    fn the_bisected_factors_are_hundredths() {
+        let base = PlanParams::default();
+        for (resolution, bracket) in [(0.1, (1.68, 1.83)), (1e-6, (1.82, 1.83))] {
+            let mut climb = |p: &PlanParams| -> Result<ClimbReport, ()> {
+                let f = p.step.com_speed_m_s / base.step.com_speed_m_s;
+                Ok(ended(None, f >= 1.83 - 1e-9))
+            };
+            let m = speed_margin(&base, 8.0, resolution, false, &mut climb, &mut |_| {}).unwrap();
+            assert_eq!((m.passes_at, m.fails_at), (Some(bracket.0), Some(bracket.1)), "{:?}", m.tries);
+            for t in &m.tries {
+                assert_eq!(format!("{:.2}", t.factor).parse::<f64>(), Ok(t.factor));
+            }
+        }
     }
 }
