@@ -109,6 +109,20 @@ pub struct StabilizerParams {
     /// Longest the plan may wait, over a whole plan, for feet that should be down and have
     /// not met the ground yet, seconds (the CoM is held meanwhile).
     pub max_hold_s: f64,
+    /// How long a foot held where it touched may read no contact (its normal force at
+    /// `touchdown_force_n` or under) before the touch is taken for none, seconds: the foot
+    /// then seeks the ground from where its target is, at `approach_speed_m_s`, and the plan
+    /// waits for it as for a foot whose swing ended in the air (within `max_hold_s`); a
+    /// swinging foot goes on along its swing. The touch can be the sole's own inertia: at
+    /// x 1.83 the default timing, Exp. 1's left sole read one as its descent began, 4.4 cm
+    /// above the floor, was held there and lowered at the landing's pace while the plan moved
+    /// the CoM onto it, and the robot fell (test
+    /// `a_touch_read_in_the_air_is_let_go_and_the_com_waits_for_the_foot`, at 0.1 s: longer
+    /// than a landing's bounces). Opt-in: `inf` (the default) keeps every touch. At 0.1 s
+    /// it lets go touches at the default timing too (Exp. 1's first cycle), and a foot let
+    /// go lands again harder: climbs faster than the default then reach friction ratios of
+    /// 0.78-0.82 and the two physics steps' slides differ (CHANGELOG, sixty-first session).
+    pub touch_lost_after_s: f64,
     /// Longest the stabilizer holds the plan's last instant after the plan's clock has ended,
     /// for the body to come still (its base no faster than `RunParams::still_speed_m_s` for
     /// `RunParams::still_s`), seconds. The plan ends at rest, the body does not: it lags the
@@ -215,6 +229,7 @@ impl Default for StabilizerParams {
             approach_speed_m_s: APPROACH_SPEED_M_S,
             approach_entry_speed_m_s: 0.05,
             max_hold_s: 2.0,
+            touch_lost_after_s: f64::INFINITY,
             max_end_hold_s: 2.0,
             max_seek_m: 0.03,
             tilt_filter_time_s: 2.0,
@@ -232,8 +247,16 @@ impl StabilizerParams {
     /// land a foot (the speeds finite, the landing speed above zero: a foot that never comes
     /// down waits out `max_hold_s` in the air; the entry speed at least the landing speed;
     /// the height finite and not negative), and a sway washout whose gain is not finite or
-    /// whose time is not a finite time above zero.
+    /// whose time is not a finite time above zero, and a lost touch's time that is not above
+    /// zero.
     pub fn validate(&self) -> Result<(), String> {
+        // Compared so that NaN fails too; `inf` keeps every touch.
+        if !(self.touch_lost_after_s > 0.0) {
+            return Err(format!(
+                "stabilizer.touch_lost_after_s must be a time > 0 (inf: keep every touch), got {}",
+                self.touch_lost_after_s
+            ));
+        }
         if !(self.approach_speed_m_s > 0.0 && self.approach_speed_m_s.is_finite()) {
             return Err(format!(
                 "stabilizer.approach_speed_m_s must be a finite speed > 0, got {}",
@@ -332,6 +355,9 @@ mod tests {
         assert!(with(|p| p.approach_entry_speed_m_s = f64::INFINITY).is_err());
         assert!(with(|p| p.approach_height_m = -0.01).is_err_and(|e| e.contains("approach_height_m")));
         assert!(with(|p| p.approach_entry_speed_m_s = p.approach_speed_m_s).is_ok());
+        assert!(with(|p| p.touch_lost_after_s = 0.0).is_err_and(|e| e.contains("touch_lost_after_s")));
+        assert!(with(|p| p.touch_lost_after_s = f64::NAN).is_err());
+        assert!(with(|p| p.touch_lost_after_s = f64::INFINITY).is_ok());
     }
 
     #[test]

@@ -84,6 +84,12 @@ pub struct Stabilizer<'m> {
     lifted: [FootOffset; 2],
     approach_z: Option<f64>,
     seeking: [Option<f64>; 2],
+    /// How long each foot held where it touched has read no contact since, seconds
+    /// (`StabilizerParams::touch_lost_after_s`), until it has carried its contact force
+    /// that long.
+    touch_lost_s: [f64; 2],
+    /// How long each foot has carried `contact_force_n` since it touched, seconds.
+    loaded_s: [f64; 2],
     com_prev: Option<Point3<f64>>,
     t_s: f64,
     held_s: f64,
@@ -138,6 +144,8 @@ impl<'m> Stabilizer<'m> {
             lifted: [FootOffset::default(); 2],
             approach_z: None,
             seeking: [None; 2],
+            touch_lost_s: [0.0; 2],
+            loaded_s: [0.0; 2],
             com_prev: None,
             t_s: 0.0,
             held_s: 0.0,
@@ -235,12 +243,35 @@ impl<'m> Stabilizer<'m> {
         }
     }
 
+    /// A foot held where it touched that has read no contact for `touch_lost_after_s` has
+    /// not met the ground: a support of the segment seeks it from its target's height (the
+    /// plan waits for it), the segment's swinging foot goes on along its swing.
+    fn let_lost_touches_go(&mut self) {
+        let segments = std::sync::Arc::clone(&self.segments);
+        let seg = &segments[self.segment];
+        for k in 0..2 {
+            if self.touch_lost_s[k] < self.p.touch_lost_after_s || self.held[k].is_none() {
+                continue;
+            }
+            if let Some((f, pose)) = seg.support.iter().find(|(f, _)| f.index() == k) {
+                self.seeking[k] = Some(self.corrected(*f, pose).translation.z);
+            }
+            self.held[k] = None;
+            self.landing[k] = false;
+            self.offsets[k] = FootOffset::default();
+            self.touch_lost_s[k] = 0.0;
+            self.loaded_s[k] = 0.0;
+        }
+    }
+
     /// Where foot `k` met the ground: its measured position (`at`, world), its planned
     /// orientation (flat on the tread).
     fn land(&mut self, k: usize, at: Vector3<f64>, planned: &Isometry3<f64>) {
         self.held[k] = Some(Isometry3::from_parts(at.into(), planned.rotation));
         self.landing[k] = true;
         self.seeking[k] = None;
+        self.loaded_s[k] = 0.0;
+        self.touch_lost_s[k] = 0.0;
     }
 
     /// The kinematics from the encoders, the commanded base moved so the first planned
@@ -291,6 +322,7 @@ impl<'m> Stabilizer<'m> {
         let started = Instant::now();
         let dt = self.period_s();
         let t_s = self.t_s;
+        self.let_lost_touches_go();
         let hold = self.seeking.iter().any(Option::is_some) && self.held_s + dt <= self.p.max_hold_s;
         let step_s = if hold { 0.0 } else { dt };
         self.held_s += dt - step_s;
@@ -322,6 +354,21 @@ impl<'m> Stabilizer<'m> {
             *ticks = if w.force_n.z > self.p.touchdown_force_n { *ticks + 1 } else { 0 };
         }
         let touching = self.pressed_ticks.map(|n| n >= self.p.touchdown_ticks.max(1));
+        // A touch is kept once the foot has carried its contact force for as long as a lost
+        // touch takes (a tick's spike as a swinging sole slows is no load).
+        for k in 0..2 {
+            let held = self.held[k].is_some();
+            let loaded = measured[k].force_n.z > self.p.contact_force_n;
+            self.loaded_s[k] = if held && loaded {
+                self.loaded_s[k] + dt
+            } else if held {
+                self.loaded_s[k]
+            } else {
+                0.0
+            };
+            let lost = held && self.loaded_s[k] < self.p.touch_lost_after_s && !touching[k];
+            self.touch_lost_s[k] = if lost { self.touch_lost_s[k] + dt } else { 0.0 };
+        }
         let mut swing = None;
         let sole_at: [Vector3<f64>; 2] =
             [0, 1].map(|k| self.estimate.frame_pose(self.soles[k]).translation.vector + shift);
