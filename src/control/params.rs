@@ -250,8 +250,8 @@ impl StabilizerParams {
     /// whose time is not a finite time above zero, and a lost touch's time that is not above
     /// zero.
     pub fn validate(&self) -> Result<(), String> {
-        // Compared so that NaN fails too; `inf` keeps every touch.
-        if !(self.touch_lost_after_s > 0.0) {
+        // `inf` keeps every touch.
+        if self.touch_lost_after_s.is_nan() || self.touch_lost_after_s <= 0.0 {
             return Err(format!(
                 "stabilizer.touch_lost_after_s must be a time > 0 (inf: keep every touch), got {}",
                 self.touch_lost_after_s

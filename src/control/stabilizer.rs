@@ -243,6 +243,23 @@ impl<'m> Stabilizer<'m> {
         }
     }
 
+    /// How long each held foot has read no contact (`touching` false) since it touched,
+    /// until it has carried its contact force as long as a lost touch takes: a tick's spike
+    /// as a swinging sole slows is no load ([`StabilizerParams::touch_lost_after_s`]).
+    fn count_lost_touches(&mut self, measured: &[SoleWrench; 2], touching: [bool; 2], dt: f64) {
+        for k in 0..2 {
+            let held = self.held[k].is_some();
+            let loaded = measured[k].force_n.z > self.p.contact_force_n;
+            self.loaded_s[k] = match (held, loaded) {
+                (true, true) => self.loaded_s[k] + dt,
+                (true, false) => self.loaded_s[k],
+                (false, _) => 0.0,
+            };
+            let lost = held && self.loaded_s[k] < self.p.touch_lost_after_s && !touching[k];
+            self.touch_lost_s[k] = if lost { self.touch_lost_s[k] + dt } else { 0.0 };
+        }
+    }
+
     /// A foot held where it touched that has read no contact for `touch_lost_after_s` has
     /// not met the ground: a support of the segment seeks it from its target's height (the
     /// plan waits for it), the segment's swinging foot goes on along its swing.
@@ -354,21 +371,7 @@ impl<'m> Stabilizer<'m> {
             *ticks = if w.force_n.z > self.p.touchdown_force_n { *ticks + 1 } else { 0 };
         }
         let touching = self.pressed_ticks.map(|n| n >= self.p.touchdown_ticks.max(1));
-        // A touch is kept once the foot has carried its contact force for as long as a lost
-        // touch takes (a tick's spike as a swinging sole slows is no load).
-        for k in 0..2 {
-            let held = self.held[k].is_some();
-            let loaded = measured[k].force_n.z > self.p.contact_force_n;
-            self.loaded_s[k] = if held && loaded {
-                self.loaded_s[k] + dt
-            } else if held {
-                self.loaded_s[k]
-            } else {
-                0.0
-            };
-            let lost = held && self.loaded_s[k] < self.p.touch_lost_after_s && !touching[k];
-            self.touch_lost_s[k] = if lost { self.touch_lost_s[k] + dt } else { 0.0 };
-        }
+        self.count_lost_touches(&measured, touching, dt);
         let mut swing = None;
         let sole_at: [Vector3<f64>; 2] =
             [0, 1].map(|k| self.estimate.frame_pose(self.soles[k]).translation.vector + shift);
