@@ -256,9 +256,9 @@ fn replay_of_a_run_that_left_a_partly_seen_top_step_for_later_is_equal() {
     assert!(ok && text.contains("replay equals the recording"));
 }
 
-/// Issue 42, `real` case 70 with sweeps taken as the robot moves, six cycles: in the fifth
-/// the plan made on a pass taken walking misses a target, and the loop sets that look
-/// aside and looks again standing. The set-aside look has no plan after it to give its
+/// Issue 42, `real` case 70 with sweeps taken as the robot moves, six cycles: on today's
+/// gait, in the fifth the plan made on a pass taken walking misses a target, and the loop
+/// sets that look aside and looks again standing. The set-aside look has no plan after it to give its
 /// configuration: the recording holds each view's configuration and whether its look was set
 /// aside (`/run/view`), and `replay` takes each view as the loop did (a look set aside into
 /// the surroundings only, with the body at its configuration left out). The replay equals

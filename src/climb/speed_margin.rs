@@ -9,9 +9,9 @@
 //! `run --speedup` gives that climb again.
 //!
 //! The search takes a climb's outcome to change once along the factors; near the edge it
-//! need not (Exp. 1 at the default timing: x 1.82 and x 1.8337 climb, x 1.83 falls in its
-//! first floor cycle), so the margin is the largest factor found to pass between two tried,
-//! not a guarantee for every factor below it.
+//! need not (Exp. 1 at the default timing: x 1.82 and x 1.834 climb, x 1.83 falls in its
+//! first floor cycle), so the margin is the last factor that passed before the first that
+//! failed, not a guarantee for every factor below it.
 //!
 //! A try passes when it keeps every check and the planned timing's outcome: to the top
 //! where that climbed. Where the case allows a refusal (its expected outcome `refuse` or
@@ -35,6 +35,13 @@ pub const FACTOR_STEP: f64 = 0.01;
 fn on_grid(f: f64) -> f64 {
     let per_unit = (1.0 / FACTOR_STEP).round();
     (f * per_unit).round() / per_unit
+}
+
+/// The hundredth at or below `f` (`f` a hundredth itself give or take the rounding of its
+/// decimal, `f` again).
+fn on_grid_below(f: f64) -> f64 {
+    let per_unit = (1.0 / FACTOR_STEP).round();
+    (f * per_unit + 1e-6).floor() / per_unit
 }
 
 /// One climb of the search.
@@ -73,8 +80,9 @@ pub struct SpeedMargin {
     pub tries: Vec<Try>,
 }
 
-/// Searches factors from 1 up to `max_factor` until the pass and fail factors are within
-/// `1 + resolution` of each other, or no factor of the grid ([`FACTOR_STEP`]) lies between. `climb(plan)` runs one whole climb with the planner's
+/// Searches factors from 1 up to `max_factor` (the hundredth at or below it) until the pass
+/// and fail factors are within `1 + resolution` of each other, or no factor of the grid
+/// ([`FACTOR_STEP`]) lies between. `climb(plan)` runs one whole climb with the planner's
 /// parameters `plan` (the given ones sped up); `on_try` sees each climb as it ends.
 /// `refusal_allowed`: the case may be refused (see the module's doc).
 pub fn speed_margin<E>(
@@ -117,8 +125,8 @@ pub fn speed_margin<E>(
         out.fails_at = Some(1.0);
         return Ok(out);
     }
-    // The largest factor tried is on the grid too (the hundredth at or below it).
-    let max_factor = on_grid(max_factor - FACTOR_STEP / 2.0).max(1.0);
+    // The largest factor tried is on the grid too.
+    let max_factor = on_grid_below(max_factor).max(1.0);
     let (mut lo, mut hi) = (1.0_f64, None::<f64>);
     let mut f = 2.0_f64.min(max_factor);
     while f > lo {
@@ -268,6 +276,12 @@ mod tests {
             for t in &m.tries {
                 assert_eq!(format!("{:.2}", t.factor).parse::<f64>(), Ok(t.factor));
             }
+        }
+        // The largest factor, as typed, is the hundredth at or below it.
+        for hundredths in 100..=5000 {
+            let typed: f64 = format!("{}.{:02}", hundredths / 100, hundredths % 100).parse().unwrap();
+            assert_eq!(on_grid_below(typed), typed, "{typed}");
+            assert_eq!(on_grid_below(typed + 0.004), typed, "{typed} + 0.004");
         }
     }
 }

@@ -109,19 +109,19 @@ pub struct StabilizerParams {
     /// Longest the plan may wait, over a whole plan, for feet that should be down and have
     /// not met the ground yet, seconds (the CoM is held meanwhile).
     pub max_hold_s: f64,
-    /// How long a foot held where it touched may read no contact (its normal force at
-    /// `touchdown_force_n` or under) before the touch is taken for none, seconds: the foot
-    /// then seeks the ground from where its target is, at `approach_speed_m_s`, and the plan
-    /// waits for it as for a foot whose swing ended in the air (within `max_hold_s`); a
-    /// swinging foot goes on along its swing. The touch can be the sole's own inertia: at
-    /// x 1.83 the default timing, Exp. 1's left sole read one as its descent began, 4.4 cm
-    /// above the floor, was held there and lowered at the landing's pace while the plan moved
-    /// the CoM onto it, and the robot fell (test
+    /// How long a foot held where it touched may read no contact (no touch by the
+    /// `touchdown_force_n` rule) before it has carried `contact_force_n` that long, before
+    /// the touch is taken for none, seconds. A support of a double support then seeks the
+    /// ground from its target's height at `approach_speed_m_s` and the plan waits for it as
+    /// for a foot whose swing ended in the air (within `max_hold_s`); a swinging foot goes
+    /// on down its approach from where it was held. The touch can be the sole's own inertia:
+    /// at x 1.83 of the default timing, Exp. 1's left sole reads one as its descent begins,
+    /// 4.6 cm above the floor; kept, the foot is lowered at the landing's pace while the plan
+    /// moves the CoM onto it, and the robot falls (test
     /// `a_touch_read_in_the_air_is_let_go_and_the_com_waits_for_the_foot`, at 0.1 s: longer
     /// than a landing's bounces). Opt-in: `inf` (the default) keeps every touch. At 0.1 s
-    /// it lets go touches at the default timing too (Exp. 1's first cycle), and a foot let
-    /// go lands again harder: climbs faster than the default then reach friction ratios of
-    /// 0.78-0.82 and the two physics steps' slides differ (CHANGELOG, sixty-first session).
+    /// it lets go touches at the default timing too, and the climbs' friction ratios rise
+    /// (the figures: CHANGELOG, sixty-first session).
     pub touch_lost_after_s: f64,
     /// Longest the stabilizer holds the plan's last instant after the plan's clock has ended,
     /// for the body to come still (its base no faster than `RunParams::still_speed_m_s` for

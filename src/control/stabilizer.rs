@@ -261,17 +261,31 @@ impl<'m> Stabilizer<'m> {
     }
 
     /// A foot held where it touched that has read no contact for `touch_lost_after_s` has
-    /// not met the ground: a support of the segment seeks it from its target's height (the
-    /// plan waits for it), the segment's swinging foot goes on along its swing.
+    /// not met the ground: a support of a double support seeks it from its target's height
+    /// (the plan waits for it); the segment's swinging foot goes on down its swing's
+    /// approach from there. A single support's foot is kept (it is all the body stands on).
     fn let_lost_touches_go(&mut self) {
+        if !self.p.touch_lost_after_s.is_finite() {
+            return;
+        }
         let segments = std::sync::Arc::clone(&self.segments);
         let seg = &segments[self.segment];
         for k in 0..2 {
             if self.touch_lost_s[k] < self.p.touch_lost_after_s || self.held[k].is_none() {
                 continue;
             }
-            if let Some((f, pose)) = seg.support.iter().find(|(f, _)| f.index() == k) {
-                self.seeking[k] = Some(self.corrected(*f, pose).translation.z);
+            let swinging = seg.swing.as_ref().is_some_and(|sw| sw.foot.index() == k);
+            match seg.support.iter().find(|(f, _)| f.index() == k) {
+                Some((f, pose)) if seg.swing.is_none() => {
+                    self.seeking[k] = Some(self.corrected(*f, pose).translation.z);
+                }
+                Some(_) => continue,
+                None if swinging => {
+                    // The approach goes on from the height the foot was held at, not from
+                    // where the swing's path has got to meanwhile.
+                    self.approach_z = self.held[k].map(|h| self.applied_offset(k).apply(&h).translation.z);
+                }
+                None => {}
             }
             self.held[k] = None;
             self.landing[k] = false;
