@@ -9,9 +9,9 @@
 //! `run --speedup` gives that climb again.
 //!
 //! The search takes a climb's outcome to change once along the factors; near the edge it
-//! need not (Exp. 1 at the default timing: x 1.82 and x 1.834 climb, x 1.83 falls in its
-//! first floor cycle), so the margin is the last factor that passed before the first that
-//! failed, not a guarantee for every factor below it.
+//! need not (a factor between two that climb may fall: CHANGELOG, sixty-first session), so
+//! the margin is the last factor that passed before the first that failed, not a guarantee
+//! for every factor below it.
 //!
 //! A try passes when it keeps every check and the planned timing's outcome: to the top
 //! where that climbed. Where the case allows a refusal (its expected outcome `refuse` or

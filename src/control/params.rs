@@ -114,10 +114,9 @@ pub struct StabilizerParams {
     /// the touch is taken for none, seconds. A support of a double support then seeks the
     /// ground from its target's height at `approach_speed_m_s` and the plan waits for it as
     /// for a foot whose swing ended in the air (within `max_hold_s`); a swinging foot goes
-    /// on down its approach from where it was held. The touch can be the sole's own inertia:
-    /// at x 1.83 of the default timing, Exp. 1's left sole reads one as its descent begins,
-    /// 4.6 cm above the floor; kept, the foot is lowered at the landing's pace while the plan
-    /// moves the CoM onto it, and the robot falls (test
+    /// on down its approach from where it was held. The touch can be the sole's own inertia
+    /// as a fast descent begins, centimetres above the ground; kept, the foot is lowered at
+    /// the landing's pace while the plan moves the CoM onto it, and the robot can fall (test
     /// `a_touch_read_in_the_air_is_let_go_and_the_com_waits_for_the_foot`, at 0.1 s: longer
     /// than a landing's bounces). Opt-in: `inf` (the default) keeps every touch. At 0.1 s
     /// it lets go touches at the default timing too, and the climbs' friction ratios rise
