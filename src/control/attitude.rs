@@ -4,7 +4,7 @@
 //! reaction, plus the base's own acceleration, small in a quasi-static climb) pulls it back
 //! with time constant `tilt_filter_time_s`, so neither the gyro's drift nor the walk's
 //! accelerations last. The base's own acceleration, where the motion knows it (the commanded
-//! base's, [`BaseAcceleration`]), is taken off the specific force first
+//! base's, [`PointAcceleration`]), is taken off the specific force first
 //! ([`TiltFilter::update_moving`]): a sideways shift of the CoM at 0.15 m/s^2 otherwise reads
 //! as 0.9 deg of tilt for as long as it lasts. An estimate that keeps the base at its
 //! commanded orientation misses what the body bends between its joints' set points and the
@@ -120,12 +120,12 @@ impl TiltFilter {
 /// The acceleration of a point from its positions at a steady period: the second difference
 /// of the last three (zero until there are three).
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct BaseAcceleration {
+pub struct PointAcceleration {
     last: Option<Point3<f64>>,
     before: Option<Point3<f64>>,
 }
 
-impl BaseAcceleration {
+impl PointAcceleration {
     /// Takes the position `at`, `dt_s` after the last one: the acceleration, m/s^2.
     pub fn push(&mut self, at: &Point3<f64>, dt_s: f64) -> Vector3<f64> {
         let accel = match (self.last, self.before) {
@@ -186,7 +186,7 @@ mod tests {
             accel_m_s2: base.inverse() * (a + Vector3::new(0.0, 0.0, 9.81)),
             gyro_rad_s: Vector3::zeros(),
         };
-        let mut history = BaseAcceleration::default();
+        let mut history = PointAcceleration::default();
         let (mut plain, mut moving) = (TiltFilter::new(0.5, 0.1), TiltFilter::new(0.5, 0.1));
         for k in 0..400 {
             let t = k as f64 * dt;

@@ -64,15 +64,23 @@ pub struct StabilizerParams {
     /// `contact_force_n`, m/(N s), the rate capped at `approach_speed_m_s`. Default the
     /// default `approach_speed_m_s` over the default `landing_preload_n` (1.67e-3): a foot
     /// that reads nothing goes on down as fast as the approach ends, slowing as the force
-    /// comes. A touch can be read in the air, from the foot's own inertia as its descent
-    /// slows, and the foot is held there: it must not hang light while the weight waits for
+    /// comes. A touch can be read in the air (a bounce, or the foot's inertia where the
+    /// servos overshoot their set points), and the foot is held there: it must not hang light while the weight waits for
     /// it (test `a_landed_foot_stays_on_the_ground_until_its_weight_comes`).
     pub landing_admittance_m_per_n_s: f64,
     /// Consecutive ticks the force must stay above `touchdown_force_n`. One tick of force can
     /// be the foot's own inertia as the approach slows its descent (at x 2 speed that reads
-    /// 16-18 N for one or two ticks), but waiting lets the real impacts grow: with 2, Exp. 1's
-    /// seeds 0-19 reached a friction ratio of 0.62 instead of 0.37. Default 1.
+    /// 16-18 N for one or two ticks, measured before `free_foot_inertia_removed`), but
+    /// waiting lets the real impacts grow: with 2, Exp. 1's seeds 0-19 reached a friction
+    /// ratio of 0.62 instead of 0.37. Default 1.
     pub touchdown_ticks: usize,
+    /// Whether a free foot's (swinging or seeking the ground) force reading has the inertia
+    /// of its commanded downward acceleration removed
+    /// ([`super::measurement::FootSensor::ground_wrench`]).
+    /// Left in, a fast descent's start reads as a touch centimetres above the ground: the
+    /// foot is held there while the plan moves the CoM onto it (test
+    /// `a_free_foots_inertia_is_not_read_as_a_touch`). Default true.
+    pub free_foot_inertia_removed: bool,
     /// Fraction of the swing's last piece (the descent) from which a contact stops the foot.
     pub touchdown_window: f64,
     /// Height above its planned landing from which a swinging foot descends no faster than
@@ -114,13 +122,14 @@ pub struct StabilizerParams {
     /// the touch is taken for none, seconds. A support of a double support then seeks the
     /// ground from its target's height at `approach_speed_m_s` and the plan waits for it as
     /// for a foot whose swing ended in the air (within `max_hold_s`); a swinging foot goes
-    /// on down its approach from where it was held. The touch can be the sole's own inertia
-    /// as a fast descent begins, centimetres above the ground; kept, the foot is lowered at
-    /// the landing's pace while the plan moves the CoM onto it, and the robot can fall (test
-    /// `a_touch_read_in_the_air_is_let_go_and_the_com_waits_for_the_foot`, at 0.1 s: longer
-    /// than a landing's bounces). Opt-in: `inf` (the default) keeps every touch. At 0.1 s
-    /// it lets go touches at the default timing too, and the climbs' friction ratios rise
-    /// (the figures: CHANGELOG, sixty-first session).
+    /// on down its approach from where it was held. A touch read in the air (the sole's own
+    /// inertia as a fast descent begins, when `free_foot_inertia_removed` is off), kept,
+    /// holds the foot centimetres up and lowers it at the landing's pace while the plan
+    /// moves the CoM onto it, and the robot can fall; let go, it recovers (test
+    /// `a_free_foots_inertia_is_not_read_as_a_touch`, at 0.1 s: longer than a landing's
+    /// bounces). Opt-in: `inf` (the default) keeps every touch. At 0.1 s it lets go touches
+    /// at the default timing too, and the climbs' friction ratios rise (the figures:
+    /// CHANGELOG, sixty-first session).
     pub touch_lost_after_s: f64,
     /// Longest the stabilizer holds the plan's last instant after the plan's clock has ended,
     /// for the body to come still (its base no faster than `RunParams::still_speed_m_s` for
@@ -223,6 +232,7 @@ impl Default for StabilizerParams {
             landing_preload_n: LANDING_PRELOAD_N,
             landing_admittance_m_per_n_s: APPROACH_SPEED_M_S / LANDING_PRELOAD_N,
             touchdown_ticks: 1,
+            free_foot_inertia_removed: true,
             touchdown_window: 0.0,
             approach_height_m: 0.015,
             approach_speed_m_s: APPROACH_SPEED_M_S,
