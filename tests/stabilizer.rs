@@ -471,7 +471,8 @@ fn time_light_after_touchdown_s(ticks: &[(f64, TickRecord)], light_n: f64, loade
 /// tangential). Exp. 1's first three stances on the true steps, every landing: at most
 /// 0.3 s under half the touchdown force before the foot carries the contact force (the
 /// touch can be read a tick early, from the foot's own inertia as its descent slows, up to
-/// 6 mm above the tread at x 2: the landing law, going down at the approach's landing speed
+/// 6 mm above the tread at x 2, as measured before a free foot's commanded inertia was
+/// taken off its reading: the landing law, going down at the approach's landing speed
 /// while it reads nothing, meets the tread in about 0.25 s; at 15 mm/s it took 0.35 s;
 /// held there, the foot read nothing for 0.85 s).
 #[test]

@@ -65,8 +65,9 @@ pub struct StabilizerParams {
     /// default `approach_speed_m_s` over the default `landing_preload_n` (1.67e-3): a foot
     /// that reads nothing goes on down as fast as the approach ends, slowing as the force
     /// comes. A touch can be read in the air (a bounce, or the foot's inertia where the
-    /// servos overshoot their set points), and the foot is held there: it must not hang light while the weight waits for
-    /// it (test `a_landed_foot_stays_on_the_ground_until_its_weight_comes`).
+    /// servos overshoot their set points), and the foot is held there: it must not hang
+    /// light while the weight waits for it (test
+    /// `a_landed_foot_stays_on_the_ground_until_its_weight_comes`).
     pub landing_admittance_m_per_n_s: f64,
     /// Consecutive ticks the force must stay above `touchdown_force_n`. One tick of force can
     /// be the foot's own inertia as the approach slows its descent (at x 2 speed that reads
