@@ -70,10 +70,9 @@ pub struct StabilizerParams {
     /// `a_landed_foot_stays_on_the_ground_until_its_weight_comes`).
     pub landing_admittance_m_per_n_s: f64,
     /// Consecutive ticks the force must stay above `touchdown_force_n`. One tick of force can
-    /// be the foot's own inertia as the approach slows its descent (at x 2 speed that reads
-    /// 16-18 N for one or two ticks, measured before `free_foot_inertia_removed`), but
-    /// waiting lets the real impacts grow: with 2, Exp. 1's seeds 0-19 reached a friction
-    /// ratio of 0.62 instead of 0.37. Default 1.
+    /// be the foot's own inertia where the servos overshoot (what the command shows of it is
+    /// taken off by `free_foot_inertia_removed`), but waiting lets the real impacts grow and
+    /// the climbs' friction ratios with them (figures in CHANGELOG.md). Default 1.
     pub touchdown_ticks: usize,
     /// Whether a free foot's (swinging or seeking the ground) force reading has the inertia
     /// of its commanded downward acceleration removed
