@@ -96,7 +96,8 @@ pub struct StabilizerParams {
     pub approach_height_m: f64,
     /// Descent speed at the planned landing height and below it, m/s: where the approach
     /// ends, and how fast a foot whose swing ends before it meets the ground goes on down
-    /// (and a landed or pressed foot at most). The servos lag their set points, so when the
+    /// once below it (above it, on down its approach: [`StabilizerParams::approach_speed_at`];
+    /// a landed or pressed foot at most this). The servos lag their set points, so when the
     /// sole meets the ground its set point is already below it by this speed times the lag,
     /// and the leg's stiffness pushes that overshoot into the ground along the leg, not
     /// straight down: for a tick or two the landed foot carries 20-35 N normal with up to
@@ -108,12 +109,31 @@ pub struct StabilizerParams {
     /// to `approach_speed_m_s` at the planned landing, so a ground where perceived is met at
     /// that speed and the approach takes `h / (v1 - v0) ln(v1 / v0)` (h the approach's
     /// height, v1 this speed, v0 `approach_speed_m_s`; `h / v0` when they are equal). The
-    /// approach is time in single support, in which a soft ankle lets the body roll out
+    /// approach, the same after the swing's end (the plan waiting for the foot), is time in
+    /// single support, in which a soft ankle lets the body roll out
     /// over its sole: approaches of about 0.4 s kept the soft-ankle test's body up, of
     /// 0.5 s and more did not (test
     /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`). 0.05 m/s: 1.5 cm in
     /// 0.42 s.
     pub approach_entry_speed_m_s: f64,
+    /// Time constant with which a swinging foot's descent is brought down to
+    /// `approach_entry_speed_m_s` by `approach_height_m` above its planned landing, seconds:
+    /// above it the target's speed is capped at `v1 + (h - approach_height_m) / tau` (v1 the
+    /// entry speed, h the height above the planned landing, tau this; see
+    /// [`StabilizerParams::approach_speed_at`]), so a descent at speed v is braked over
+    /// about v tau above the approach, at most v / tau: the braking's distance grows with the
+    /// swing's speed, and its time does not. The swing's own time law ends its descent fast
+    /// (0.31 m/s with 1.5 cm to go at `--speedup 1.25`); a cap stepped down to the entry speed
+    /// within one tick leaves the servos to brake the foot over the millimetres of their lag,
+    /// and a sole hanging lower than its model says struck the floor at the swing's speed
+    /// (regression `a-sole-hanging-low-struck-at-the-swings-speed` at `--speedup 1.25`; test
+    /// `a_fast_swing_is_braked_before_its_approach`). The servos' lag there: the encoders
+    /// put the sole 2.4 mm above its target at 0.31 m/s, 8 ms. Default 0.02 s, two and a
+    /// half times that (figures: CHANGELOG, sixty-third session). 0 steps the speed down at
+    /// `approach_height_m`. The braking reads on the ankle's sensor as a pull of the foot's
+    /// mass times it, left in the reading (see the stabilizer's `free_foot_accel_m_s2`): a
+    /// ground met while braking reads as a touch that much later.
+    pub approach_braking_time_s: f64,
     /// Longest the plan may wait, over a whole plan, for feet that should be down and have
     /// not met the ground yet, seconds (the CoM is held meanwhile).
     pub max_hold_s: f64,
@@ -237,6 +257,7 @@ impl Default for StabilizerParams {
             approach_height_m: 0.015,
             approach_speed_m_s: APPROACH_SPEED_M_S,
             approach_entry_speed_m_s: 0.05,
+            approach_braking_time_s: 0.02,
             max_hold_s: 2.0,
             touch_lost_after_s: f64::INFINITY,
             max_end_hold_s: 2.0,
@@ -280,6 +301,12 @@ impl StabilizerParams {
                 self.approach_speed_m_s, self.approach_entry_speed_m_s
             ));
         }
+        if !(self.approach_braking_time_s >= 0.0 && self.approach_braking_time_s.is_finite()) {
+            return Err(format!(
+                "stabilizer.approach_braking_time_s must be a finite time >= 0 (0 for none), got {}",
+                self.approach_braking_time_s
+            ));
+        }
         if !(self.approach_height_m >= 0.0 && self.approach_height_m.is_finite()) {
             return Err(format!(
                 "stabilizer.approach_height_m must be a finite height >= 0, got {}",
@@ -307,10 +334,15 @@ impl StabilizerParams {
         Ok(())
     }
 
-    /// The approach's descent speed at `height_m` above the planned landing, m/s: from
-    /// `approach_entry_speed_m_s` at `approach_height_m` falling linearly to
-    /// `approach_speed_m_s` at the landing (and that below it).
+    /// The fastest a swinging foot may descend at `height_m` above its planned landing, m/s:
+    /// above `approach_height_m`, braking with time constant `approach_braking_time_s` to
+    /// `approach_entry_speed_m_s` there; below it, falling linearly to `approach_speed_m_s`
+    /// at the landing (and that below it).
     pub fn approach_speed_at(&self, height_m: f64) -> f64 {
+        let above_m = height_m - self.approach_height_m;
+        if above_m > 0.0 {
+            return self.approach_entry_speed_m_s + above_m / self.approach_braking_time_s;
+        }
         let share = if self.approach_height_m > 0.0 {
             (height_m / self.approach_height_m).clamp(0.0, 1.0)
         } else {
@@ -331,7 +363,8 @@ mod tests {
     fn the_approach_slows_to_its_landing_speed_in_about_0_42_s() {
         let p = StabilizerParams::default();
         assert_eq!(p.approach_speed_at(p.approach_height_m), p.approach_entry_speed_m_s);
-        assert_eq!(p.approach_speed_at(1.0), p.approach_entry_speed_m_s);
+        let braked = StabilizerParams { approach_braking_time_s: 0.0, ..p.clone() };
+        assert_eq!(braked.approach_speed_at(p.approach_height_m + 1e-6), f64::INFINITY);
         assert_eq!(p.approach_speed_at(0.0), p.approach_speed_m_s);
         assert_eq!(p.approach_speed_at(-0.01), p.approach_speed_m_s);
         let (mut z, mut t, dt) = (p.approach_height_m, 0.0, 1e-4);
@@ -349,6 +382,33 @@ mod tests {
         assert!((0.40..=0.43).contains(&t), "{t}");
     }
 
+    /// Above the approach, the speed cap brakes with time constant
+    /// `approach_braking_time_s` to the entry speed: a swing at speed v is braked from
+    /// about v tau above the approach, at most v / tau, whatever v.
+    #[test]
+    fn a_fast_descent_is_braked_to_the_approachs_entry_speed() {
+        let p = StabilizerParams::default();
+        let tau = p.approach_braking_time_s;
+        for v0 in [0.25, 0.31, 0.5, 1.0] {
+            let (mut z, mut v, dt) = (0.2, v0, 1e-5);
+            let mut braked_at = None;
+            while z > p.approach_height_m {
+                let cap = p.approach_speed_at(z);
+                if cap < v {
+                    braked_at.get_or_insert(z);
+                    let a = (v - cap) / dt;
+                    assert!(a <= v / tau * 1.001, "{a}");
+                    v = cap;
+                }
+                z -= v * dt;
+            }
+            let from_m = braked_at.expect("the cap brakes the swing") - p.approach_height_m;
+            assert!((v - p.approach_entry_speed_m_s).abs() < 1e-3, "{v}");
+            let expected_m = (v0 - p.approach_entry_speed_m_s) * tau;
+            assert!((from_m - expected_m).abs() < 1e-4, "from {from_m} against {expected_m}");
+        }
+    }
+
     #[test]
     fn approach_settings_that_cannot_land_a_foot_are_refused() {
         assert!(StabilizerParams::default().validate().is_ok());
@@ -363,6 +423,12 @@ mod tests {
             .is_err_and(|e| e.contains("approach_entry_speed_m_s")));
         assert!(with(|p| p.approach_entry_speed_m_s = f64::INFINITY).is_err());
         assert!(with(|p| p.approach_height_m = -0.01).is_err_and(|e| e.contains("approach_height_m")));
+        assert!(
+            with(|p| p.approach_braking_time_s = -0.01).is_err_and(|e| e.contains("approach_braking_time_s"))
+        );
+        assert!(with(|p| p.approach_braking_time_s = f64::NAN).is_err());
+        assert!(with(|p| p.approach_braking_time_s = f64::INFINITY).is_err());
+        assert!(with(|p| p.approach_braking_time_s = 0.0).is_ok());
         assert!(with(|p| p.approach_entry_speed_m_s = p.approach_speed_m_s).is_ok());
         assert!(with(|p| p.touch_lost_after_s = 0.0).is_err_and(|e| e.contains("touch_lost_after_s")));
         assert!(with(|p| p.touch_lost_after_s = f64::NAN).is_err());

@@ -82,8 +82,14 @@ pub struct Stabilizer<'m> {
     held: [Option<Isometry3<f64>>; 2],
     landing: [bool; 2],
     lifted: [FootOffset; 2],
+    /// The swinging foot's commanded sole height at the last tick of its descent, m (`None`
+    /// before its descent): where the descent's speed cap goes on from.
     approach_z: Option<f64>,
     seeking: [Option<f64>; 2],
+    /// Whether each foot has let go a touch read in the air since it lifted off
+    /// (`touch_lost_after_s`): the ground may be near, and its descent goes no faster than
+    /// the approach's entry speed, not braked from the swing's ([`Stabilizer::descent_speed`]).
+    let_go_since_lift: [bool; 2],
     /// How long each foot held where it touched has read no contact since, seconds
     /// (`StabilizerParams::touch_lost_after_s`), until it has carried its contact force
     /// that long.
@@ -106,9 +112,9 @@ pub struct Stabilizer<'m> {
     /// neglected): the servos deliver it over the next tick, when the force sensor would
     /// read it as ground. Zero for a foot that is not free. The upward part is left: the
     /// commanded braking reads as a pull, not a touch, and the servos follow it ticks late
-    /// (the approach's entry steps the speed down within one tick; removed at once, that
-    /// step read as a touch centimetres above the floor: test
-    /// `every_touch_the_stabilizer_reads_is_the_grounds`). The bound keeps a jump of the
+    /// (the approach's entry, stepping the speed down within one tick before the descent
+    /// was braked (`approach_braking_time_s`), removed at once, read as a touch centimetres
+    /// above the floor: test `every_touch_the_stabilizer_reads_is_the_grounds`). The bound keeps a jump of the
     /// target, which no servo follows, from hiding a real touch (a descent's start asks
     /// about as much at x 1.83 the default timing).
     free_foot_accel_m_s2: [Vector3<f64>; 2],
@@ -158,6 +164,7 @@ impl<'m> Stabilizer<'m> {
             lifted: [FootOffset::default(); 2],
             approach_z: None,
             seeking: [None; 2],
+            let_go_since_lift: [false; 2],
             touch_lost_s: [0.0; 2],
             loaded_s: [0.0; 2],
             com_prev: None,
@@ -233,6 +240,7 @@ impl<'m> Stabilizer<'m> {
                 self.held[k] = None;
                 self.landing[k] = false;
                 self.seeking[k] = None;
+                self.let_go_since_lift[k] = false;
             }
         }
     }
@@ -257,6 +265,15 @@ impl<'m> Stabilizer<'m> {
                 FootOffset { roll_rad, pitch_rad, ..o }
             }
         }
+    }
+
+    /// The fastest foot `k` may descend at `height_m` above its planned landing, m/s:
+    /// [`StabilizerParams::approach_speed_at`], at most the approach's entry speed once the
+    /// foot has let go a touch read in the air since it lifted off.
+    fn descent_speed(&self, k: usize, height_m: f64) -> f64 {
+        let height_m =
+            if self.let_go_since_lift[k] { height_m.min(self.p.approach_height_m) } else { height_m };
+        self.p.approach_speed_at(height_m)
     }
 
     /// How long each held foot has read no contact (`touching` false) since it touched,
@@ -305,6 +322,7 @@ impl<'m> Stabilizer<'m> {
             }
             self.held[k] = None;
             self.landing[k] = false;
+            self.let_go_since_lift[k] = true;
             self.offsets[k] = FootOffset::default();
             self.touch_lost_s[k] = 0.0;
             self.loaded_s[k] = 0.0;
@@ -413,15 +431,16 @@ impl<'m> Stabilizer<'m> {
                 Some(_) => supports.push((foot, self.corrected(foot, &last))),
                 None => {
                     let (mut target, mut twist) = (self.lifted[k].scaled(1.0 - tau).apply(&pose), twist);
-                    // The approach: the last `approach_height_m` above the planned height at
-                    // no more than the approach's speed there, on below it to meet a lower
-                    // ground.
+                    // The descent: braked to the approach's entry speed by
+                    // `approach_height_m` above the planned height, the approach's speed
+                    // below that, on below the planned height to meet a lower ground; never
+                    // faster than the plan (`approach_z`: the last tick's commanded height).
                     let final_z = last.translation.z;
                     let z = target.translation.z;
-                    if tau >= descent && (z - final_z < self.p.approach_height_m || self.approach_z.is_some())
-                    {
-                        let speed = self.p.approach_speed_at(self.approach_z.unwrap_or(z) - final_z);
-                        let slowest = self.approach_z.map_or(z, |a| a - speed * dt);
+                    if tau >= descent {
+                        let from = self.approach_z.unwrap_or(z);
+                        let speed = self.descent_speed(k, from - final_z);
+                        let slowest = from - speed * dt;
                         let lowest = final_z - self.p.max_seek_m;
                         let next = if tau >= 1.0 { slowest.max(lowest) } else { slowest.max(z) };
                         if next > z || tau >= 1.0 {
@@ -434,8 +453,9 @@ impl<'m> Stabilizer<'m> {
                 }
             }
         }
-        // A foot whose swing ended before it met the ground: on down at
-        // `approach_speed_m_s`, still free (not pulled to its planned place as a held contact would be).
+        // A foot whose swing ended before it met the ground: on down its approach (at
+        // `approach_speed_m_s` from the planned height on), still free (not pulled to its
+        // planned place as a held contact would be).
         for (f, pose) in &seg.support {
             let k = f.index();
             let Some(z) = self.seeking[k] else { continue };
@@ -443,11 +463,12 @@ impl<'m> Stabilizer<'m> {
                 self.land(k, sole_at[k], pose);
                 supports.push((*f, self.corrected(*f, pose)));
             } else if swing.is_none() {
-                let next = (z - self.p.approach_speed_m_s * dt).max(pose.translation.z - self.p.max_seek_m);
+                let speed = self.descent_speed(k, z - pose.translation.z);
+                let next = (z - speed * dt).max(pose.translation.z - self.p.max_seek_m);
                 self.seeking[k] = Some(next);
                 let mut target = *pose;
                 target.translation.z = next;
-                let descending = if next < z { -self.p.approach_speed_m_s } else { 0.0 };
+                let descending = if next < z { -speed } else { 0.0 };
                 swing = Some((*f, target, Vector6::new(0.0, 0.0, descending, 0.0, 0.0, 0.0)));
             }
         }
