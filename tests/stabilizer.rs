@@ -503,10 +503,10 @@ fn a_landed_foot_stays_on_the_ground_until_its_weight_comes() {
 
 /// Every touch the stabilizer reads is the ground's: each time it takes a foot for landed
 /// (held where it touched), MuJoCo's contacts press that foot within 20 ms. Exp. 1 climbed
-/// at the default timing and at x 1.83. With a free foot's whole commanded acceleration
-/// taken off its reading, the approach's entry (its speed stepped down in one tick) read as
-/// a touch 1.4 cm above the floor in the approaches; with none taken off, the descent's start
-/// at x 1.83 read as one 4.6 cm up (see `a_free_foots_inertia_is_not_read_as_a_touch`).
+/// at the default timing and at x 1.83. A free foot's commanded braking taken off its
+/// reading (the whole commanded acceleration), or none of its acceleration, reads touches
+/// in the air (CHANGELOG, sixty-second session; see
+/// `a_free_foots_inertia_is_not_read_as_a_touch`).
 #[test]
 fn every_touch_the_stabilizer_reads_is_the_grounds() {
     use stairbench::climb::Event;

@@ -83,10 +83,10 @@ pub struct StabilizerParams {
     pub free_foot_inertia_removed: bool,
     /// Fraction of the swing's last piece (the descent) from which a contact stops the foot.
     pub touchdown_window: f64,
-    /// Height above its planned landing from which a swinging foot descends no faster than
-    /// [`StabilizerParams::approach_speed_at`] (from `approach_entry_speed_m_s` slowing to
-    /// `approach_speed_m_s`), metres (a ground a little higher than perceived is met slowly,
-    /// not at the swing's speed). It must cover how far below the plan's the sole really
+    /// Height above its planned landing by which a swinging foot's descent is braked to
+    /// `approach_entry_speed_m_s` (`approach_braking_time_s`), and below which it slows
+    /// on to `approach_speed_m_s` ([`StabilizerParams::approach_speed_at`]), metres (a
+    /// ground a little higher than perceived is met slowly, not at the swing's speed). It must cover how far below the plan's the sole really
     /// hangs, and the servos' lag at the descent's speed: in a body unlike its model the
     /// sole, rolled off the plan's level, hung about 7.5 mm low at its edge and the servos
     /// lagged 3 mm more; begun 1 cm up, the approach came too late and the edge struck the
@@ -116,7 +116,8 @@ pub struct StabilizerParams {
     /// `the_lean_compensation_keeps_a_soft_ankled_body_over_its_sole`). 0.05 m/s: 1.5 cm in
     /// 0.42 s.
     pub approach_entry_speed_m_s: f64,
-    /// Time constant with which a swinging foot's descent is brought down to
+    /// Time constant with which a swinging foot's descent (and its going on down after its
+    /// swing's segment has ended) is brought down to
     /// `approach_entry_speed_m_s` by `approach_height_m` above its planned landing, seconds:
     /// above it the target's speed is capped at `v1 + (h - approach_height_m) / tau` (v1 the
     /// entry speed, h the height above the planned landing, tau this; see
@@ -127,10 +128,11 @@ pub struct StabilizerParams {
     /// within one tick leaves the servos to brake the foot over the millimetres of their lag,
     /// and a sole hanging lower than its model says struck the floor at the swing's speed
     /// (regression `a-sole-hanging-low-struck-at-the-swings-speed` at `--speedup 1.25`; test
-    /// `a_fast_swing_is_braked_before_its_approach`). The servos' lag there: the encoders
-    /// put the sole 2.4 mm above its target at 0.31 m/s, 8 ms. Default 0.02 s, two and a
-    /// half times that (figures: CHANGELOG, sixty-third session). 0 steps the speed down at
-    /// `approach_height_m`. The braking reads on the ankle's sensor as a pull of the foot's
+    /// `a_fast_swing_is_braked_before_its_approach`). Default 0.02 s, about two and a half
+    /// times the servos' lag at a swing's speed (figures: CHANGELOG, sixty-third session).
+    /// 0 steps the speed down at `approach_height_m`; between 0 and one control tick
+    /// (`1 / rate_hz`) it is refused: a tick's step would carry the target past the
+    /// approach's top. The braking reads on the ankle's sensor as a pull of the foot's
     /// mass times it, left in the reading (see the stabilizer's `free_foot_accel_m_s2`): a
     /// ground met while braking reads as a touch that much later.
     pub approach_braking_time_s: f64,
@@ -140,7 +142,8 @@ pub struct StabilizerParams {
     /// How long a foot held where it touched may read no contact (no touch by the
     /// `touchdown_force_n` rule) before it has carried `contact_force_n` that long, before
     /// the touch is taken for none, seconds. A support of a double support then seeks the
-    /// ground from its target's height at `approach_speed_m_s` and the plan waits for it as
+    /// ground from its target's height at the approach's speed there (no faster than
+    /// `approach_entry_speed_m_s`) and the plan waits for it as
     /// for a foot whose swing ended in the air (within `max_hold_s`); a swinging foot goes
     /// on down its approach from where it was held. A touch read in the air (the sole's own
     /// inertia as a fast descent begins, when `free_foot_inertia_removed` is off), kept,
@@ -276,7 +279,8 @@ impl StabilizerParams {
     /// Refuses settings that cannot run, naming the field: approach settings that cannot
     /// land a foot (the speeds finite, the landing speed above zero: a foot that never comes
     /// down waits out `max_hold_s` in the air; the entry speed at least the landing speed;
-    /// the height finite and not negative), and a sway washout whose gain is not finite or
+    /// the height finite and not negative; the braking time 0 or at least one control
+    /// tick), and a sway washout whose gain is not finite or
     /// whose time is not a finite time above zero, and a lost touch's time that is not above
     /// zero.
     pub fn validate(&self) -> Result<(), String> {
@@ -301,10 +305,11 @@ impl StabilizerParams {
                 self.approach_speed_m_s, self.approach_entry_speed_m_s
             ));
         }
-        if !(self.approach_braking_time_s >= 0.0 && self.approach_braking_time_s.is_finite()) {
+        let tick_s = 1.0 / self.rate_hz;
+        let braking_s = self.approach_braking_time_s;
+        if !(braking_s == 0.0 || (braking_s >= tick_s && braking_s.is_finite())) {
             return Err(format!(
-                "stabilizer.approach_braking_time_s must be a finite time >= 0 (0 for none), got {}",
-                self.approach_braking_time_s
+                "stabilizer.approach_braking_time_s must be 0 (no braking) or a finite time of at least one control tick ({tick_s} s), got {braking_s}"
             ));
         }
         if !(self.approach_height_m >= 0.0 && self.approach_height_m.is_finite()) {
@@ -336,8 +341,8 @@ impl StabilizerParams {
 
     /// The fastest a swinging foot may descend at `height_m` above its planned landing, m/s:
     /// above `approach_height_m`, braking with time constant `approach_braking_time_s` to
-    /// `approach_entry_speed_m_s` there; below it, falling linearly to `approach_speed_m_s`
-    /// at the landing (and that below it).
+    /// `approach_entry_speed_m_s` there (`+inf` when that time is 0); below it, falling
+    /// linearly to `approach_speed_m_s` at the landing (and that below it).
     pub fn approach_speed_at(&self, height_m: f64) -> f64 {
         let above_m = height_m - self.approach_height_m;
         if above_m > 0.0 {
@@ -429,6 +434,10 @@ mod tests {
         assert!(with(|p| p.approach_braking_time_s = f64::NAN).is_err());
         assert!(with(|p| p.approach_braking_time_s = f64::INFINITY).is_err());
         assert!(with(|p| p.approach_braking_time_s = 0.0).is_ok());
+        assert!(
+            with(|p| p.approach_braking_time_s = 0.5 / p.rate_hz).is_err_and(|e| e.contains("control tick"))
+        );
+        assert!(with(|p| p.approach_braking_time_s = 1.0 / p.rate_hz).is_ok());
         assert!(with(|p| p.approach_entry_speed_m_s = p.approach_speed_m_s).is_ok());
         assert!(with(|p| p.touch_lost_after_s = 0.0).is_err_and(|e| e.contains("touch_lost_after_s")));
         assert!(with(|p| p.touch_lost_after_s = f64::NAN).is_err());

@@ -82,13 +82,15 @@ pub struct Stabilizer<'m> {
     held: [Option<Isometry3<f64>>; 2],
     landing: [bool; 2],
     lifted: [FootOffset; 2],
-    /// The swinging foot's commanded sole height at the last tick of its descent, m (`None`
-    /// before its descent): where the descent's speed cap goes on from.
+    /// The swinging foot's commanded sole height at the last tick of its descent, or where
+    /// it was held when a touch read in the air is let go, m (`None` before its descent; not
+    /// read once it has landed): where the descent's speed cap goes on from.
     approach_z: Option<f64>,
     seeking: [Option<f64>; 2],
-    /// Whether each foot has let go a touch read in the air since it lifted off
-    /// (`touch_lost_after_s`): the ground may be near, and its descent goes no faster than
-    /// the approach's entry speed, not braked from the swing's ([`Stabilizer::descent_speed`]).
+    /// Whether each foot has let go a touch read in the air (`touch_lost_after_s`) since it
+    /// last lifted off (a support: since the plan began): the ground may be near, and its
+    /// descent goes no faster than the approach's entry speed, not braked from the swing's
+    /// ([`Stabilizer::descent_speed`]).
     let_go_since_lift: [bool; 2],
     /// How long each foot held where it touched has read no contact since, seconds
     /// (`StabilizerParams::touch_lost_after_s`), until it has carried its contact force
@@ -112,9 +114,9 @@ pub struct Stabilizer<'m> {
     /// neglected): the servos deliver it over the next tick, when the force sensor would
     /// read it as ground. Zero for a foot that is not free. The upward part is left: the
     /// commanded braking reads as a pull, not a touch, and the servos follow it ticks late
-    /// (the approach's entry, stepping the speed down within one tick before the descent
-    /// was braked (`approach_braking_time_s`), removed at once, read as a touch centimetres
-    /// above the floor: test `every_touch_the_stabilizer_reads_is_the_grounds`). The bound keeps a jump of the
+    /// (a speed stepped down within one tick, removed at once, reads as a touch
+    /// centimetres above the floor: test `every_touch_the_stabilizer_reads_is_the_grounds`).
+    /// The bound keeps a jump of the
     /// target, which no servo follows, from hiding a real touch (a descent's start asks
     /// about as much at x 1.83 the default timing).
     free_foot_accel_m_s2: [Vector3<f64>; 2],
@@ -269,7 +271,7 @@ impl<'m> Stabilizer<'m> {
 
     /// The fastest foot `k` may descend at `height_m` above its planned landing, m/s:
     /// [`StabilizerParams::approach_speed_at`], at most the approach's entry speed once the
-    /// foot has let go a touch read in the air since it lifted off.
+    /// foot has let go a touch read in the air (`let_go_since_lift`).
     fn descent_speed(&self, k: usize, height_m: f64) -> f64 {
         let height_m =
             if self.let_go_since_lift[k] { height_m.min(self.p.approach_height_m) } else { height_m };
