@@ -123,12 +123,11 @@ pub struct StabilizerParams {
     /// entry speed, h the height above the planned landing, tau this; see
     /// [`StabilizerParams::approach_speed_at`]), so a descent at speed v is braked over
     /// about v tau above the approach, at most v / tau: the braking's distance grows with the
-    /// swing's speed, and its time does not. The swing's own time law ends its descent fast
-    /// (0.31 m/s with 1.5 cm to go at `--speedup 1.25`); a cap stepped down to the entry speed
-    /// within one tick leaves the servos to brake the foot over the millimetres of their lag,
-    /// and a sole hanging lower than its model says struck the floor at the swing's speed
-    /// (regression `a-sole-hanging-low-struck-at-the-swings-speed` at `--speedup 1.25`; test
-    /// `a_fast_swing_is_braked_before_its_approach`). Default 0.02 s, about two and a half
+    /// swing's speed, and its time does not. The swing's own time law ends its descent fast;
+    /// a cap stepped down to the entry speed within one tick leaves the servos to brake the
+    /// foot over the millimetres of their lag, and a sole hanging lower than its model says
+    /// meets the floor at the swing's speed (test `a_fast_swing_is_braked_before_its_approach`,
+    /// regression `a-sole-hanging-low-struck-at-the-swings-speed`). Default 0.02 s, about two and a half
     /// times the servos' lag at a swing's speed (figures: CHANGELOG, sixty-third session).
     /// 0 steps the speed down at `approach_height_m`; between 0 and one control tick
     /// (`1 / rate_hz`) it is refused: a tick's step would carry the target past the
