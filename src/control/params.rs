@@ -227,8 +227,9 @@ pub struct StabilizerParams {
     /// ankle flexibility). Opt-in (default false): at `--speedup 1.25` regression
     /// `walking-trunk-twisted-off-unseen-space`, whose bowed trunk rocks the stance sole
     /// toward its edges, climbs clean with it and lands a foot 32 mm off without (test
-    /// `the_wrench_about_the_estimated_com_lands_the_bowed_trunks_feet`); every suite is not
-    /// yet measured with it (CHANGELOG, sixty-fourth session).
+    /// `the_wrench_about_the_estimated_com_lands_the_bowed_trunks_feet`), and another case
+    /// fails instead; not every suite is measured with it yet (CHANGELOG, sixty-fourth
+    /// session).
     pub wrench_about_estimated_com: bool,
 }
 

@@ -482,10 +482,10 @@ impl<'m> Stabilizer<'m> {
         let commanded = base_pose(&self.q_est).rotation;
         let lean = self.tilt.lean(&commanded).scaled_axis();
         let mut swaying = None;
-        // No distribution (the CoM outside what the feet down can hold): the offsets only
-        // leak back to the plan this tick, and the record says so.
         // The point the wanted wrench is taken about: where its zero moment puts the CoP.
         let about = if self.p.wrench_about_estimated_com { com } else { com_ref };
+        // No distribution (the CoM outside what the feet down can hold): the offsets only
+        // leak back to the plan this tick, and the record says so.
         let infeasible = match self.distributor.distribute(&contacts, &wanted_net, &about, &self.p) {
             Ok(wanted) => {
                 for ((f, _), w) in supports.iter().zip(&wanted) {
