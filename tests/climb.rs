@@ -365,9 +365,9 @@ fn a_fast_swing_is_braked_before_its_approach() {
 
 /// The wanted wrench taken about the estimated CoM (`[stabilizer]
 /// wrench_about_estimated_com`, opt-in): regression `walking-trunk-twisted-off-unseen-space`
-/// (sweeps taken walking) at x 1.25 the default timing, whose trunk bowed 33-45 deg rocks
-/// the stance sole's pitch torque by +-39 N m in single support, lands a foot more than
-/// 20 mm off its target about the reference CoM, and climbs clean about the estimate.
+/// (sweeps taken walking) at x 1.25 the default timing, whose deeply bowed trunk rocks the
+/// stance sole toward its edges in single support, lands a foot farther off its target than
+/// the check allows about the reference CoM, and climbs clean about the estimate.
 #[test]
 fn the_wrench_about_the_estimated_com_lands_the_bowed_trunks_feet() {
     const CASE: &str = "scenarios/suites/regressions/walking-trunk-twisted-off-unseen-space.toml";

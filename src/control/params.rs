@@ -226,7 +226,7 @@ pub struct StabilizerParams {
     /// moment about the measured CoM, which there ended a slow sway on robots with more
     /// ankle flexibility). Opt-in (default false): at `--speedup 1.25` regression
     /// `walking-trunk-twisted-off-unseen-space`, whose bowed trunk rocks the stance sole
-    /// toward its edges, climbs clean with it and lands a foot 32 mm off without (test
+    /// toward its edges, climbs clean with it and lands a foot off its target without (test
     /// `the_wrench_about_the_estimated_com_lands_the_bowed_trunks_feet`), and another case
     /// fails instead; not every suite is measured with it yet (CHANGELOG, sixty-fourth
     /// session).
