@@ -86,9 +86,9 @@ pub struct StabilizerParams {
     /// Height above its planned landing by which a swinging foot's descent is braked to
     /// `approach_entry_speed_m_s` (`approach_braking_time_s`), and below which it slows
     /// on to `approach_speed_m_s` ([`StabilizerParams::approach_speed_at`]), metres (a
-    /// ground a little higher than perceived is met slowly, not at the swing's speed). It must cover how far below the plan's the sole really
-    /// hangs, and the servos' lag at the descent's speed: in a body unlike its model the
-    /// sole, rolled off the plan's level, hung about 7.5 mm low at its edge and the servos
+    /// ground a little higher than perceived is met slowly, not at the swing's speed). It
+    /// must cover how far below the plan's the sole really hangs, and the servos' lag at
+    /// the descent's speed: in a body unlike its model the sole, rolled off the plan's level, hung about 7.5 mm low at its edge and the servos
     /// lagged 3 mm more; begun 1 cm up, the approach came too late and the edge struck the
     /// floor at the swing's speed (regression `a-sole-hanging-low-struck-at-the-swings-speed`).
     /// The approach's speed falls over it (see `approach_entry_speed_m_s`) to keep its time
@@ -126,9 +126,11 @@ pub struct StabilizerParams {
     /// swing's speed, and its time does not. The swing's own time law ends its descent fast;
     /// a cap stepped down to the entry speed within one tick leaves the servos to brake the
     /// foot over the millimetres of their lag, and a sole hanging lower than its model says
-    /// meets the floor at the swing's speed (test `a_fast_swing_is_braked_before_its_approach`,
-    /// regression `a-sole-hanging-low-struck-at-the-swings-speed`). Default 0.02 s, about two and a half
-    /// times the servos' lag at a swing's speed (figures: CHANGELOG, sixty-third session).
+    /// meets the floor at the swing's speed (test
+    /// `a_fast_swing_is_braked_before_its_approach`, regression
+    /// `a-sole-hanging-low-struck-at-the-swings-speed`). Default 0.02 s, about two and a
+    /// half times the servos' lag at a swing's speed (figures: CHANGELOG, sixty-third
+    /// session).
     /// 0 steps the speed down at `approach_height_m`; between 0 and one control tick
     /// (`1 / rate_hz`) it is refused: a tick's step would carry the target past the
     /// approach's top. The braking reads on the ankle's sensor as a pull of the foot's
