@@ -89,8 +89,9 @@ pub struct StabilizerParams {
     /// ground a little higher than perceived is met slowly, not at the swing's speed). It
     /// must cover how far below the plan's the sole really hangs, and the servos' lag at
     /// the descent's speed: in a body unlike its model the sole, rolled off the plan's
-    /// level, hung about 7.5 mm low at its edge and the servos lagged 3 mm more; begun 1 cm up, the approach came too late and the edge struck the
-    /// floor at the swing's speed (regression `a-sole-hanging-low-struck-at-the-swings-speed`).
+    /// level, hung about 7.5 mm low at its edge and the servos lagged 3 mm more; begun
+    /// 1 cm up, the approach came too late and the edge struck the floor at the swing's
+    /// speed (regression `a-sole-hanging-low-struck-at-the-swings-speed`).
     /// The approach's speed falls over it (see `approach_entry_speed_m_s`) to keep its time
     /// short.
     pub approach_height_m: f64,
