@@ -390,6 +390,37 @@ fn the_wrench_about_the_estimated_com_lands_the_bowed_trunks_feet() {
     assert_climbed(&r, &s, &p.checks);
 }
 
+/// The DCM feedback in single support (`[stabilizer] single_support_dcm_gain_per_s`,
+/// opt-in) holds a body on soft ankle bushes over its support sole: regression
+/// `soft-ankles-swayed-off-the-inner-edge` (a body twice as far from its model as a real
+/// HRP-4's, ankle bushes of 1000 N m/rad, its CoM 8.5 mm inside the model's) sways out over
+/// the left sole's inner edge in its first single support and falls without it, and
+/// climbs every step clean with it.
+#[test]
+fn the_dcm_feedback_holds_the_sway_of_a_soft_ankled_single_support() {
+    const CASE: &str = "scenarios/suites/regressions/soft-ankles-swayed-off-the-inner-edge.toml";
+    let s = Scenario::load(std::path::Path::new(CASE)).unwrap();
+    let mut p = ClimbParams::default();
+    let r = climb(&s, &p);
+    assert!(
+        matches!(r.stop, Some(StopReason::Fell { .. })),
+        "the sway ends in a fall without the feedback: {:?}",
+        r.stop
+    );
+    let fell = r.cycles.iter().find(|c| !c.pass).expect("a cycle fails");
+    assert!(
+        fell.execution
+            .violations
+            .iter()
+            .any(|v| matches!(v.check, Check::Margin { feet_down: [false, true], .. })),
+        "the CoM leaves the left sole's single support first: {:?}",
+        fell.execution.violations
+    );
+    p.stabilizer.single_support_dcm_gain_per_s = 1.0;
+    let r = climb(&s, &p);
+    assert_climbed(&r, &s, &p.checks);
+}
+
 /// A foot whose swing ended before it met the ground goes on down its approach, as it would
 /// have in the swing: braked above it, slowing through it, the plan waiting for it in single
 /// support no longer than that. Exp. 1 at x 2 the default timing, where the braking leaves

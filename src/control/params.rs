@@ -234,6 +234,21 @@ pub struct StabilizerParams {
     /// fails instead; not every suite is measured with it yet (CHANGELOG, sixty-fourth
     /// session).
     pub wrench_about_estimated_com: bool,
+    /// DCM feedback in single support, 1/s (0 turns it off): the support foot's damping
+    /// (`cop_admittance_rad_per_nm_s`, in double support only otherwise) moves its sole to
+    /// put the centre of pressure at `com_ref + (1 + k / omega) (xi - xi_ref)`
+    /// horizontally, `xi = c + v / omega` the divergent component of motion of the
+    /// estimated CoM (encoders leaning as the IMU says, its velocity over one tick) and
+    /// `xi_ref` the plan's, `omega = sqrt(g / h)` with `h` the reference CoM's height above
+    /// the sole (Caron et al. 2019's DCM feedback and foot damping, kept in single support
+    /// as lipm_walking_controller keeps them). It damps a sway the single support has no
+    /// other hold on: a body on soft ankle bushes whose CoM stands off the model's sways
+    /// out over the sole's inner edge and falls (`robust`'s `hrp4-like-x2` at `--seed` 3
+    /// and 7; test `the_dcm_feedback_holds_the_sway_of_a_soft_ankled_single_support`).
+    /// Opt-in (default 0): with it at 1, `robust` loses three of its 30 ms servo-latency
+    /// rows, whose delay it adds to, and not every suite is measured with it yet
+    /// (CHANGELOG, sixty-fifth session).
+    pub single_support_dcm_gain_per_s: f64,
 }
 
 /// Default `StabilizerParams::lean_washout_filter_s`, seconds: with a gain of 0.15 it holds
@@ -287,6 +302,7 @@ impl Default for StabilizerParams {
             lean_washout_time_s: 0.75,
             lean_washout_filter_s: LEAN_WASHOUT_FILTER_S,
             wrench_about_estimated_com: false,
+            single_support_dcm_gain_per_s: 0.0,
         }
     }
 }
@@ -344,6 +360,12 @@ impl StabilizerParams {
             return Err(format!(
                 "stabilizer.lean_washout_time_s must be a finite time > 0, got {}",
                 self.lean_washout_time_s
+            ));
+        }
+        let dcm_gain = self.single_support_dcm_gain_per_s;
+        if !(dcm_gain >= 0.0 && dcm_gain.is_finite()) {
+            return Err(format!(
+                "stabilizer.single_support_dcm_gain_per_s must be a finite gain >= 0 (0: off), got {dcm_gain}"
             ));
         }
         if !(self.lean_washout_filter_s >= 0.0 && self.lean_washout_filter_s.is_finite()) {

@@ -1,6 +1,7 @@
 //! The stabilizer's tick: read the sensors, estimate the CoM, distribute the wanted net
 //! wrench over the feet the plan has in contact, move each foot's reference by admittance,
-//! stop a landing foot where it meets the ground and set it down by its normal force, tilt
+//! stop a landing foot where it meets the ground and set it down by its normal force, keep
+//! the single support's centre of pressure on the DCM feedback where that is on, tilt
 //! the single support's sole with the body's sway where that is on, and solve the QP IK
 //! online toward the corrected targets. The joint angles it returns are the
 //! servos' set points.
@@ -19,6 +20,11 @@ use crate::robot::model::{base_pose, RobotModel, Q_JOINTS};
 use crate::robot::{hrp4, Kinematics};
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3, Vector6};
 use std::time::Instant;
+
+/// The least CoM height above the support sole the DCM feedback takes for its pendulum,
+/// metres: a guard against a reference at or below the sole (never met by a plan; HRP-4's
+/// CoM stands about 0.78 m above its soles).
+const MIN_PENDULUM_HEIGHT_M: f64 = 0.3;
 
 /// What one tick wanted and measured, for recording and plots.
 #[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
@@ -99,6 +105,8 @@ pub struct Stabilizer<'m> {
     /// How long each foot has carried `contact_force_n` since it touched, seconds.
     loaded_s: [f64; 2],
     com_prev: Option<Point3<f64>>,
+    /// The estimated CoM's velocity over the last tick (world), m/s.
+    com_velocity_m_s: Vector3<f64>,
     t_s: f64,
     held_s: f64,
     pressed_ticks: [usize; 2],
@@ -170,6 +178,7 @@ impl<'m> Stabilizer<'m> {
             touch_lost_s: [0.0; 2],
             loaded_s: [0.0; 2],
             com_prev: None,
+            com_velocity_m_s: Vector3::zeros(),
             t_s: 0.0,
             held_s: 0.0,
             pressed_ticks: [0; 2],
@@ -483,7 +492,14 @@ impl<'m> Stabilizer<'m> {
         let lean = self.tilt.lean(&commanded).scaled_axis();
         let mut swaying = None;
         // The point the wanted wrench is taken about: where its zero moment puts the CoP.
-        let about = if self.p.wrench_about_estimated_com { com } else { com_ref };
+        let about = match supports.as_slice() {
+            [(_, sole)] if self.p.single_support_dcm_gain_per_s > 0.0 => {
+                let v_ref = if hold { Vector3::zeros() } else { com_target(seg, tau).1 };
+                self.dcm_feedback_cop(&com, &com_ref, &v_ref, sole.translation.z)
+            }
+            _ if self.p.wrench_about_estimated_com => com,
+            _ => com_ref,
+        };
         // No distribution (the CoM outside what the feet down can hold): the offsets only
         // leak back to the plan this tick, and the record says so.
         let infeasible = match self.distributor.distribute(&contacts, &wanted_net, &about, &self.p) {
@@ -631,6 +647,7 @@ impl<'m> Stabilizer<'m> {
         let (com_ref, com_v) = com_target(&self.segments[now], tau_now);
         let com_velocity = self.com_prev.map_or(Vector3::zeros(), |c| (com - c) / dt);
         self.com_prev = Some(com);
+        self.com_velocity_m_s = com_velocity;
         let (_, v_next) = com_target(seg, tau);
         let (com_v, v_next) = if hold { (Vector3::zeros(), Vector3::zeros()) } else { (com_v, v_next) };
         let accel = (v_next - com_v) / dt;
@@ -640,6 +657,26 @@ impl<'m> Stabilizer<'m> {
                 + self.p.com_stiffness_per_s2 * (com_ref - com)
                 + self.p.com_damping_per_s * (com_v - com_velocity));
         (Vector6::new(force.x, force.y, force.z, 0.0, 0.0, 0.0), com_ref)
+    }
+
+    /// Where the DCM feedback of single support puts the centre of pressure (horizontally;
+    /// `StabilizerParams::single_support_dcm_gain_per_s`): the reference CoM `com_ref` moved
+    /// by `1 + k / omega` times the error of the divergent component of motion of the
+    /// estimated CoM `com` (its velocity over the last tick) from the reference's (its
+    /// velocity `v_ref`), `omega` from the reference's height above the support sole at
+    /// `sole_z_m`.
+    fn dcm_feedback_cop(
+        &self,
+        com: &Point3<f64>,
+        com_ref: &Point3<f64>,
+        v_ref: &Vector3<f64>,
+        sole_z_m: f64,
+    ) -> Point3<f64> {
+        let height_m = (com_ref.z - sole_z_m).max(MIN_PENDULUM_HEIGHT_M);
+        let omega = (GRAVITY_M_S2 / height_m).sqrt();
+        let dcm_error = (com - com_ref) + (self.com_velocity_m_s - v_ref) / omega;
+        let shift = (1.0 + self.p.single_support_dcm_gain_per_s / omega) * dcm_error;
+        Point3::new(com_ref.x + shift.x, com_ref.y + shift.y, com_ref.z)
     }
 
     /// The supports as contacts, each with its share of the normal force from where the CoM's
@@ -757,6 +794,11 @@ impl<'m> Stabilizer<'m> {
                     p,
                     dt,
                 ),
+                // Single support with the DCM feedback: the foot's damping puts the CoP
+                // where the feedback wants it.
+                Some(w) if !double && loaded(k) && p.single_support_dcm_gain_per_s > 0.0 => {
+                    admittance::cop_damping(&mut self.offsets[k], &measured[k], &w, p, dt)
+                }
                 _ => admittance::leak(&mut self.offsets[k], p, dt),
             }
         }
