@@ -243,11 +243,12 @@ pub struct StabilizerParams {
     /// the sole (Caron et al. 2019's DCM feedback and foot damping, kept in single support
     /// as lipm_walking_controller keeps them). It damps a sway the single support has no
     /// other hold on: a body on soft ankle bushes whose CoM stands off the model's sways
-    /// out over the sole's inner edge and falls (`robust`'s `hrp4-like-x2` at `--seed` 3
-    /// and 7; test `the_dcm_feedback_holds_the_sway_of_a_soft_ankled_single_support`).
-    /// Opt-in (default 0): with it at 1, `robust` loses three of its 30 ms servo-latency
-    /// rows, whose delay it adds to, and not every suite is measured with it yet
-    /// (CHANGELOG, sixty-fifth session).
+    /// out over the sole's inner edge and falls without it (regression
+    /// `soft-ankles-swayed-off-the-inner-edge`; test
+    /// `the_dcm_feedback_holds_the_sway_of_a_soft_ankled_single_support`). Opt-in (default
+    /// 0): a servo latency adds its delay to the feedback's, so it trades some of
+    /// `robust`'s slowest servo rows, and it lengthens the climb; the figures are in
+    /// CHANGELOG, sixty-fifth session.
     pub single_support_dcm_gain_per_s: f64,
 }
 
