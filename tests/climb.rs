@@ -393,9 +393,8 @@ fn the_wrench_about_the_estimated_com_lands_the_bowed_trunks_feet() {
 /// The DCM feedback in single support (`[stabilizer] single_support_dcm_gain_per_s`,
 /// opt-in) holds a body on soft ankle bushes over its support sole: regression
 /// `soft-ankles-swayed-off-the-inner-edge` (a body twice as far from its model as a real
-/// HRP-4's, ankle bushes of 1000 N m/rad, its CoM 8.5 mm inside the model's) sways out over
-/// the left sole's inner edge in its first single support and falls without it, and
-/// climbs every step clean with it.
+/// HRP-4's, on ankle bushes of 1000 N m/rad) sways out over the left sole's inner edge in
+/// single support and falls without it, and climbs every step clean with it.
 #[test]
 fn the_dcm_feedback_holds_the_sway_of_a_soft_ankled_single_support() {
     const CASE: &str = "scenarios/suites/regressions/soft-ankles-swayed-off-the-inner-edge.toml";
@@ -413,7 +412,7 @@ fn the_dcm_feedback_holds_the_sway_of_a_soft_ankled_single_support() {
             .violations
             .iter()
             .any(|v| matches!(v.check, Check::Margin { feet_down: [false, true], .. })),
-        "the CoM leaves the left sole's single support first: {:?}",
+        "the CoM leaves the left sole's single support: {:?}",
         fell.execution.violations
     );
     p.stabilizer.single_support_dcm_gain_per_s = 1.0;
