@@ -242,13 +242,11 @@ pub struct StabilizerParams {
     /// `xi_ref` the plan's, `omega = sqrt(g / h)` with `h` the reference CoM's height above
     /// the sole (Caron et al. 2019's DCM feedback and foot damping, kept in single support
     /// as lipm_walking_controller keeps them). It damps a sway the single support has no
-    /// other hold on: a body on soft ankle bushes whose CoM stands off the model's sways
-    /// out over the sole's inner edge and falls without it (regression
-    /// `soft-ankles-swayed-off-the-inner-edge`; test
+    /// other hold on: a body on soft ankle bushes sways out over the sole's inner edge and
+    /// falls without it (regression `soft-ankles-swayed-off-the-inner-edge`; test
     /// `the_dcm_feedback_holds_the_sway_of_a_soft_ankled_single_support`). Opt-in (default
-    /// 0): a servo latency adds its delay to the feedback's, so it trades some of
-    /// `robust`'s slowest servo rows, and it lengthens the climb; the figures are in
-    /// CHANGELOG, sixty-fifth session.
+    /// 0): it trades some of `robust`'s slowest servo-latency rows, and its landings come
+    /// later; the figures are in CHANGELOG, sixty-fifth and sixty-sixth sessions.
     pub single_support_dcm_gain_per_s: f64,
 }
 
