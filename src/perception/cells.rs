@@ -445,6 +445,38 @@ fn region_of(
     (!near.iter().any(behind)).then_some(chosen.region)
 }
 
+/// [`region_of`] where `near` is the one region's plane `n` alone: whether the point joins
+/// it (the same arithmetic, so the same answer to the last bit), `crossed` told as there.
+#[inline(always)]
+fn joins_alone(
+    q: &Vector3<f64>,
+    d: &Vector3<f64>,
+    n: &Near,
+    noise_m: f64,
+    p: &CellParams,
+    crossed: &mut impl FnMut(u32, Vector3<f64>),
+) -> bool {
+    let along = n.normal.dot(q);
+    let d_m = (along - n.offset_m).abs();
+    // Within the floor it joins whatever its noise (the tolerance is at least the floor),
+    // and lies too little below the plane for its ray to have come through it: no need of
+    // its range.
+    if d_m <= p.point_floor_m && along >= n.offset_m - p.point_floor_m {
+        return (q - n.cell_centre).norm_squared() <= n.reach2_m2;
+    }
+    let inv_range = 1.0 / d.norm();
+    let seen_sd_m = noise_m * (n.normal.dot(d) * inv_range).abs();
+    if along < n.offset_m - (SEEN_THROUGH_SIGMAS * seen_sd_m).max(p.point_floor_m) {
+        let seen_from = q - d;
+        let above_m = n.normal.dot(&seen_from) - n.offset_m;
+        if above_m > 0.0 {
+            crossed(n.region, seen_from + d * (above_m / (above_m + n.offset_m - along)));
+        }
+    }
+    d_m <= (p.point_noise_factor * seen_sd_m).max(p.point_floor_m)
+        && (q - n.cell_centre).norm_squared() <= n.reach2_m2
+}
+
 /// Whether `f`'s tilt can be judged: within [`CellParams::max_tilt_sd_rad`], and seen at
 /// [`CellParams::min_incidence_rad`] or more. Points about a line have a plane of any tilt;
 /// and a single scan line's points, scattered along their rays by the range noise, lie on
@@ -588,21 +620,45 @@ struct CellSums {
     box_m: [[f32; 2]; 2],
 }
 
-/// The sums of cell `(cr, cb)`.
-fn sums_of(g: &Grid, cr: usize, cb: usize) -> CellSums {
-    let mut m = Moments::default();
-    let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
-    // The box in the points' own coordinates, as step 4 bins them.
-    let mut box_m = [[f32::INFINITY; 2], [f32::NEG_INFINITY; 2]];
-    g.for_points(g.rows_of(cr), cb, |i, q, d| {
-        m.add_seen(&q, &d);
-        lo = lo.inf(&q);
-        hi = hi.sup(&q);
-        let w = &g.points[i as usize];
-        box_m = [[box_m[0][0].min(w.x), box_m[0][1].min(w.y)], [box_m[1][0].max(w.x), box_m[1][1].max(w.y)]];
-    });
-    let reach_m = if m.n > 0.0 { REACH_DIAGONALS * (hi - lo).norm() } else { 0.0 };
-    CellSums { moments: m, reach_m, box_m }
+/// The sums of the cells of cell row `cr`, in order: taken scan row by scan row across the
+/// whole cell row (the points in the order they lie in memory), each cell's points in the
+/// same order as cell by cell, so its sums are the same to the last bit.
+fn sums_of_row(g: &Grid, cr: usize) -> impl Iterator<Item = CellSums> {
+    #[derive(Clone, Copy)]
+    struct Acc {
+        m: Moments,
+        lo: Vector3<f64>,
+        hi: Vector3<f64>,
+        box_m: [[f32; 2]; 2],
+    }
+    let empty = Acc {
+        m: Moments::default(),
+        lo: Vector3::repeat(f64::INFINITY),
+        hi: Vector3::repeat(f64::NEG_INFINITY),
+        // The box in the points' own coordinates, as step 4 bins them.
+        box_m: [[f32::INFINITY; 2], [f32::NEG_INFINITY; 2]],
+    };
+    let mut acc = vec![empty; g.dims().1];
+    let (r0, r1) = g.rows_of(cr);
+    for r in r0..r1 {
+        for (cb, a) in acc.iter_mut().enumerate() {
+            let Acc { m, lo, hi, box_m } = a;
+            g.for_points((r, r + 1), cb, |i, q, d| {
+                m.add_seen(&q, &d);
+                *lo = lo.inf(&q);
+                *hi = hi.sup(&q);
+                let w = &g.points[i as usize];
+                *box_m = [
+                    [box_m[0][0].min(w.x), box_m[0][1].min(w.y)],
+                    [box_m[1][0].max(w.x), box_m[1][1].max(w.y)],
+                ];
+            });
+        }
+    }
+    acc.into_iter().map(|Acc { m, lo, hi, box_m }| {
+        let reach_m = if m.n > 0.0 { REACH_DIAGONALS * (hi - lo).norm() } else { 0.0 };
+        CellSums { moments: m, reach_m, box_m }
+    })
 }
 
 /// Cell `cell` (its row and column) of sums `s` judged (step 1): a level plane, a steep one,
@@ -632,8 +688,8 @@ fn judge(s: &CellSums, g: &Grid, cell: (usize, usize), l: &Limits) -> Cell {
 fn all_sums(cloud: &PointCloud, p: &CellParams) -> Option<Vec<CellSums>> {
     let offsets = row_offsets(cloud);
     let g = Grid::of(cloud, &offsets, p)?;
-    let (crs, cbs) = g.dims();
-    Some((0..crs).into_par_iter().flat_map_iter(|cr| (0..cbs).map(move |cb| sums_of(&g, cr, cb))).collect())
+    let crs = g.dims().0;
+    Some((0..crs).into_par_iter().flat_map_iter(|cr| sums_of_row(&g, cr)).collect())
 }
 
 /// Step 1's sums gathered as a sweep's rows arrive, each row of cells as soon as its last
@@ -659,10 +715,10 @@ impl Stream {
     pub fn arrived(&mut self, cloud: &PointCloud, rows: usize, p: &CellParams) {
         let offsets = row_offsets(cloud);
         let Some(g) = Grid::of(cloud, &offsets, p) else { return };
-        let (crs, cbs) = g.dims();
+        let crs = g.dims().0;
         let complete = if rows >= g.grid.rows() { crs } else { rows / p.rows };
         for cr in self.cell_rows..complete {
-            self.sums.extend((0..cbs).map(|cb| sums_of(&g, cr, cb)));
+            self.sums.extend(sums_of_row(&g, cr));
         }
         self.cell_rows = self.cell_rows.max(complete);
     }
@@ -747,6 +803,20 @@ fn regions(cloud: &PointCloud, sums: &[CellSums], start: Instant, s: &Setting) -
                 for cb in 0..cbs {
                     if !near_planes(&cells, &label, &planes, (crs, cbs), (cr, cb), &mut near) {
                         continue;
+                    }
+                    // A cell beside no plane but its own region's (most of a tread's):
+                    // `region_of` for that one plane alone.
+                    if let [own] = near.as_slice() {
+                        if own.region != NONE {
+                            g.for_points(g.rows_of(cr), cb, |i, q, d| {
+                                let mut crossed =
+                                    |id: u32, at: Vector3<f64>| tables.cross(&mut out, id, &(at + origin));
+                                if joins_alone(&q, &d, own, noise_m, p, &mut crossed) {
+                                    tables.add(&mut out, own.region, i, &points[i as usize]);
+                                }
+                            });
+                            continue;
+                        }
                     }
                     g.for_points(g.rows_of(cr), cb, |i, q, d| {
                         let mut crossed =
@@ -1549,6 +1619,107 @@ mod tests {
         }
         println!("the wall's normal off by {rows_deg:.2} deg on the rows' rays, {viewpoint_deg:.2} on the viewpoint's");
         assert!(rows_deg < viewpoint_deg, "{rows_deg} / {viewpoint_deg} deg");
+    }
+
+    /// A cell row's sums are taken scan row by scan row across the cells (the order the
+    /// points lie in memory); each cell's must be what its own points give taken cell by
+    /// cell, to the bit: a sweep with missing and non-finite returns, partial cells at its
+    /// edges, and its rows seen from a moving head.
+    #[test]
+    fn a_cell_rows_sums_are_each_cells_own_to_the_bit() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let uniform = Normal::new(0.0, 1.0).unwrap();
+        let (rows, beams) = (21, 29);
+        let mut points = Vec::new();
+        let mut cells = Vec::new();
+        for r in 0..rows {
+            for b in 0..beams {
+                if (r * beams + b) % 13 == 0 {
+                    cells.push(ScanGrid::EMPTY);
+                    continue;
+                }
+                cells.push(points.len() as u32);
+                let q = Point3::new(
+                    (1.0 + 0.01 * b as f64 + 0.01 * uniform.sample(&mut rng)) as f32,
+                    (0.02 * r as f64 - 0.3) as f32,
+                    (-0.8 + 0.004 * uniform.sample(&mut rng)) as f32,
+                );
+                points.push(if (r * beams + b) % 17 == 0 { Point3::new(f32::NAN, 0.0, 0.0) } else { q });
+            }
+        }
+        let origins = (0..rows).map(|r| Point3::new(0.003 * r as f64, 0.0, 0.6 + 0.001 * r as f64)).collect();
+        let grid = ScanGrid::new(rows, beams, cells).unwrap().with_row_origins(origins).unwrap();
+        let cloud = PointCloud::new(points, Point3::new(0.03, 0.0, 0.61), -Vector3::z_axis(), Some(grid));
+        let p = CellParams::default();
+        let offsets = row_offsets(&cloud);
+        let g = Grid::of(&cloud, &offsets, &p).unwrap();
+        let (crs, cbs) = g.dims();
+        assert!(crs * p.rows > rows && cbs * p.beams > beams, "partial cells at the edges");
+        for cr in 0..crs {
+            let by_rows: Vec<CellSums> = sums_of_row(&g, cr).collect();
+            assert_eq!(by_rows.len(), cbs);
+            for (cb, got) in by_rows.iter().enumerate() {
+                let mut m = Moments::default();
+                let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
+                let mut box_m = [[f32::INFINITY; 2], [f32::NEG_INFINITY; 2]];
+                g.for_points(g.rows_of(cr), cb, |i, q, d| {
+                    m.add_seen(&q, &d);
+                    lo = lo.inf(&q);
+                    hi = hi.sup(&q);
+                    let w = &g.points[i as usize];
+                    box_m = [
+                        [box_m[0][0].min(w.x), box_m[0][1].min(w.y)],
+                        [box_m[1][0].max(w.x), box_m[1][1].max(w.y)],
+                    ];
+                });
+                let reach_m = if m.n > 0.0 { REACH_DIAGONALS * (hi - lo).norm() } else { 0.0 };
+                let own = CellSums { moments: m, reach_m, box_m };
+                // Debug prints each float's shortest exact form: equal text, equal bits.
+                assert_eq!(format!("{got:?}"), format!("{own:?}"), "cell ({cr}, {cb})");
+            }
+        }
+    }
+
+    /// Step 3's shortcut for a cell beside its own region's plane alone must answer as
+    /// `region_of` does, and tell the same places crossed: points about tilted planes, in
+    /// and past the floor and the noise's tolerance, above and below, seen from a moving
+    /// head, the cell's reach infinite (its own) or not.
+    #[test]
+    fn a_point_beside_its_regions_plane_alone_joins_as_region_of_says() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let unit = Normal::new(0.0, 1.0).unwrap();
+        let p = CellParams::default();
+        let (mut joined, mut crossed_any) = (0, 0);
+        for k in 0..20000 {
+            let mut draw = || unit.sample(&mut rng);
+            let normal = Vector3::new(0.1 * draw(), 0.1 * draw(), 1.0).normalize();
+            let centre = Vector3::new(1.0 + 0.3 * draw(), 0.3 * draw(), -0.8 + 0.1 * draw());
+            let plane = Plane { centre, normal, rms_m: 0.003, tilt_sd_rad: 0.01 };
+            let reach2_m2 = if k % 3 == 0 { 0.04 + 0.02 * draw() } else { f64::INFINITY };
+            let near =
+                Near { normal, offset_m: normal.dot(&centre), region: 0, cell_centre: centre, reach2_m2 };
+            let q = centre + Vector3::new(0.1 * draw(), 0.1 * draw(), 0.0) + normal * (0.015 * draw());
+            let seen_from = Vector3::new(0.02 * draw(), 0.0, 0.0);
+            let d = if k % 2 == 0 { q } else { q - seen_from };
+            let noise_m = 0.003 + 0.02 * draw().abs();
+            let (mut a, mut b) = (Vec::new(), Vec::new());
+            let by_region_of = region_of(&q, &d, &[near], &[plane], noise_m, &p, &mut |id, at| {
+                a.push((id, format!("{at:?}")))
+            });
+            let near =
+                Near { normal, offset_m: normal.dot(&centre), region: 0, cell_centre: centre, reach2_m2 };
+            let alone =
+                joins_alone(&q, &d, &near, noise_m, &p, &mut |id, at| b.push((id, format!("{at:?}"))));
+            assert_eq!(by_region_of == Some(0), alone, "draw {k}");
+            assert_eq!(a, b, "draw {k}");
+            joined += usize::from(alone);
+            crossed_any += usize::from(!a.is_empty());
+        }
+        // Both answers and the crossing were drawn.
+        assert!(
+            joined > 2000 && joined < 18000 && crossed_any > 100,
+            "{joined} joined, {crossed_any} crossed"
+        );
     }
 
     fn tilt_deg(f: &Plane) -> f64 {
