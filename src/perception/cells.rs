@@ -1628,7 +1628,7 @@ mod tests {
     #[test]
     fn a_cell_rows_sums_are_each_cells_own_to_the_bit() {
         let mut rng = ChaCha8Rng::seed_from_u64(11);
-        let uniform = Normal::new(0.0, 1.0).unwrap();
+        let unit = Normal::new(0.0, 1.0).unwrap();
         let (rows, beams) = (21, 29);
         let mut points = Vec::new();
         let mut cells = Vec::new();
@@ -1640,9 +1640,9 @@ mod tests {
                 }
                 cells.push(points.len() as u32);
                 let q = Point3::new(
-                    (1.0 + 0.01 * b as f64 + 0.01 * uniform.sample(&mut rng)) as f32,
+                    (1.0 + 0.01 * b as f64 + 0.01 * unit.sample(&mut rng)) as f32,
                     (0.02 * r as f64 - 0.3) as f32,
-                    (-0.8 + 0.004 * uniform.sample(&mut rng)) as f32,
+                    (-0.8 + 0.004 * unit.sample(&mut rng)) as f32,
                 );
                 points.push(if (r * beams + b) % 17 == 0 { Point3::new(f32::NAN, 0.0, 0.0) } else { q });
             }
